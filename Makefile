@@ -1,0 +1,51 @@
+# Guaranteed state estimator benchmark harness.  `make help` lists the targets.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+CONFIGS_ALL   := $(wildcard benchmarks/configs/*.yaml)
+CONFIGS_QUICK := benchmarks/configs/quick.yaml
+RESULTS ?= results
+
+.DEFAULT_GOAL := help
+.PHONY: help install test lint bench bench-quick report clean
+
+help:  ## list the targets
+	@echo "setobs-bench: guaranteed state estimator benchmark harness"
+	@echo
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | awk -F'\t' '{printf "  make %-12s %s\n", $$1, $$2}'
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+install: $(STAMP)  ## create .venv and install the project with its test extras
+
+test: $(STAMP)  ## run ruff and the test suite (what CI runs)
+	$(VENV)/bin/ruff check observers systems benchmarks tests
+	$(PY) -m pytest
+
+lint: $(STAMP)  ## ruff only
+	$(VENV)/bin/ruff check observers systems benchmarks tests
+
+bench: $(STAMP)  ## run every benchmark config into results/<config>/ and write the reports
+	@for cfg in $(CONFIGS_ALL); do \
+		name=$$(basename $$cfg .yaml); \
+		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
+		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
+	done
+
+bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
+	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
+	$(PY) -m benchmarks report $(RESULTS)/quick
+
+report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
+	@for dir in $(RESULTS)/*/; do \
+		[ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
+	done
+
+clean:  ## remove caches (keeps .venv and results)
+	rm -rf .pytest_cache .ruff_cache build *.egg-info

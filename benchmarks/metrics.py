@@ -1,0 +1,38 @@
+"""Accuracy and timing metrics of the papers.
+
+Eq. (9) of Althoff & Rath (2021): ``r~_{i,l} = sqrt(1/N sum_k r_{i,k,l}^2)`` over all N stored
+sets (including the first), and ``v_{i,l} = r~_{i,l} / min_l r~_{i,l}``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+
+def rms_radius(radius: np.ndarray) -> np.ndarray:
+    """RMS over time of the interval radius, per state (``radius`` is N x n)."""
+    return np.sqrt(np.mean(np.asarray(radius, float) ** 2, axis=0))
+
+
+def warmup_steps(N: int) -> int:
+    """Steps excluded from timing statistics (cache and allocator warm-up)."""
+    return min(5, N // 10)
+
+
+def median_ms(times: np.ndarray) -> float:
+    """Median of per-step times in milliseconds, after the warm-up steps (NaN if none)."""
+    t = np.asarray(times, float)
+    t = t[warmup_steps(t.size):]
+    t = t[np.isfinite(t)]
+    return float(np.median(t) * 1e3) if t.size else float("nan")
+
+
+def add_relative_rms(summary: pd.DataFrame) -> pd.DataFrame:
+    """Add ``rel_rms`` (eq. 9): each state's RMS radius divided by the smallest one among the
+    successful guaranteed observers of the same scenario."""
+    ok = (summary["status"] == "ok") & summary["guaranteed"].astype(bool)
+    best = summary[ok].groupby(["scenario", "state"])["rms_radius"].min().rename("_best")
+    out = summary.join(best, on=["scenario", "state"])
+    out["rel_rms"] = np.where(out["status"] == "ok", out["rms_radius"] / out["_best"], np.nan)
+    return out.drop(columns="_best")

@@ -1,0 +1,184 @@
+"""Markdown tables in the papers' layout (our value beside the published one) and figures of
+the bounds over time with the true state."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from observers.registry import CANONICAL_ORDER  # noqa: E402
+
+from .errors import ConfigError  # noqa: E402
+from .io import atomic_savefig, atomic_write_text  # noqa: E402
+from .paper import paper_rows, paper_status  # noqa: E402
+
+MAX_FIGURE_STATES = 6
+
+
+def _fmt(x, digits: int = 4) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    x = float(x)
+    if x == 0:
+        return "0"
+    if abs(x) >= 1e4 or abs(x) < 1e-3:
+        return f"{x:.{digits - 1}e}"
+    return f"{x:.{digits}g}"
+
+
+def _pair(ours, paper) -> str:
+    return _fmt(ours) if paper is None else f"{_fmt(ours)} ({_fmt(paper)})"
+
+
+def _order(names) -> list[str]:
+    def key(n):
+        return (CANONICAL_ORDER.index(n), n) if n in CANONICAL_ORDER else (99, n.lower())
+    return sorted(names, key=key)
+
+
+def _status_cell(g: pd.DataFrame) -> str:
+    status = g["status"].iloc[0]
+    if status == "ok":
+        viol = g["violations"].iloc[0]
+        if pd.isna(viol):
+            return "ok"
+        return "ok" if int(viol) == 0 else f"**{int(viol)} violations**"
+    step = g["failed_step"].iloc[0]
+    return f"{status}" + (f" (step {int(step)})" if pd.notna(step) else "")
+
+
+def scenario_table(df: pd.DataFrame, meta: dict) -> str:
+    """Markdown table of one scenario: relative RMS per state (paper value in parentheses),
+    average, per-step time, design time and containment."""
+    sc = df["scenario"].iloc[0]
+    info = meta.get("scenarios", {}).get(sc, {})
+    n = int(df["state"].max()) + 1
+    key = info.get("paper_table")
+    variant = "nonlinear" if "nonlinear" in sc else "linear"
+    paper = paper_rows(key, n, variant)
+    names = info.get("state_names") or [f"x{i + 1}" for i in range(n)]
+    show = list(range(n)) if n <= 8 else []
+    head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
+            "design s", "contained"])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for obs in _order(df["observer"].unique()):
+        g = df[df["observer"] == obs].sort_values("state")
+        p = paper.get(obs)
+        rel = g["rel_rms"].to_numpy(float)
+        cells = [obs]
+        for i in show:
+            cells.append(_pair(rel[i], p.v[i] if p and p.v else None))
+        avg = float(np.mean(rel)) if g["status"].iloc[0] == "ok" else float("nan")
+        pstat = paper_status(key, n, obs, variant)
+        cells.append(_pair(avg, p.avg if p else None) if not pstat else f"{_fmt(avg)} ({pstat})")
+        cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
+        cells += [_fmt(g["hull_ms"].iloc[0]), _fmt(g["design_s"].iloc[0]), _status_cell(g)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def absolute_table(df: pd.DataFrame, meta: dict) -> str:
+    """Absolute RMS radii (paper: relative value times its smallest absolute radius)."""
+    sc = df["scenario"].iloc[0]
+    info = meta.get("scenarios", {}).get(sc, {})
+    n = int(df["state"].max()) + 1
+    if n > 8:
+        return ""
+    paper = paper_rows(info.get("paper_table"), n)
+    head = ["Observer"] + [f"r{i + 1}" for i in range(n)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for obs in _order(df["observer"].unique()):
+        g = df[df["observer"] == obs].sort_values("state")
+        p = paper.get(obs)
+        r = g["rms_radius"].to_numpy(float)
+        lines.append("| " + " | ".join(
+            [obs] + [_pair(r[i], p.absolute[i] if p and p.absolute else None) for i in range(n)]
+        ) + " |")
+    return "\n".join(lines)
+
+
+def bounds_figure(runs: pd.DataFrame, scenario: str, observer: str, meta: dict, path: Path):
+    """Interval bounds over time with the true state, one panel per state (first six)."""
+    g = runs[(runs["scenario"] == scenario) & (runs["observer"] == observer)]
+    if g.empty or not np.isfinite(g["lo"]).any():
+        return None
+    n = int(g["state"].max()) + 1
+    names = meta.get("scenarios", {}).get(scenario, {}).get("state_names") or []
+    k = min(n, MAX_FIGURE_STATES)
+    fig, axes = plt.subplots(k, 1, figsize=(7, 1.6 * k + 0.6), sharex=True, squeeze=False)
+    for i, ax in enumerate(axes[:, 0]):
+        s = g[g["state"] == i]
+        ax.fill_between(s["t"], s["lo"], s["hi"], color="tab:blue", alpha=0.3, lw=0,
+                        label="estimated interval")
+        if np.isfinite(s["x_true"]).any():
+            ax.plot(s["t"], s["x_true"], color="k", lw=0.8, label="true state")
+            bad = s[s["contained"] == 0]
+            if len(bad):
+                ax.plot(bad["t"], bad["x_true"], "rx", ms=4, label="outside")
+        ax.set_ylabel(names[i] if i < len(names) else f"x{i + 1}", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0, 0].set_title(f"{observer} on {scenario}", fontsize=9)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("t [s]", fontsize=8)
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def write_report(results_dir: str | Path, out: str | Path | None = None,
+                 figures: bool = True) -> Path:
+    """Write the Markdown report (and figures) for a results folder; returns its path."""
+    results_dir = Path(results_dir)
+    summary_path = results_dir / "summary.csv"
+    if not summary_path.is_file():
+        raise ConfigError(f"no summary.csv in {results_dir} (run `python -m benchmarks run` first)")
+    summary = pd.read_csv(summary_path)
+    meta_path = results_dir / "meta.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+    out = Path(out) if out else results_dir / "report.md"
+    fig_dir = out.parent / (out.stem + "_figures")
+    title = meta.get("config", {}).get("title", results_dir.name)
+    parts = [f"# {title}", "",
+             "Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state; the "
+             "published value is in parentheses where a paper table exists. Times are medians "
+             "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: the "
+             "true state lies in every estimated set (exact membership test).", ""]
+    runs = None
+    if figures and (results_dir / "runs.csv").is_file():
+        runs = pd.read_csv(results_dir / "runs.csv")
+    for sc, df in summary.groupby("scenario", sort=False):
+        info = meta.get("scenarios", {}).get(sc, {})
+        parts += [f"## {sc}", "", info.get("description", ""), "", scenario_table(df, meta), ""]
+        abs_table = absolute_table(df, meta)
+        if abs_table:
+            parts += ["Absolute RMS radii (published: relative value x smallest radius):", "",
+                      abs_table, ""]
+        failures = df[df["status"] != "ok"].drop_duplicates("observer")
+        for _, row in failures.iterrows():
+            parts.append(f"- {row['observer']}: {row['status']}: {row['message']}")
+        if len(failures):
+            parts.append("")
+        if runs is not None:
+            links = []
+            for obs in _order(df["observer"].unique()):
+                p = bounds_figure(runs, sc, obs, meta, fig_dir / sc / f"{obs}.png")
+                if p is not None:
+                    links.append(f"[{obs}]({p.relative_to(out.parent).as_posix()})")
+            if links:
+                parts += ["Figures (bounds over time with the true state): " + ", ".join(links),
+                          ""]
+    versions = meta.get("versions", {})
+    if versions:
+        parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
+            f"{k} {v}" for k, v in versions.items()), ""]
+    atomic_write_text(out, "\n".join(parts))
+    return out

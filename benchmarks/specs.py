@@ -1,0 +1,208 @@
+"""Inline system and scenario definitions in benchmark configs.
+
+A config scenario is either a registered name (``vehicle6d-cora``), a mapping with a name and
+keyword arguments (``{name: tank6-linear, seed: 3}``), or an inline definition::
+
+    - name: my-plant
+      system:
+        A: [[1.0, 0.1], [0.0, 1.0]]
+        B: [[0.0], [0.1]]
+        C: [[1.0, 0.0]]
+        W: {box: [0.01, 0.01]}                       # or {center: .., generators: ..}
+        V: {box: [0.1]}                              # or {lo: .., hi: ..}
+        X0: {center: [0, 0], generators: [[1, 0], [0, 1]]}
+        dt: 0.1
+      u: {file: u.csv}                               # N x nu rows (or a nested list)
+      y: [[0.1], [0.2], ...]                         # N x ny, or `simulate:` instead
+      simulate: {steps: 200, seed: 0, noise: uniform}
+      options: {order: 50, reduction: girard}
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from observers.sets import Interval, SetError, Zonotope
+from systems import LinearSystem, ModelError, Scenario, scenario, simulate
+
+from .errors import ConfigError
+
+NAMED_KWARGS = {"seed", "noise", "steps"}
+INLINE_KEYS = {"name", "system", "u", "y", "x_true", "simulate", "options", "tolerance",
+               "description"}
+SYSTEM_KEYS = {"A", "B", "C", "W", "V", "X0", "dt"}
+
+
+def _array(value: Any, what: str, base: Path | None, ndim: int = 2) -> np.ndarray:
+    if isinstance(value, dict):
+        if set(value) != {"file"}:
+            raise ConfigError(
+                f"{what}: expected a list or {{file: path}}, got keys {sorted(value)}")
+        path = Path(value["file"])
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        try:
+            a = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
+        except OSError:
+            raise ConfigError(f"{what}: cannot read file {path}") from None
+        except ValueError as exc:
+            raise ConfigError(f"{what}: file {path} is not numeric CSV ({exc})") from None
+    else:
+        try:
+            a = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{what} must be a numeric array") from None
+    if a.ndim == 1 and ndim == 2:
+        a = a.reshape(-1, 1)
+    if a.ndim != ndim:
+        raise ConfigError(f"{what} must be a {ndim}-D array, got shape {a.shape}")
+    return a
+
+
+def parse_set(spec: Any, what: str, dim: int) -> Zonotope:
+    """A set from ``{box: r, center: c}``, ``{center, generators}`` or ``{lo, hi}``."""
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{what} must be a mapping like {{box: [...]}}, got {spec!r}")
+    keys = set(spec)
+    try:
+        if "box" in keys and keys <= {"box", "center"}:
+            r = np.atleast_1d(np.array(spec["box"], dtype=float))
+            if r.size == 0:
+                raise ConfigError(f"{what}: the box is empty (no radii given)")
+            if np.any(r < 0):
+                raise ConfigError(f"{what}: box radii must be non-negative")
+            if r.size != dim:
+                raise ConfigError(f"{what}: box has {r.size} radii, expected {dim}")
+            return Zonotope.box(r, spec.get("center"))
+        if keys == {"center", "generators"} or keys == {"generators"}:
+            c = np.zeros(dim) if "center" not in spec else spec["center"]
+            G = np.array(spec["generators"], dtype=float)
+            if G.size == 0:
+                raise ConfigError(f"{what}: the generator matrix is empty")
+            Z = Zonotope(c, G.reshape(dim, -1) if G.ndim == 1 else G)
+            if Z.dim != dim:
+                raise ConfigError(f"{what}: dimension {Z.dim}, expected {dim}")
+            return Z
+        if keys == {"lo", "hi"}:
+            Z = Zonotope.from_interval(Interval(spec["lo"], spec["hi"]))
+            if Z.dim != dim:
+                raise ConfigError(f"{what}: dimension {Z.dim}, expected {dim}")
+            return Z
+    except (SetError, TypeError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"{what}: {exc}") from None
+    raise ConfigError(f"{what}: expected keys box[/center], center/generators or lo/hi, got "
+                      f"{sorted(keys)}")
+
+
+def parse_system(spec: Any, where: str) -> LinearSystem:
+    """A :class:`~systems.LinearSystem` from an inline mapping."""
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{where}: 'system' must be a mapping")
+    unknown = set(spec) - SYSTEM_KEYS
+    missing = {"A", "C", "W", "V", "X0"} - set(spec)
+    if unknown:
+        raise ConfigError(f"{where}: unknown system key(s) {sorted(unknown)}")
+    if missing:
+        raise ConfigError(f"{where}: system is missing {sorted(missing)}")
+    A = _array(spec["A"], f"{where}: A", None)
+    n = A.shape[0]
+    C = _array(spec["C"], f"{where}: C", None)
+    if C.shape[1] != n and C.shape[0] == n and C.shape[1] == 1:
+        C = C.T
+    B = _array(spec["B"], f"{where}: B", None) if "B" in spec else np.zeros((n, 0))
+    try:
+        return LinearSystem(
+            A, B, C,
+            W=parse_set(spec["W"], f"{where}: W", n),
+            V=parse_set(spec["V"], f"{where}: V", C.shape[0] if C.ndim == 2 else 1),
+            X0=parse_set(spec["X0"], f"{where}: X0", n),
+            dt=float(spec.get("dt", 1.0)),
+            name=where,
+        )
+    except ModelError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def _check_record(a: np.ndarray, what: str, cols: int, rows: int | None = None) -> np.ndarray:
+    if a.shape[1] != cols and a.shape[0] == cols:
+        a = a.T
+    if a.shape[1] != cols:
+        raise ConfigError(f"{what} has shape {a.shape}, expected (N, {cols})")
+    if rows is not None and a.shape[0] not in (rows, rows - 1):
+        raise ConfigError(f"{what} has {a.shape[0]} rows, expected {rows}")
+    bad = np.argwhere(~np.isfinite(a))
+    if bad.size:
+        k, j = bad[0]
+        raise ConfigError(f"{what}[{k}, {j}] is not finite ({a[k, j]})")
+    return a
+
+
+def build_inline(spec: dict, base: Path | None) -> Scenario:
+    """A scenario from an inline definition (see the module docstring)."""
+    name = str(spec["name"])
+    where = f"scenario '{name}'"
+    unknown = set(spec) - INLINE_KEYS
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} (allowed: "
+                          f"{', '.join(sorted(INLINE_KEYS))})")
+    system = parse_system(spec["system"], where)
+    sim = spec.get("simulate")
+    if ("y" in spec) == (sim is not None):
+        raise ConfigError(f"{where}: give exactly one of 'y' (measurements) or 'simulate'")
+    if sim is not None:
+        if not isinstance(sim, dict) or not set(sim) <= {"steps", "seed", "noise"}:
+            raise ConfigError(f"{where}: 'simulate' takes steps, seed and noise")
+        steps = int(sim.get("steps", 100))
+        u = (np.zeros((steps, system.nu)) if "u" not in spec
+             else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u", system.nu))
+        try:
+            run = simulate(system, u, steps=steps, seed=sim.get("seed", 0),
+                           noise=sim.get("noise", "uniform"))
+        except ModelError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        u, y, x_true = run.u, run.y, run.x_true
+    else:
+        y = _check_record(_array(spec["y"], f"{where}: y", base), f"{where}: y", system.ny)
+        N = y.shape[0]
+        u = (np.zeros((N, system.nu)) if "u" not in spec
+             else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u",
+                                system.nu, N))
+        x_true = None
+        if "x_true" in spec:
+            x_true = _check_record(_array(spec["x_true"], f"{where}: x_true", base),
+                                   f"{where}: x_true", system.n)
+            if x_true.shape[0] != N:
+                raise ConfigError(f"{where}: x_true has {x_true.shape[0]} rows, y has {N}")
+    options = spec.get("options", {})
+    if not isinstance(options, dict):
+        raise ConfigError(f"{where}: 'options' must be a mapping")
+    return Scenario(
+        name=name, system=system, u=u, y=y, x_true=x_true, options=dict(options),
+        description=str(spec.get("description", "inline scenario")), source="config",
+        tolerance=float(spec.get("tolerance", 1e-9)),
+        state_names=tuple(f"x{i + 1}" for i in range(system.n)),
+    )
+
+
+def build_scenario(spec: Any, base: Path | None) -> Scenario:
+    """Build a config scenario entry (name, name with kwargs, or inline definition)."""
+    if isinstance(spec, str):
+        spec = {"name": spec}
+    if not isinstance(spec, dict) or "name" not in spec:
+        raise ConfigError(f"a scenario must be a name or a mapping with 'name', got {spec!r}")
+    if "system" in spec:
+        return build_inline(spec, base)
+    kwargs = {k: v for k, v in spec.items() if k != "name"}
+    unknown = set(kwargs) - NAMED_KWARGS
+    if unknown:
+        raise ConfigError(f"scenario '{spec['name']}': unknown key(s) {sorted(unknown)} "
+                          f"(a named scenario takes {', '.join(sorted(NAMED_KWARGS))})")
+    try:
+        return scenario(str(spec["name"]), **kwargs)
+    except ModelError as exc:
+        raise ConfigError(str(exc)) from None

@@ -1,0 +1,215 @@
+"""The observer interface (offline ``design`` in the constructor, then ``step`` per time step)
+and :func:`run`, the loop that drives an observer over a measurement record.
+
+Time-index convention (CORA's, and the papers'): ``y[k] = C x_k + v_k`` and
+``x_{k+1} = A x_k + B u[k] + w_k``.  The k-th call ``step(u_prev, y)`` receives
+``u_prev = u[k-1]`` (``None`` for k = 0) and ``y = y[k]`` and returns a set that contains
+``x_k``.  The first estimate is ``X0`` intersected with ``y[0]`` for strip-based observers and
+``X0`` itself for propagation and interval observers.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from time import perf_counter
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .errors import Diverged, MeasurementError, ObserverError, OptionError
+from .registry import ObserverInfo
+
+
+class Observer(ABC):
+    """Base class of every observer plugin.
+
+    Subclasses declare their options with defaults in ``OPTIONS`` (merged along the class
+    hierarchy), do their offline work in :meth:`design` (timed into ``design_time``), keep
+    their online state in :meth:`reset` and implement :meth:`step`.
+    """
+
+    name: ClassVar[str] = ""
+    info: ClassVar[ObserverInfo | None] = None
+    #: accepted options and their defaults
+    OPTIONS: ClassVar[dict[str, Any]] = {}
+    #: system attributes this observer reads (data-driven observers do not read A and B)
+    REQUIRES: ClassVar[tuple[str, ...]] = ("A", "B", "C", "W", "V", "X0")
+
+    def __init__(self, system: Any, **options: Any):
+        missing = [a for a in self.REQUIRES if not hasattr(system, a)]
+        if missing:
+            raise ObserverError(
+                f"{self.name or type(self).__name__} needs a system with attributes "
+                f"{', '.join(self.REQUIRES)}; missing: {', '.join(missing)}"
+            )
+        self.system = system
+        self.options = self._resolve_options(options)
+        self.validate_options()
+        t0 = perf_counter()
+        self.design()
+        self.design_time = perf_counter() - t0
+        self.reset()
+
+    # -- options ------------------------------------------------------------------------------
+    @classmethod
+    def option_defaults(cls) -> dict[str, Any]:
+        """All accepted options with their defaults."""
+        out: dict[str, Any] = {}
+        for klass in reversed(cls.__mro__):
+            out.update(getattr(klass, "OPTIONS", {}))
+        return out
+
+    def _resolve_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        defaults = self.option_defaults()
+        unknown = sorted(set(options) - set(defaults))
+        if unknown:
+            accepted = ", ".join(sorted(defaults)) or "none"
+            raise OptionError(
+                f"{self.name}: unknown option(s) {', '.join(unknown)} (accepted: {accepted})"
+            )
+        return {**defaults, **options}
+
+    def validate_options(self) -> None:  # noqa: B027 - optional hook
+        """Hook: raise :class:`OptionError` for invalid option values."""
+
+    # -- lifecycle -------------------------------------------------------------------------------
+    def design(self) -> None:  # noqa: B027 - optional hook
+        """Offline design (gains, LMIs); runs once in the constructor."""
+
+    def reset(self) -> None:
+        """Forget the online state so that the next ``step`` is the first one.
+
+        ``self.k`` counts the steps taken (subclasses increment it at the end of ``step``); it
+        is used in error messages.
+        """
+        self.k = 0
+
+    @abstractmethod
+    def step(self, u_prev: np.ndarray | None, y: np.ndarray):
+        """Consume ``u[k-1]`` and ``y[k]`` and return a set containing ``x_k``."""
+
+    # -- input checks used by subclasses -------------------------------------------------------
+    def _measurement(self, y) -> np.ndarray:
+        y = np.asarray(y, dtype=float).reshape(-1)
+        ny = self.system.C.shape[0]
+        if y.shape[0] != ny:
+            raise MeasurementError(
+                f"{self.name}: measurement has {y.shape[0]} entries, expected {ny}")
+        if not np.all(np.isfinite(y)):
+            raise MeasurementError(f"{self.name}: non-finite measurement at step {self.k}")
+        return y
+
+    def _input(self, u) -> np.ndarray:
+        nu = self.system.nu
+        if u is None:
+            return np.zeros(nu)
+        u = np.asarray(u, dtype=float).reshape(-1)
+        if u.shape[0] != nu:
+            raise MeasurementError(f"{self.name}: input has {u.shape[0]} entries, expected {nu}")
+        if not np.all(np.isfinite(u)):
+            raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
+        return u
+
+
+@dataclass
+class RunResult:
+    """Interval hulls, sets and timings of one observer over one record."""
+
+    observer: str
+    lo: np.ndarray
+    hi: np.ndarray
+    sets: list = field(repr=False)
+    step_times: np.ndarray = field(repr=False)
+    hull_times: np.ndarray = field(repr=False)
+    design_time: float = 0.0
+    status: str = "ok"
+    message: str = ""
+    failed_step: int | None = None
+
+    @property
+    def radius(self) -> np.ndarray:
+        """Interval radii (N x n)."""
+        return 0.5 * (self.hi - self.lo)
+
+    @property
+    def center(self) -> np.ndarray:
+        """Interval centres (N x n)."""
+        return 0.5 * (self.hi + self.lo)
+
+
+def as_record(u, y, nu: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """Validate an input/measurement record: ``y`` is N x ny, ``u`` is N x nu (or N-1 x nu)."""
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 1 and ny == 1:
+        y = y.reshape(-1, 1)
+    if y.ndim != 2 or y.shape[1] != ny:
+        raise MeasurementError(f"measurements y must have shape (N, {ny}), got {y.shape}")
+    bad = np.argwhere(~np.isfinite(y))
+    if bad.size:
+        k, j = bad[0]
+        raise MeasurementError(f"measurement y[{k}, {j}] is not finite ({y[k, j]})")
+    N = y.shape[0]
+    if u is None:
+        u = np.zeros((N, nu))
+    u = np.asarray(u, dtype=float)
+    if u.ndim == 1 and nu == 1:
+        u = u.reshape(-1, 1)
+    if u.ndim != 2 or u.shape[1] != nu or u.shape[0] not in (N, N - 1):
+        raise MeasurementError(f"inputs u must have shape ({N}, {nu}), got {u.shape}")
+    bad = np.argwhere(~np.isfinite(u))
+    if bad.size:
+        k, j = bad[0]
+        raise MeasurementError(f"input u[{k}, {j}] is not finite ({u[k, j]})")
+    return u, y
+
+
+def run(
+    obs: Observer,
+    u,
+    y,
+    *,
+    keep_sets: bool = True,
+    divergence_bound: float = 1e12,
+) -> RunResult:
+    """Drive ``obs`` over the record and collect interval hulls and timings.
+
+    ``step()`` and the interval hull are timed separately (``step_times``, ``hull_times``).
+    A :class:`~observers.errors.Diverged` raised by the observer, a non-finite hull or a hull
+    beyond ``divergence_bound`` ends the run with status ``"diverged"``; the remaining rows
+    are NaN.
+    """
+    system = obs.system
+    n = system.C.shape[1]
+    u, y = as_record(u, y, system.nu, system.C.shape[0])
+    N = y.shape[0]
+    lo = np.full((N, n), np.nan)
+    hi = np.full((N, n), np.nan)
+    step_times = np.full(N, np.nan)
+    hull_times = np.full(N, np.nan)
+    sets: list = []
+    obs.reset()
+    result = RunResult(obs.name, lo, hi, sets, step_times, hull_times, obs.design_time)
+    for k in range(N):
+        u_prev = u[k - 1] if k > 0 else None
+        try:
+            t0 = perf_counter()
+            S = obs.step(u_prev, y[k])
+            t1 = perf_counter()
+            I = S.interval()
+            t2 = perf_counter()
+        except Diverged as exc:
+            result.status, result.message = "diverged", str(exc)
+            result.failed_step = k if exc.step is None else exc.step
+            break
+        step_times[k], hull_times[k] = t1 - t0, t2 - t1
+        if not (np.all(np.isfinite(I.lo)) and np.all(np.isfinite(I.hi))) or (
+            max(np.abs(I.lo).max(), np.abs(I.hi).max()) > divergence_bound
+        ):
+            result.status, result.failed_step = "diverged", k
+            result.message = f"step {k}: interval hull left +-{divergence_bound:g}"
+            break
+        lo[k], hi[k] = I.lo, I.hi
+        if keep_sets:
+            sets.append(S)
+    return result

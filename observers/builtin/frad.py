@@ -1,0 +1,62 @@
+"""F-radius observers: FRad-A, FRad-B (strip-based) and FRad-C (set propagation)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import OptionError
+from ..families import AllStripsObserver, PerStripObserver, PropagationObserver
+from ..registry import register
+from ..strip import alamo_frad_gain, combastel_gain, wang_frad_gain
+
+
+@register(
+    "FRad-A", family="strip", set_type="zonotope", ready_for_control=False,
+    reference="Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6",
+)
+class FRadA(PerStripObserver):
+    """Strip by strip with the closed-form F-radius gain of Alamo et al. (online)."""
+
+    def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
+        return alamo_frad_gain(G, self.C[i], self.sigma[i])
+
+
+@register(
+    "FRad-B", family="strip", set_type="zonotope", ready_for_control=False,
+    reference="Wang, Puig, Cembrano, Automatica 93, 2018",
+)
+class FRadB(AllStripsObserver):
+    """All strips at once with the F-radius gain of Wang et al. (online).
+
+    Options
+    -------
+    variant : {"cora", "textbook"}
+        ``"cora"`` (default) reproduces CORA, which computes the gain from the *predicted*
+        set's ``G G'`` and applies ``A`` (and adds ``E E'``) once more:
+        ``R = A G G' A' + E E'``.  ``"textbook"`` uses the predicted covariance itself,
+        ``R = G G'``, as in the paper (where G is the previous estimate's, so that
+        ``A G G' A' + E E'`` is the prediction).
+    """
+
+    OPTIONS = {"variant": "cora"}
+
+    def validate_options(self) -> None:
+        super().validate_options()
+        if self.options["variant"] not in ("cora", "textbook"):
+            raise OptionError(f"FRad-B: variant must be 'cora' or 'textbook', "
+                              f"got {self.options['variant']!r}")
+
+    def gain(self, G: np.ndarray) -> np.ndarray:
+        A = self.A if self.options["variant"] == "cora" else None
+        return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
+
+
+@register(
+    "FRad-C", family="propagation", set_type="zonotope", ready_for_control=True,
+    reference="Combastel, Automatica 55, 2015, Sec. 4.3",
+)
+class FRadC(PropagationObserver):
+    """Set propagation with the online F-radius gain of Combastel (Kalman-like)."""
+
+    def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
+        return combastel_gain(G @ G.T, self.A, self.C, self.F)

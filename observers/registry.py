@@ -1,0 +1,172 @@
+"""Plugin registry: ``@register("Name", ...)`` for observer classes and discovery of outside
+plugins through the entry-point group ``observers``.
+
+Built-in observers live in :mod:`observers.builtin` (one module per family) and are imported
+lazily, on the first registry query, so that importing :mod:`observers.sets` (e.g. from
+:mod:`systems`) never imports a plugin.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import pkgutil
+import warnings
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Any
+
+from .errors import ObserverError, UnknownObserver
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .base import Observer
+
+ENTRY_POINT_GROUP = "observers"
+
+#: row order of the papers' tables; other observers follow alphabetically
+CANONICAL_ORDER = (
+    "VolMin-A", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRad-C-I", "PRad-C-II",
+    "PRad-D", "CZN-A", "CZN-B", "ESO-A", "ESO-B", "FRad-C", "PRad-E", "Nom-G", "ESO-C", "ESO-D",
+    "Hinf-G",
+)
+
+FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic")
+
+
+@dataclass(frozen=True)
+class ObserverInfo:
+    """What the registry knows about an observer class."""
+
+    name: str
+    cls: type
+    family: str
+    set_type: str
+    ready_for_control: bool
+    guaranteed: bool = True
+    reference: str = ""
+
+    @property
+    def timing(self) -> str:
+        """``"ready for control"`` (estimate available before y_k) or ``"in time"``."""
+        return "ready for control" if self.ready_for_control else "in time"
+
+    @property
+    def summary(self) -> str:
+        """First line of the class docstring."""
+        doc = (self.cls.__doc__ or "").strip()
+        return doc.splitlines()[0] if doc else ""
+
+
+_REGISTRY: dict[str, ObserverInfo] = {}
+_loaded = False
+
+
+def register(
+    name: str,
+    *,
+    family: str,
+    set_type: str,
+    ready_for_control: bool,
+    guaranteed: bool = True,
+    reference: str = "",
+):
+    """Class decorator registering an :class:`~observers.base.Observer` under ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Public name used in configs and tables (e.g. ``"FRad-A"``).
+    family : {"strip", "propagation", "interval", "data-driven", "stochastic"}
+        Observer type, as in the papers' classification.
+    set_type : str
+        Set representation of the estimates (``"zonotope"``, ``"ellipsoid"``, ...).
+    ready_for_control : bool
+        True if the estimate of step k is available before ``y_k`` arrives.
+    guaranteed : bool
+        False for non-guaranteed baselines (their containment failures are counted, not bugs).
+    reference : str
+        Literature reference shown by ``available()``.
+    """
+    if family not in FAMILIES:
+        raise ObserverError(f"unknown observer family '{family}' (known: {', '.join(FAMILIES)})")
+
+    def decorate(cls):
+        existing = _REGISTRY.get(name)
+        if existing is not None and existing.cls.__qualname__ != cls.__qualname__:
+            raise ObserverError(
+                f"observer name '{name}' is already registered by {existing.cls.__module__}."
+                f"{existing.cls.__qualname__}"
+            )
+        info = ObserverInfo(name, cls, family, set_type, ready_for_control, guaranteed, reference)
+        cls.name = name
+        cls.info = info
+        _REGISTRY[name] = info
+        return cls
+
+    return decorate
+
+
+def _load_plugins() -> None:
+    """Import the built-in observer modules and the entry-point plugins (once)."""
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    from . import builtin
+
+    for mod in pkgutil.iter_modules(builtin.__path__):
+        importlib.import_module(f"{builtin.__name__}.{mod.name}")
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            obj = ep.load()
+        except Exception as exc:  # a broken plugin must not take the harness down
+            warnings.warn(f"observer plugin '{ep.name}' failed to load: {exc}", stacklevel=2)
+            continue
+        if isinstance(obj, type) and getattr(obj, "info", None) is None:
+            warnings.warn(
+                f"observer plugin '{ep.name}' points to {obj.__qualname__}, which is not "
+                "decorated with @observers.register(...)",
+                stacklevel=2,
+            )
+
+
+def _sort_key(name: str) -> tuple[int, str]:
+    try:
+        return (CANONICAL_ORDER.index(name), name)
+    except ValueError:
+        return (len(CANONICAL_ORDER), name.lower())
+
+
+def available() -> list[ObserverInfo]:
+    """All registered observers, in the papers' table order (others alphabetically)."""
+    _load_plugins()
+    return [_REGISTRY[n] for n in sorted(_REGISTRY, key=_sort_key)]
+
+
+def names() -> list[str]:
+    """Names of all registered observers."""
+    return [info.name for info in available()]
+
+
+def get(name: str) -> ObserverInfo:
+    """Registry entry of ``name``; the error suggests close matches."""
+    _load_plugins()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        pass
+    if not isinstance(name, str):
+        raise UnknownObserver(f"observer name must be a string, got {name!r}")
+    lower = {n.lower(): n for n in _REGISTRY}
+    if name.lower() in lower:
+        raise UnknownObserver(f"unknown observer '{name}'; did you mean '{lower[name.lower()]}'?")
+    close = difflib.get_close_matches(name, list(_REGISTRY), n=3)
+    hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+    raise UnknownObserver(
+        f"unknown observer '{name}'{hint} (available: {', '.join(names())})"
+    )
+
+
+def create(name: str, system: Any, **options: Any) -> Observer:
+    """Instantiate observer ``name`` for ``system``: this runs (and times) its offline design."""
+    return get(name).cls(system, **options)

@@ -1,0 +1,37 @@
+"""Set representations used by the observers (leaf package: imports nothing else of ours).
+
+All sets are immutable value objects with the same small vocabulary:
+
+========================  =====================================================
+``S1 + S2``               Minkowski sum (exact, or outer for ellipsoids)
+``S + v``                 translation by a vector
+``M @ S``                 linear map
+``S.interval()``          interval hull as an :class:`Interval`
+``S.support(d)``          support function (sound upper bound for LP-based sets)
+``S.contains(x, tol)``    membership of a point, up to ``tol``
+========================  =====================================================
+
+Zonotopes additionally offer ``Z.reduce(order, method)`` with the strategies of
+:mod:`observers.sets.reduction`.
+"""
+
+from .conzonotope import ConZonotope
+from .ellipsoid import Ellipsoid
+from .errors import SetError
+from .interval import Interval
+from .reduction import PCA, Girard, Reduction, get_reduction, reduction_names, register_reduction
+from .zonotope import Zonotope
+
+__all__ = [
+    "ConZonotope",
+    "Ellipsoid",
+    "Girard",
+    "Interval",
+    "PCA",
+    "Reduction",
+    "SetError",
+    "Zonotope",
+    "get_reduction",
+    "reduction_names",
+    "register_reduction",
+]

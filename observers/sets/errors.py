@@ -1,0 +1,5 @@
+"""Error raised by the set classes for malformed input (shape, non-finite values, empty sets)."""
+
+
+class SetError(ValueError):
+    """A set was built or used with invalid data (wrong shape, NaN/inf, empty, mismatched dims)."""

@@ -1,0 +1,31 @@
+"""System generators and named benchmark scenarios.
+
+This package depends only on :mod:`observers.sets` (never on the observer plugins).
+"""
+
+from .alamo import alamo2d
+from .errors import ModelError
+from .model import LinearSystem, NonlinearSystem, observability_matrix
+from .scenarios import Scenario, register_scenario, scenario, scenario_names
+from .simulate import NOISE_MODELS, Simulation, simulate
+from .tank import tank, tank_input
+from .vehicle import lane_change_input, vehicle
+
+__all__ = [
+    "NOISE_MODELS",
+    "LinearSystem",
+    "ModelError",
+    "NonlinearSystem",
+    "Scenario",
+    "Simulation",
+    "alamo2d",
+    "lane_change_input",
+    "observability_matrix",
+    "register_scenario",
+    "scenario",
+    "scenario_names",
+    "simulate",
+    "tank",
+    "tank_input",
+    "vehicle",
+]

@@ -1,0 +1,202 @@
+"""Validated discrete-time system models.
+
+``x_{k+1} = A x_k + B u_k + w_k``, ``y_k = C x_k + v_k`` with ``w_k in W``, ``v_k in V``,
+``x_0 in X0`` (:class:`LinearSystem`), and ``x_{k+1} = f(x_k, u_k) + w_k`` with the same linear
+output (:class:`NonlinearSystem`).  ``W`` and ``V`` are added directly in state and output
+space (no E/F matrices, as in CORA's observers).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from observers.sets import Interval, SetError, Zonotope
+
+from .errors import ModelError
+
+
+def _matrix(M, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
+    try:
+        a = np.array(M, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name} must be a numeric matrix") from None
+    if a.ndim == 0:
+        a = a.reshape(1, 1)
+    if a.ndim == 1:
+        a = a.reshape(1, -1) if rows == 1 else a.reshape(-1, 1)
+    if a.ndim != 2:
+        raise ModelError(f"{name} must be a matrix, got shape {a.shape}")
+    if (rows is not None and a.shape[0] != rows) or (cols is not None and a.shape[1] != cols):
+        want = f"({'n' if rows is None else rows}, {'*' if cols is None else cols})"
+        raise ModelError(f"{name} has shape {a.shape}, expected {want}")
+    if not np.all(np.isfinite(a)):
+        raise ModelError(f"{name} contains non-finite values")
+    a.setflags(write=False)
+    return a
+
+
+def _set(S, name: str, dim: int, *, must_contain_origin: bool) -> Zonotope:
+    if isinstance(S, Interval):
+        S = Zonotope.from_interval(S)
+    if not isinstance(S, Zonotope):
+        raise ModelError(f"{name} must be a Zonotope or an Interval, got {type(S).__name__}")
+    if S.dim != dim:
+        raise ModelError(f"{name} has dimension {S.dim}, expected {dim}")
+    if must_contain_origin and not S.contains(np.zeros(dim), tol=1e-12):
+        raise ModelError(f"{name} must contain the origin (bounded noise around zero)")
+    return S
+
+
+def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``[C; C A; ...; C A^{n-1}]``."""
+    blocks, M = [], C
+    for _ in range(A.shape[0]):
+        blocks.append(M)
+        M = M @ A
+    return np.vstack(blocks)
+
+
+class LinearSystem:
+    """Linear discrete-time system with bounded disturbance and noise sets.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, nu) array_like
+        ``nu`` may be 0 (pass ``np.zeros((n, 0))``).
+    C : (ny, n) array_like
+    W : Zonotope or Interval
+        Disturbance set in state space (must contain the origin).
+    V : Zonotope or Interval
+        Measurement-noise set in output space (must contain the origin).
+    X0 : Zonotope or Interval
+        Initial set.
+    dt : float
+        Sampling time in seconds (metadata; the model is already discrete).
+    name : str
+        Label used in reports.
+    """
+
+    def __init__(self, A, B, C, W, V, X0, dt: float = 1.0, name: str = ""):
+        A = _matrix(A, "A")
+        n = A.shape[0]
+        if A.shape[1] != n:
+            raise ModelError(f"A must be square, got shape {A.shape}")
+        self.A = A
+        self.B = _matrix(B, "B", rows=n) if np.size(B) else np.zeros((n, 0))
+        self.C = _matrix(C, "C", cols=n)
+        try:
+            self.W = _set(W, "W", n, must_contain_origin=True)
+            self.V = _set(V, "V", self.C.shape[0], must_contain_origin=True)
+            self.X0 = _set(X0, "X0", n, must_contain_origin=False)
+        except SetError as exc:
+            raise ModelError(str(exc)) from None
+        if not (np.isfinite(dt) and dt > 0):
+            raise ModelError(f"dt must be a positive number, got {dt}")
+        self.dt = float(dt)
+        self.name = name
+
+    n = property(lambda self: self.A.shape[0], doc="State dimension.")
+    nu = property(lambda self: self.B.shape[1], doc="Input dimension.")
+    ny = property(lambda self: self.C.shape[0], doc="Output dimension.")
+    is_linear = True
+
+    def dynamics(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Noise-free successor ``A x + B u``."""
+        return self.A @ x + self.B @ u
+
+    def observability_rank(self) -> int:
+        """Rank of the observability matrix of (A, C)."""
+        return int(np.linalg.matrix_rank(observability_matrix(self.A, self.C)))
+
+    def is_observable(self) -> bool:
+        """Whether (A, C) is observable."""
+        return self.observability_rank() == self.n
+
+    def unobservable_modes(self, tol: float = 1e-9) -> np.ndarray:
+        """Distinct eigenvalues of A that fail the PBH test ``rank [A - lam I; C] = n``."""
+        distinct: list[complex] = []
+        for lam in np.linalg.eigvals(self.A):
+            if all(abs(lam - d) > 1e-9 * max(1.0, abs(d)) for d in distinct):
+                distinct.append(lam)
+        bad = []
+        for lam in distinct:
+            M = np.vstack([self.A - lam * np.eye(self.n), self.C])
+            if np.linalg.matrix_rank(M, tol=tol * max(1.0, np.abs(M).max())) < self.n:
+                bad.append(lam)
+        return np.real_if_close(np.array(bad))
+
+    def is_detectable(self) -> bool:
+        """Whether every unobservable mode is strictly stable (|lambda| < 1)."""
+        return bool(np.all(np.abs(self.unobservable_modes()) < 1.0))
+
+    def require_detectable(self, who: str) -> None:
+        """Raise a :class:`ModelError` naming ``who`` if (A, C) is not detectable."""
+        modes = self.unobservable_modes()
+        unstable = modes[np.abs(modes) >= 1.0]
+        if unstable.size:
+            raise ModelError(
+                f"{who}: the pair (A, C) is not detectable (unobservable eigenvalue(s) "
+                f"{', '.join(f'{m:.4g}' for m in unstable)} with |lambda| >= 1)"
+            )
+
+    def replace(self, **changes) -> LinearSystem:
+        """Copy with some fields replaced (``A, B, C, W, V, X0, dt, name``)."""
+        fields = dict(A=self.A, B=self.B, C=self.C, W=self.W, V=self.V, X0=self.X0,
+                      dt=self.dt, name=self.name)
+        unknown = set(changes) - set(fields)
+        if unknown:
+            raise ModelError(f"unknown system field(s): {', '.join(sorted(unknown))}")
+        fields.update(changes)
+        return LinearSystem(**fields)
+
+    def __repr__(self) -> str:
+        return f"LinearSystem({self.name or 'unnamed'}, n={self.n}, nu={self.nu}, ny={self.ny})"
+
+
+class NonlinearSystem:
+    """Nonlinear discrete-time system ``x+ = f(x, u) + w``, ``y = C x + v``.
+
+    ``jacobian(x, u)`` returns ``(df/dx, df/du)``; it is used for linearisations.
+    """
+
+    is_linear = False
+
+    def __init__(
+        self,
+        f: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        jacobian: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+        n: int,
+        nu: int,
+        C,
+        W,
+        V,
+        X0,
+        dt: float = 1.0,
+        name: str = "",
+    ):
+        self.f = f
+        self.jacobian = jacobian
+        self.C = _matrix(C, "C", cols=n)
+        self._n, self._nu = int(n), int(nu)
+        try:
+            self.W = _set(W, "W", n, must_contain_origin=True)
+            self.V = _set(V, "V", self.C.shape[0], must_contain_origin=True)
+            self.X0 = _set(X0, "X0", n, must_contain_origin=False)
+        except SetError as exc:
+            raise ModelError(str(exc)) from None
+        self.dt = float(dt)
+        self.name = name
+
+    n = property(lambda self: self._n, doc="State dimension.")
+    nu = property(lambda self: self._nu, doc="Input dimension.")
+    ny = property(lambda self: self.C.shape[0], doc="Output dimension.")
+
+    def dynamics(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Noise-free successor ``f(x, u)``."""
+        return self.f(x, u)
+
+    def __repr__(self) -> str:
+        return f"NonlinearSystem({self.name or 'unnamed'}, n={self.n}, nu={self.nu}, ny={self.ny})"

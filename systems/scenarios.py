@@ -1,0 +1,265 @@
+"""Named benchmark scenarios: a system plus one input/measurement record (and, where known,
+the true trajectory) and the observer options the papers used for it.
+
+>>> import systems
+>>> sc = systems.scenario("vehicle6d-cora")
+>>> sc.y.shape, sc.x_true.shape, sc.options
+((350, 4), (350, 6), {'order': 100, 'reduction': 'pca'})
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any
+
+import numpy as np
+import yaml
+
+from observers.sets import Zonotope
+
+from .alamo import alamo2d
+from .errors import ModelError
+from .model import LinearSystem
+from .simulate import simulate
+from .tank import tank, tank_input
+from .vehicle import STATES as VEHICLE_STATES
+from .vehicle import W_RADII, lane_change_input, vehicle
+
+ROUNDED_TRUTH_TOL = 1e-3  # true states shipped with 3 decimals
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A system with one record; ``u[k]`` drives ``x_{k+1}``, ``y[k]`` measures ``x_k``."""
+
+    name: str
+    system: Any
+    u: np.ndarray
+    y: np.ndarray
+    x_true: np.ndarray | None
+    options: dict = field(default_factory=dict)
+    description: str = ""
+    source: str = ""
+    tolerance: float = 1e-9
+    paper_table: str | None = None
+    state_names: tuple[str, ...] = ()
+    training: Any = None
+
+    @property
+    def N(self) -> int:
+        """Number of time steps."""
+        return self.y.shape[0]
+
+
+def _data_path(name: str):
+    return resources.files("systems") / "data" / name
+
+
+def _csv(name: str) -> np.ndarray:
+    with _data_path(name).open() as fh:
+        return np.loadtxt(fh, delimiter=",", comments="#", ndmin=2)
+
+
+def _yaml(name: str) -> dict:
+    with _data_path(name).open() as fh:
+        return yaml.safe_load(fh)
+
+
+def _frozen(a: np.ndarray | None) -> np.ndarray | None:
+    if a is None:
+        return None
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _make(**kw) -> Scenario:
+    for key in ("u", "y", "x_true"):
+        kw[key] = _frozen(kw.get(key))
+    sc = Scenario(**kw)
+    s = sc.system
+    if sc.y.shape != (sc.N, s.ny) or sc.u.shape[1] != s.nu or sc.u.shape[0] < sc.N - 1:
+        raise ModelError(f"scenario {sc.name}: record shapes do not match the system")
+    if sc.x_true is not None and sc.x_true.shape != (sc.N, s.n):
+        raise ModelError(f"scenario {sc.name}: x_true has shape {sc.x_true.shape}")
+    return sc
+
+
+def _tank_states(n: int) -> tuple[str, ...]:
+    return tuple(f"x{i + 1}" for i in range(n))
+
+
+# -- CORA data sets ---------------------------------------------------------------------------
+def _vehicle_cora(dim: int) -> LinearSystem:
+    d = _yaml("vehicle_cora.yaml")[f"dim{dim}"]
+    return LinearSystem(
+        d["A"], d["B"], d["C"],
+        W=Zonotope.box(d["W_radius"]),
+        V=Zonotope.box(d["V_radius"]),
+        X0=Zonotope.box(np.ones(dim)),
+        dt=d["dt"],
+        name=f"vehicle{dim}d-cora",
+    )
+
+
+def vehicle2d_cora() -> Scenario:
+    uy = _csv("vehicle2d_cora_u_y.csv")
+    return _make(
+        name="vehicle2d-cora", system=_vehicle_cora(2), u=uy[0:1].T, y=uy[1:2].T, x_true=None,
+        options={"order": 100, "reduction": "pca"},
+        description="2-state vehicle side-slip model, CORA unit-test record (100 steps)",
+        source="CORA testLong_linearSysDT_observe_01_vehicle.m", state_names=VEHICLE_STATES[:2],
+    )
+
+
+def vehicle6d_cora() -> Scenario:
+    x = _csv("vehicle6d_cora_x_true.csv")[:, 1:]
+    return _make(
+        name="vehicle6d-cora", system=_vehicle_cora(6), u=_csv("vehicle6d_cora_u.csv").T,
+        y=_csv("vehicle6d_cora_y.csv").T, x_true=x, options={"order": 100, "reduction": "pca"},
+        description="6-state vehicle side-slip model, double lane change, CORA example record",
+        source="CORA example_linearSysDT_observe_01_vehicle.m", tolerance=ROUNDED_TRUTH_TOL,
+        paper_table="automatica2021_table3_vehicle6", state_names=VEHICLE_STATES,
+    )
+
+
+def tank30_linear_cora() -> Scenario:
+    d = _yaml("tank30_lin_cora.yaml")
+    n, ny = 30, len(d["C"])
+    system = LinearSystem(
+        d["A"], d["B"], d["C"],
+        W=Zonotope.box(np.full(n, d["W_radius"])),
+        V=Zonotope.box(np.full(ny, d["V_radius"])),
+        X0=Zonotope.box(np.full(n, d["X0_radius"])),
+        dt=d["dt"], name="tank30-linear-cora",
+    )
+    return _make(
+        name="tank30-linear-cora", system=system, u=_csv("tank30_lin_cora_u.csv").T,
+        y=_csv("tank30_lin_cora_y.csv").T, x_true=_csv("tank30_lin_cora_x_true.csv")[:, 1:],
+        options={"order": 100, "reduction": "pca"},
+        description="linearised 30-tank system, CORA example record (235 steps)",
+        source="CORA example_linearSysDT_observe_03_tank.m", tolerance=ROUNDED_TRUTH_TOL,
+        state_names=_tank_states(n),
+    )
+
+
+def alamo2d_published() -> Scenario:
+    d = _yaml("alamo2d.yaml")
+    y = np.array(d["y"], dtype=float).reshape(-1, 1)
+    return _make(
+        name="alamo2d", system=alamo2d(), u=np.zeros((y.shape[0], 2)), y=y, x_true=None,
+        options={"order": d["order"], "reduction": d["reduction"]},
+        description="2-D example of Alamo et al. 2005 with its published measurements",
+        source="Alamo, Bravo, Camacho, Automatica 2005, Sec. 7.1", state_names=("x1", "x2"),
+    )
+
+
+# -- simulated scenarios -----------------------------------------------------------------------
+def tank_linear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 261) -> Scenario:
+    """Linearised n-tank system with a seeded simulated record."""
+    system = tank(n, linear=True)
+    if n == 6:
+        u = _csv("tank6_lin_u.csv").T[:steps]
+        src = "input of CORA simulateTank_lin.m; noise simulated here (seeded)"
+    else:
+        u = tank_input(system.nu, steps)
+        src = "linearisation of CORA's tank model; input and noise generated here (seeded)"
+    sim = simulate(system, u, steps=steps, seed=seed, noise=noise)
+    table = {6: "arch2021_table3_tank6_linear"}.get(n, "arch2021_table5_6_tank_scaling")
+    return _make(
+        name=f"tank{n}-linear", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 100, "reduction": "pca"},
+        description=f"linearised {n}-tank system, simulated ({noise} noise, seed {seed})",
+        source=src, paper_table=table, state_names=_tank_states(n),
+    )
+
+
+def tank_nonlinear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 263) -> Scenario:
+    """Nonlinear n-tank system (Torricelli) with a seeded simulated record."""
+    system = tank(n, linear=False)
+    u = _csv("tank6_nonlin_u.csv").T[:steps] if n == 6 else tank_input(system.nu, steps) + 0.1
+    sim = simulate(system, u, steps=steps, seed=seed, noise=noise)
+    return _make(
+        name=f"tank{n}-nonlinear", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 100, "reduction": "pca"},
+        description=f"nonlinear {n}-tank system, simulated ({noise} noise, seed {seed})",
+        source="CORA tank model equations; record simulated here",
+        paper_table="arch2021_table4_tank6_nonlinear" if n == 6 else None,
+        state_names=_tank_states(n),
+    )
+
+
+def vehicle_sim(dim: int, seed: int = 0, noise: str = "uniform", steps: int = 350) -> Scenario:
+    """Vehicle model with the double-lane-change input and a seeded simulated record."""
+    system = vehicle(dim)
+    sim = simulate(system, lane_change_input(steps), steps=steps, seed=seed, noise=noise)
+    return _make(
+        name=f"vehicle{dim}d-sim", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 100, "reduction": "pca"},
+        description=(f"{dim}-state vehicle model, simulated lane change "
+                     f"({noise} noise, seed {seed})"),
+        source=f"vehicle model of CORA's generator; W radii {W_RADII[:dim]}",
+        paper_table="automatica2021_table3_vehicle6" if dim == 6 else None,
+        state_names=VEHICLE_STATES[:dim],
+    )
+
+
+def alamo2d_sim(seed: int = 0, noise: str = "uniform", steps: int = 20) -> Scenario:
+    """The Alamo et al. 2-D example with a seeded simulated record (true states known)."""
+    system = alamo2d()
+    sim = simulate(system, np.zeros((steps, 2)), seed=seed, noise=noise)
+    return _make(
+        name="alamo2d-sim", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 20, "reduction": "girard"},
+        description=f"2-D example of Alamo et al., simulated ({noise} noise, seed {seed})",
+        source="Alamo et al. 2005 model; record simulated here", state_names=("x1", "x2"),
+    )
+
+
+_FIXED: dict[str, Callable[..., Scenario]] = {
+    "vehicle2d-cora": vehicle2d_cora,
+    "vehicle6d-cora": vehicle6d_cora,
+    "tank30-linear-cora": tank30_linear_cora,
+    "alamo2d": alamo2d_published,
+    "alamo2d-sim": alamo2d_sim,
+}
+_PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
+    (re.compile(r"vehicle([246])d-sim"), lambda m, **kw: vehicle_sim(int(m.group(1)), **kw)),
+    (re.compile(r"tank(\d+)-linear"), lambda m, **kw: tank_linear(int(m.group(1)), **kw)),
+    (re.compile(r"tank(\d+)-nonlinear"), lambda m, **kw: tank_nonlinear(int(m.group(1)), **kw)),
+]
+_LISTED = [
+    "vehicle2d-cora", "vehicle6d-cora", "tank30-linear-cora", "tank6-linear", "alamo2d",
+    "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
+    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear",
+]
+
+
+def register_scenario(name: str, factory: Callable[..., Scenario]) -> None:
+    """Add a named scenario (e.g. from a plugin); ``factory(**kwargs)`` builds it."""
+    _FIXED[name] = factory
+    if name not in _LISTED:
+        _LISTED.append(name)
+
+
+def scenario_names() -> list[str]:
+    """Names of the ready-made scenarios (``tank<n>-linear`` works for any n >= 2)."""
+    return list(_LISTED)
+
+
+def scenario(name: str, **kwargs: Any) -> Scenario:
+    """Build the scenario ``name``; simulated ones accept ``seed``, ``noise`` and ``steps``."""
+    try:
+        if name in _FIXED:
+            return _FIXED[name](**kwargs)
+        for pattern, factory in _PATTERNS:
+            m = pattern.fullmatch(name)
+            if m:
+                return factory(m, **kwargs)
+    except TypeError as exc:
+        raise ModelError(f"scenario '{name}': {exc}") from None
+    raise ModelError(f"unknown scenario '{name}' (available: {', '.join(scenario_names())}; "
+                     "tank<n>-linear for any n >= 2)")

@@ -1,0 +1,41 @@
+"""Shared fixtures: reference data, and an isolated design cache per test session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _isolated_design_cache(tmp_path_factory):
+    """Never read designs cached by earlier runs or by `make bench`."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SETOBS_CACHE_DIR", str(tmp_path_factory.mktemp("design-cache")))
+    yield
+    mp.undo()
+
+
+@pytest.fixture(scope="session")
+def cora_refs() -> dict:
+    """CORA's stored reference results."""
+    return yaml.safe_load((DATA / "cora_reference_results.yaml").read_text())
+
+
+@pytest.fixture(scope="session")
+def cora_vehicle2d_refs(cora_refs) -> dict:
+    """Final interval hulls of CORA's 2-D vehicle unit test (testLong + testSDPT3)."""
+    out = dict(cora_refs["linearSysDT/testLong_linearSysDT_observe_01_vehicle.m"])
+    out.update(cora_refs["linearSysDT/testSDPT3_linearSysDT_observe_01_vehicle.m"])
+    return out
+
+
+def paper_table(key: str) -> dict:
+    """A shipped paper table."""
+    from importlib import resources
+
+    path = resources.files("systems") / "data" / "paper_tables" / f"{key}.yaml"
+    return yaml.safe_load(path.read_text())

@@ -1,0 +1,137 @@
+"""Registry, plugin discovery, options and the step/run interface."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import observers
+import systems
+from observers import registry
+from observers.families import PropagationObserver
+
+
+def test_available_lists_names_with_family_set_and_timing():
+    infos = {i.name: i for i in observers.available()}
+    assert {"FRad-A", "FRad-B", "FRad-C"} <= set(infos)
+    assert infos["FRad-A"].family == "strip" and infos["FRad-A"].timing == "in time"
+    assert infos["FRad-C"].family == "propagation"
+    assert infos["FRad-C"].timing == "ready for control"
+    assert infos["FRad-B"].set_type == "zonotope"
+    names = observers.names()
+    assert names.index("FRad-A") < names.index("FRad-B") < names.index("FRad-C")
+
+
+def test_unknown_observer_suggests_close_names():
+    with pytest.raises(observers.UnknownObserver, match="did you mean 'FRad-A'"):
+        observers.get("frad-a")
+    with pytest.raises(observers.UnknownObserver, match="'FRad-B'"):
+        observers.get("FRad-BB")
+
+
+def test_unknown_and_invalid_options():
+    s = systems.vehicle(2)
+    with pytest.raises(observers.OptionError, match="unknown option.*ordr.*accepted: order"):
+        observers.create("FRad-A", s, ordr=3)
+    with pytest.raises(observers.OptionError, match="order must be >= 1"):
+        observers.create("FRad-A", s, order=-2)
+    with pytest.raises(observers.OptionError, match="unknown reduction method"):
+        observers.create("FRad-A", s, reduction="best")
+    with pytest.raises(observers.OptionError, match="variant"):
+        observers.create("FRad-B", s, variant="matlab")
+
+
+def test_step_interface_and_measurement_checks():
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create("FRad-A", sc.system, **sc.options)
+    S0 = obs.step(None, sc.y[0])
+    S1 = obs.step(sc.u[0], sc.y[1])
+    assert S0.dim == 2 and S1.num_generators >= 2
+    with pytest.raises(observers.MeasurementError, match="non-finite measurement"):
+        obs.step(sc.u[1], [np.nan])
+    with pytest.raises(observers.MeasurementError, match="2 entries, expected 1"):
+        obs.step(sc.u[1], [0.0, 1.0])
+    with pytest.raises(observers.MeasurementError, match=r"y\[3, 0\] is not finite"):
+        y = sc.y.copy()
+        y[3, 0] = np.inf
+        observers.run(obs, sc.u, y)
+    with pytest.raises(observers.MeasurementError, match=r"inputs u must have shape"):
+        observers.run(obs, sc.u[:10], sc.y)
+
+
+def test_run_restarts_and_is_deterministic():
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create("FRad-B", sc.system, **sc.options)
+    a = observers.run(obs, sc.u, sc.y)
+    b = observers.run(obs, sc.u, sc.y)
+    np.testing.assert_array_equal(a.lo, b.lo)
+    assert a.status == "ok" and len(a.sets) == sc.N and np.all(a.step_times > 0)
+
+
+def test_divergence_is_reported_not_raised():
+    sc = systems.scenario("vehicle2d-cora")
+
+    @observers.register("Test-Unstable", family="propagation", set_type="zonotope",
+                        ready_for_control=True)
+    class Unstable(PropagationObserver):
+        """Propagation with a destabilising gain (test only)."""
+
+        def gain(self, c, G):
+            return np.array([[-50.0], [-50.0]])
+
+    try:
+        res = observers.run(observers.create("Test-Unstable", sc.system), sc.u, sc.y)
+        assert res.status == "diverged" and res.failed_step is not None
+        assert np.isnan(res.lo[-1]).all()
+    finally:
+        registry._REGISTRY.pop("Test-Unstable")
+
+
+def test_entry_point_plugins_are_discovered(monkeypatch):
+    class FakeEP:
+        name = "my-plugin"
+
+        def load(self):
+            @observers.register("Plugin-Obs", family="strip", set_type="zonotope",
+                                ready_for_control=False, reference="test")
+            class PluginObs(observers.Observer):
+                """A plugin observer returning X0."""
+
+                def step(self, u_prev, y):
+                    return self.system.X0
+
+            return PluginObs
+
+    class BrokenEP:
+        name = "broken"
+
+        def load(self):
+            raise ImportError("no module named nothing")
+
+    monkeypatch.setattr(registry, "entry_points", lambda group: [FakeEP(), BrokenEP()])
+    monkeypatch.setattr(registry, "_loaded", False)
+    try:
+        with pytest.warns(UserWarning, match="broken"):
+            names = observers.names()
+        assert "Plugin-Obs" in names
+        sc = systems.scenario("vehicle2d-cora")
+        res = observers.run(observers.create("Plugin-Obs", sc.system), sc.u, sc.y)
+        assert res.status == "ok"
+    finally:
+        registry._REGISTRY.pop("Plugin-Obs", None)
+
+
+def test_duplicate_names_are_rejected():
+    with pytest.raises(observers.ObserverError, match="already registered"):
+        @observers.register("FRad-A", family="strip", set_type="zonotope",
+                            ready_for_control=False)
+        class Other(observers.Observer):
+            def step(self, u_prev, y):
+                return None
+
+
+def test_system_attributes_are_checked():
+    with pytest.raises(observers.ObserverError, match="missing: A, B"):
+        observers.create("FRad-A", SimpleNamespace(C=1, W=1, V=1, X0=1))
