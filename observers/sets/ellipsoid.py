@@ -241,15 +241,17 @@ class Ellipsoid:
     def __neg__(self) -> Ellipsoid:
         return Ellipsoid(-self._q, self._Q)
 
-    def intersect_strip(self, C, y, V, lam: str | float = "obe") -> Ellipsoid:
+    def intersect_strip(self, C, y, V, lam: str | float = "min-trace") -> Ellipsoid:
         """Outer ellipsoid of the intersection with the measurement set of ``y``,
         ``{x : y - C x in E(0, V)}`` (for one output and ``V = sigma^2`` the strip
         ``|C x - y| <= sigma``).
 
         A member of the family of :func:`quadratic_update` (prior level 1, measurement set
-        whitened with ``V``): ``lam`` is the weight in ``(0, 1)`` or ``"obe"`` for the rule of
-        :func:`obe_weight`, which for equal levels is ``1 / (1 + sqrt(g))``.  Raises
-        :class:`SetError` if the intersection is empty.
+        whitened with ``V``), chosen by ``lam``: a number in ``(0, 1)``, ``"min-trace"`` (the
+        member of smallest trace, by a bounded scalar search) or ``"obe"`` (the rule of
+        :func:`obe_weight`, which leaves the set unchanged when the level cannot decrease,
+        e.g. when ``y`` is the centre's output).  Raises :class:`SetError` if the
+        intersection is empty.
         """
         m = np.atleast_2d(np.asarray(V, dtype=float)).shape[0]
         C = matrix(C, "output matrix", rows=m, cols=self.dim)
@@ -259,23 +261,36 @@ class Ellipsoid:
             T = np.linalg.inv(np.linalg.cholesky(0.5 * (V + V.T)))  # T'T = V^-1
         except np.linalg.LinAlgError:
             raise SetError("noise shape matrix V must be positive definite") from None
-        Ct, yt = T @ C, T @ y
-        delta = yt - Ct @ self._q
-        e = float(delta @ delta)
-        if isinstance(lam, str):
-            if lam != "obe":
-                raise SetError(f"unknown intersection weight '{lam}' (known: obe, or a number)")
-            g = float(np.linalg.eigvalsh(Ct @ self._Q @ Ct.T)[-1])
-            if e == 0.0 or g <= 0.0:  # y at the centre's output, or a flat output image
+        Ct, yt, P = T @ C, T @ y, np.array(self._Q)
+
+        def member(w: float) -> tuple[np.ndarray, np.ndarray, float]:
+            return quadratic_update(self._q, P, 1.0, Ct, 1.0, yt, w)
+
+        if lam == "obe":
+            delta = yt - Ct @ self._q
+            g = float(np.linalg.eigvalsh(Ct @ P @ Ct.T)[-1])
+            if not (delta @ delta > 0.0 and g > 0.0):
                 return self
             lam = obe_weight(g, 0.0)
+        elif lam == "min-trace":
+            from scipy.optimize import minimize_scalar
+
+            def size(w: float) -> float:
+                _, Pw, s2 = member(w)
+                return max(s2, 0.0) * float(np.trace(Pw))
+
+            lam = float(minimize_scalar(size, bounds=(1e-9, 1 - 1e-9), method="bounded",
+                                        options={"xatol": 1e-10}).x)
+        elif isinstance(lam, str):
+            raise SetError(f"unknown intersection weight '{lam}' (known: min-trace, obe, "
+                           "or a number)")
         lam = float(lam)
         if not 0.0 < lam < 1.0:
             raise SetError(f"intersection weight must lie in (0, 1), got {lam!r}")
-        q, P, s2 = quadratic_update(self._q, np.array(self._Q), 1.0, Ct, 1.0, yt, lam)
+        q, P_new, s2 = member(lam)
         if s2 < 0.0:
             raise SetError("the ellipsoid does not intersect the measurement set")
-        return Ellipsoid(q, s2 * P)
+        return Ellipsoid(q, s2 * P_new)
 
     def interval(self) -> Interval:
         """Interval hull ``q +- sqrt(diag(Q))`` (exact)."""
