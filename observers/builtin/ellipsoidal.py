@@ -8,7 +8,7 @@ from abc import abstractmethod
 import numpy as np
 
 from ..base import Observer
-from ..errors import Diverged, OptionError
+from ..errors import DesignFailed, Diverged, OptionError
 from ..families import as_zonotope
 from ..gaincache import cached_design
 from ..invariant import error_system, invariant_step, loukkas_design, martinez_design
@@ -114,9 +114,9 @@ class ESOA(EllipsoidalStripObserver):
     -------
     alpha : float
         Cap of the update weight, in ``(0, 1)``.  Gollamudi et al. leave it to the user;
-        the default 1e-4 is the value of the reference implementation (CORA).  Larger values
-        (0.1) make ESO-A follow the measurements more closely and coincide with ESO-B on the
-        shipped benchmarks once the level has converged.
+        the default 1e-4 is the value of the reference implementation (CORA), with which the
+        published ESO-A rows were computed.  Larger values (e.g. 0.1) follow the measurements
+        more closely and give radii of ESO-B's magnitude on the shipped benchmarks.
     """
 
     OPTIONS = {"alpha": 1e-4}
@@ -132,7 +132,7 @@ class ESOA(EllipsoidalStripObserver):
         self.alpha = float(self.options["alpha"])
         self.gamma2 = float(np.linalg.eigvalsh(self.QV)[-1])
         if not self.gamma2 > 0:
-            raise OptionError("ESO-A: the noise set V must not be a single point")
+            raise DesignFailed("ESO-A: the noise set V must not be a single point")
         self.phi = np.sqrt(self.gamma2)
 
     def update(self, q, P, s2, y):
@@ -160,7 +160,7 @@ class ESOB(EllipsoidalStripObserver):
         try:
             Lv = np.linalg.cholesky(self.QV)
         except np.linalg.LinAlgError:
-            raise OptionError("ESO-B: the noise ellipsoid of V must be full-dimensional") from None
+            raise DesignFailed("ESO-B: the noise ellipsoid of V must be full-dimensional") from None
         self.T = np.linalg.inv(Lv)  # T'T = V^-1
         self.Ct = self.T @ self.C
         self.T_cora = np.linalg.cholesky(np.linalg.inv(self.QV)).T  # CORA: chol(inv(V))
