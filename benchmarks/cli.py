@@ -1,6 +1,8 @@
-"""Command line: ``python -m benchmarks {run,report,list} ...``.
+"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit} ...``.
 
-Bad input ends with a one-line ``error: ...`` on stderr and exit code 2.
+Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
+(``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
+exit code 1.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
+from . import regression
 from .config import load_config
 from .errors import ConfigError
 from .report import write_report
@@ -36,6 +39,61 @@ def _cmd_run(args) -> int:
         print("CONTAINMENT VIOLATIONS: " + ", ".join(f"{o} on {s}" for s, o in names),
               file=sys.stderr)
         return 1
+    return 0
+
+
+def _cmd_check(args) -> int:
+    cfg = regression.subset_config(args.config)
+    base, meta = regression.load_baseline(args.baseline)
+    if regression.config_changed(cfg, meta):
+        print(f"REGRESSION: {args.config} changed since the baseline in {args.baseline} was "
+              "written; review and run `python -m benchmarks baseline --update`", file=sys.stderr)
+        return 1
+    progress = False if args.no_progress else None
+    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress, args.out)
+    diff = regression.compare(base, frame)
+    if args.out:
+        from .io import atomic_write_csv
+
+        atomic_write_csv(Path(args.out) / "diff.csv", diff)
+    n, bad = len(diff), int((~diff["ok"]).sum())
+    if bad or args.all:
+        print(regression.format_diff(diff, only_failures=not args.all))
+    where = (f"{frame['observer'].nunique()} observers x {frame['scenario'].nunique()} "
+             f"scenarios; {cache_note}; baseline of {meta.get('created', '?')}")
+    if bad:
+        print(f"check FAILED: {bad} of {n} values differ from the baseline; changed: "
+              f"{', '.join(regression.changed_observers(diff))} ({where})", file=sys.stderr)
+        print("if the change is intended, rewrite the golden files with "
+              "`python -m benchmarks baseline --update` and commit them", file=sys.stderr)
+        return 1
+    print(f"check passed: {n} values within tolerance ({where})")
+    return 0
+
+
+def _cmd_baseline(args) -> int:
+    if not args.update:
+        frame, meta = regression.load_baseline(args.baseline)
+        print(regression.baseline_overview(frame, meta))
+        print("(`--update` re-runs the subset and rewrites these files)")
+        return 0
+    cfg = regression.subset_config(args.config)
+    progress = False if args.no_progress else None
+    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress)
+    per = frame.drop_duplicates(["scenario", "observer"])
+    crashed = per[per["status"] == "error"]
+    unsound = per[(per["violations"].fillna(0) > 0) & per["guaranteed"].astype(bool)]
+    problems = [f"{o} crashed on {s}" for s, o in zip(crashed["scenario"], crashed["observer"],
+                                                        strict=True)]
+    problems += [f"{o} violates containment on {s}"
+                 for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)]
+    if problems and not args.force:
+        print("baseline NOT written: " + "; ".join(problems) + " (fix them, or pass --force)",
+              file=sys.stderr)
+        return 1
+    files = regression.write_baseline(frame, args.baseline, cfg, cache_note)
+    print(f"wrote {len(files)} golden files to {args.baseline} "
+          f"({per['observer'].nunique()} observers; {cache_note})")
     return 0
 
 
@@ -75,6 +133,26 @@ def build_parser() -> argparse.ArgumentParser:
     ls = sub.add_parser("list", help="list observers and scenarios")
     ls.add_argument("what", nargs="?", default="all", choices=["observers", "scenarios", "all"])
     ls.set_defaults(func=_cmd_list)
+    subset = argparse.ArgumentParser(add_help=False)
+    subset.add_argument("--config", default=str(regression.DEFAULT_CONFIG),
+                        help="the regression subset (default benchmarks/configs/regression.yaml)")
+    subset.add_argument("--baseline", default=str(regression.DEFAULT_BASELINE),
+                        help="folder of the golden files (default results/baseline)")
+    subset.add_argument("--use-cache", action="store_true",
+                        help="use cached offline designs (default: recompute every design)")
+    subset.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ch = sub.add_parser("check", parents=[subset],
+                        help="re-run the regression subset and compare with the golden files")
+    ch.add_argument("--out", default=str(Path("results") / "check"),
+                    help="where to write this run and diff.csv (default results/check)")
+    ch.add_argument("--all", action="store_true", help="print every compared value")
+    ch.set_defaults(func=_cmd_check)
+    bl = sub.add_parser("baseline", parents=[subset],
+                        help="show the golden files, or rewrite them with --update")
+    bl.add_argument("--update", action="store_true", help="re-run the subset and rewrite them")
+    bl.add_argument("--force", action="store_true",
+                    help="write even if an observer crashed or violates containment")
+    bl.set_defaults(func=_cmd_baseline)
     return p
 
 
