@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import observers
@@ -16,7 +17,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import regression
+from . import audit, regression
 from .config import load_config
 from .errors import ConfigError
 from .report import write_report
@@ -97,6 +98,30 @@ def _cmd_baseline(args) -> int:
     return 0
 
 
+def _cmd_audit(args) -> int:
+    jobs = args.jobs if args.jobs is not None else audit.default_jobs()
+    t0 = time.perf_counter()
+    df = audit.run_audit(args.scenarios, args.observers, args.realisations, jobs,
+                         progress=False if args.no_progress else None)
+    elapsed = time.perf_counter() - t0
+    csv_path, report = audit.write_audit(df, args.out, args.report, args.realisations,
+                                         elapsed, jobs)
+    agg = audit.aggregate(df)
+    bad = agg[agg["guaranteed"] & (agg["violations"] > 0)]
+    print(f"wrote {report} and {csv_path} ({int(agg['runs'].sum())} runs, "
+          f"{int(agg['steps'].sum())} steps, {elapsed:.0f} s)")
+    undecided = int(agg["undecided"].sum())
+    if undecided:
+        print(f"note: {undecided} step(s) undecided at LP precision (see the report)")
+    if len(bad):
+        print("SOUNDNESS VIOLATIONS: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({r.violations} steps)"
+            for r in bad.itertuples(index=False)), file=sys.stderr)
+        return 1
+    print("zero violations for every guaranteed observer")
+    return 0
+
+
 def _cmd_report(args) -> int:
     path = write_report(args.dir, args.out, figures=not args.no_figures)
     print(f"wrote {path}")
@@ -153,6 +178,20 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--force", action="store_true",
                     help="write even if an observer crashed or violates containment")
     bl.set_defaults(func=_cmd_baseline)
+    au = sub.add_parser("audit", help="soundness audit on many seeded realisations")
+    au.add_argument("--realisations", type=int, default=audit.DEFAULT_REALISATIONS,
+                    help=f"realisations per observer and scenario "
+                         f"(default {audit.DEFAULT_REALISATIONS})")
+    au.add_argument("--scenarios", nargs="+", default=list(audit.AUDIT_SCENARIOS),
+                    help="simulated scenarios (default: " + " ".join(audit.AUDIT_SCENARIOS) + ")")
+    au.add_argument("--observers", nargs="+", help="observer names (default: all registered)")
+    au.add_argument("--jobs", type=int, help="worker processes (default: cores, at most 2)")
+    au.add_argument("--out", default=str(Path("results") / "audit"),
+                    help="folder of soundness.csv (default results/audit)")
+    au.add_argument("--report", default=str(Path("reports") / "soundness.md"),
+                    help="Markdown report (default reports/soundness.md)")
+    au.add_argument("--no-progress", action="store_true", help="no progress bar")
+    au.set_defaults(func=_cmd_audit)
     return p
 
 

@@ -15,8 +15,8 @@ Per set type, cheapest test first:
        to the hull is a lower bound of the distance to the set.
     2. *certificate*: a factor vector ``xi`` in the unit box with ``|G xi - (x - c)| <= tol``
        (and ``|A xi - b| <= tol_A``), evaluated in floating point, proves membership.  The
-       least-norm solution of ``G xi = x - c`` is tried first, then a few alternating
-       projections between the affine set and the box.
+       least-norm solution of ``G xi = x - c`` is tried first, then a few active-set steps
+       (factors beyond +-1 fixed at their sign, the others re-solved by least norm).
     3. *LP* (HiGHS, one reused ``Highs`` object): ``min t`` s.t. ``|G xi - v|_inf <= t``,
        ``A xi = b``, ``|xi|_inf <= 1``.  The clipped primal point gives an upper bound of the
        distance; the dual point gives a direction ``d`` (``|d|_1 <= 1``) and multipliers
@@ -40,8 +40,8 @@ from observers.sets import ConZonotope, Interval, Zonotope
 _EPS = np.finfo(float).eps
 #: relative feasibility tolerance of the LP (HiGHS's default is 1e-7)
 LP_TOL = 1e-10
-#: alternating projections tried before the LP
-PROJECTIONS = 25
+#: active-set steps of the membership certificate tried before the LP
+ACTIVE_SET_STEPS = 12
 
 
 @dataclass(frozen=True)
@@ -125,20 +125,16 @@ class MembershipTester:
         ones = np.ones((n, 1))
         M = np.block([[G, -ones], [-G, -ones], [A, np.zeros((nc, 1))]])
         m = M.shape[0]
-        lp = highspy.HighsLp()
-        lp.num_col_ = r + 1
-        lp.num_row_ = m
-        lp.col_cost_ = np.concatenate([np.zeros(r), [1.0]])
-        lp.col_lower_ = np.concatenate([-np.ones(r), [0.0]])
-        lp.col_upper_ = np.concatenate([np.ones(r), [highspy.kHighsInf]])
-        lp.row_lower_ = np.concatenate([np.full(2 * n, -highspy.kHighsInf), b])
-        lp.row_upper_ = np.concatenate([v, -v, b])
-        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise  # dense, column by column
-        lp.a_matrix_.start_ = np.arange(0, m * (r + 1) + 1, m, dtype=np.int32)
-        lp.a_matrix_.index_ = np.tile(np.arange(m, dtype=np.int32), r + 1)
-        lp.a_matrix_.value_ = np.ascontiguousarray(M.T).ravel()
+        inf = highspy.kHighsInf
         h = self._solver()
-        h.passModel(lp)
+        h.clearModel()  # keeps the options; addRows/addCols are far cheaper than a HighsLp
+        h.addRows(m, np.concatenate([np.full(2 * n, -inf), b]), np.concatenate([v, -v, b]),
+                  0, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0))
+        h.addCols(r + 1, np.concatenate([np.zeros(r), [1.0]]),
+                  np.concatenate([-np.ones(r), [0.0]]), np.concatenate([np.ones(r), [inf]]),
+                  m * (r + 1), np.arange(0, m * (r + 1), m, dtype=np.int32),
+                  np.tile(np.arange(m, dtype=np.int32), r + 1),
+                  np.ascontiguousarray(M.T).ravel())  # dense, column by column
         h.run()
         status = h.getModelStatus()
         if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
@@ -146,9 +142,10 @@ class MembershipTester:
         sol = h.getSolution()
         upper = np.inf
         if sol.value_valid:
-            xi = polish(G, v, A, b, np.asarray(sol.col_value, float)[:r])
-            if nc == 0 or np.abs(A @ xi - b).max() <= tol_a:
-                upper = residual_bound(G, xi, v)
+            xi_lp = np.clip(np.asarray(sol.col_value, float)[:r], -1.0, 1.0)
+            for xi in (xi_lp, polish(G, v, A, b, xi_lp)):
+                if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
+                    upper = min(upper, residual_bound(G, xi, v))
         lower = 0.0
         if sol.dual_valid and len(sol.row_dual) == 2 * n + nc:
             y = np.asarray(sol.row_dual, float)
@@ -221,45 +218,55 @@ def dual_lower_bound(G, v, A, b, d, mu) -> float:
     return max(0.0, t1 - t2 - slack)
 
 
-def box_certificate(G, v, A, b, tol: float, tol_a: float,
-                    iterations: int = PROJECTIONS) -> bool:
-    """Whether a factor vector in the unit box is found with ``|G xi - v| <= tol`` and
-    ``|A xi - b| <= tol_a`` (least-norm solution, then alternating projections)."""
-    M = np.vstack([G, A])
-    t = np.concatenate([v, b])
-    try:
-        MMt = M @ M.T
-        P = np.linalg.solve(MMt, M).T  # M' (M M')^{-1}, the least-norm right inverse
-    except np.linalg.LinAlgError:
-        P = np.linalg.pinv(M)
-    xi = P @ t
+def active_set(M: np.ndarray, t: np.ndarray, free: np.ndarray, xi: np.ndarray,
+               iterations: int = ACTIVE_SET_STEPS) -> np.ndarray | None:
+    """A point of the unit box that solves ``M xi = t`` up to rounding, or None if not found.
+
+    The factors outside ``free`` stay at their values in ``xi``; the free ones are solved by
+    least norm; those landing beyond +-1 are fixed at their sign and the rest re-solved.  A
+    result within 1e-12 of the box is clipped into it (points exactly on the boundary).
+    """
+    free, xi = free.copy(), xi.copy()
     for _ in range(iterations + 1):
-        xc = np.clip(xi, -1.0, 1.0)
-        if (residual_bound(G, xc, v) <= tol
-                and (A.shape[0] == 0 or np.abs(A @ xc - b).max() <= tol_a)):
-            return True
-        xi = xc + P @ (t - M @ xc)
-    return False
+        if free.sum() < M.shape[0]:  # too few free factors left to match every row
+            return None
+        Mf = M[:, free]
+        rhs = t - M[:, ~free] @ xi[~free]
+        try:
+            z = Mf.T @ np.linalg.solve(Mf @ Mf.T, rhs)
+        except np.linalg.LinAlgError:
+            z = np.linalg.lstsq(Mf, rhs, rcond=None)[0]
+        over = np.abs(z) > 1.0 + 1e-12
+        if not over.any():
+            xi[free] = np.clip(z, -1.0, 1.0)
+            return xi
+        idx = np.flatnonzero(free)[over]
+        xi[idx] = np.sign(z[over])
+        free[idx] = False
+    return None
 
 
-def polish(G, v, A, b, xi: np.ndarray) -> np.ndarray:
-    """Refine an LP point at solver precision: keep the factors at their bounds, solve for the
-    free ones by least norm, accept the result if it stays in the box (else the clipped LP
-    point).  The returned point is always in the unit box."""
+def certifies(G, v, A, b, xi: np.ndarray | None, tol: float, tol_a: float) -> bool:
+    """Whether the box point ``xi`` proves membership: ``|G xi - v| <= tol`` (rounded
+    outward) and ``|A xi - b| <= tol_a``."""
+    return xi is not None and residual_bound(G, xi, v) <= tol and (
+        A.shape[0] == 0 or float(np.abs(A @ xi - b).max()) <= tol_a)
+
+
+def box_certificate(G, v, A, b, tol: float, tol_a: float) -> bool:
+    """Whether a factor vector in the unit box is found with ``|G xi - v| <= tol`` and
+    ``|A xi - b| <= tol_a``: the least-norm solution of ``[G; A] xi = [v; b]``, then
+    :func:`active_set` steps.  A ``True`` is a proof (the point is verified)."""
+    r = G.shape[1]
+    xi = active_set(np.vstack([G, A]), np.concatenate([v, b]), np.ones(r, bool), np.zeros(r))
+    return certifies(G, v, A, b, xi, tol, tol_a)
+
+
+def polish(G, v, A, b, xi: np.ndarray) -> np.ndarray | None:
+    """Refine an LP point found at solver precision: keep the factors at their bounds and
+    re-solve the free ones (:func:`active_set`); None if that fails."""
     xi = np.clip(xi, -1.0, 1.0)
     free = np.abs(xi) < 1.0 - 1e-9
-    if not free.any():
-        return xi
-    fixed = np.where(free, 0.0, np.sign(xi))
-    M = np.vstack([G, A])[:, free]
-    t = np.concatenate([v, b]) - np.vstack([G, A]) @ fixed
-    z, *_ = np.linalg.lstsq(M, t, rcond=None)
-    if np.abs(z).max() <= 1.0:
-        out = fixed.copy()
-        out[free] = z
-        before = np.abs(np.vstack([G, A]) @ xi - np.concatenate([v, b])).max()
-        after = np.abs(np.vstack([G, A]) @ out - np.concatenate([v, b])).max()
-        if after <= before:
-            return out
-    return xi
+    return active_set(np.vstack([G, A]), np.concatenate([v, b]), free,
+                      np.where(free, 0.0, np.sign(xi)))
 
