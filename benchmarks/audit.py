@@ -148,13 +148,19 @@ def realisations(name: str, count: int) -> tuple[tuple[str, Scenario], ...]:
 
 
 def check_scenario(name: str) -> None:
-    """Raise a one-line error if ``name`` cannot be audited (unknown, or no true states)."""
+    """Raise a one-line error unless ``name`` is a simulated scenario with true states."""
     try:
-        sc = systems.scenario(name, seed=0)
+        sc = systems.scenario(name)
     except ModelError as exc:
         raise ConfigError(f"audit: {exc}") from None
     if sc.x_true is None:
-        raise ConfigError(f"audit: scenario '{name}' has no true states (use a simulated one)")
+        raise ConfigError(f"audit: scenario '{name}' has no true states (use a simulated one, "
+                          f"e.g. {', '.join(AUDIT_SCENARIOS)})")
+    try:
+        systems.scenario(name, seed=0, noise="vertex")
+    except ModelError:
+        raise ConfigError(f"audit: scenario '{name}' is a fixed record; the audit needs a "
+                          "simulated one (accepting seed and noise)") from None
 
 
 # -- audit of one observer on one scenario --------------------------------------------------

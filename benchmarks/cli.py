@@ -33,7 +33,10 @@ def _cmd_run(args) -> int:
     bad = summary[(summary["status"] == "ok") & (summary["violations"].fillna(0) > 0)
                   & summary["guaranteed"].astype(bool)]
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
-    statuses = summary.drop_duplicates(["scenario", "observer"])["status"].value_counts()
+    pairs = summary.drop_duplicates(["scenario", "observer"])
+    for r in pairs[pairs["status"] != "ok"].itertuples(index=False):
+        print(f"note: {r.observer} on {r.scenario}: {r.status}: {r.message}", file=sys.stderr)
+    statuses = pairs["status"].value_counts()
     print("status: " + ", ".join(f"{k} {v}" for k, v in statuses.items()))
     if len(bad):
         names = sorted(set(zip(bad["scenario"], bad["observer"], strict=True)))
