@@ -80,6 +80,18 @@ def held_vertices(rng: np.random.Generator, steps: int, m: int) -> np.ndarray:
     return out
 
 
+def bang_bang_pattern(A, B, d: np.ndarray, H: int) -> np.ndarray:
+    """Signs ``s_j = sign(B' (A')^(H-1-j) d)`` (H x nu): among inputs ``|u_j| <= 1`` the
+    sequence that maximises ``d' x_H`` for ``x_{j+1} = A x_j + B u_j`` from ``x_0 = 0``."""
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    pattern = np.empty((H, B.shape[1]))
+    m = np.asarray(d, float)
+    for j in reversed(range(H)):
+        pattern[j] = np.where(B.T @ m >= 0, 1.0, -1.0)
+        m = A.T @ m
+    return pattern
+
+
 def worst_case_input(system, u_nominal: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Bang-bang input at the bounds of the nominal input range that swings the state between
     extremes along a random direction (see the module docstring)."""
@@ -93,14 +105,8 @@ def worst_case_input(system, u_nominal: np.ndarray, rng: np.random.Generator) ->
     mid, amp = 0.5 * (lo + hi), 0.5 * (hi - lo)
     H = int(rng.integers(5, 51))
     if hasattr(system, "A"):
-        A, B = np.asarray(system.A, float), np.asarray(system.B, float)
-        d = rng.normal(size=A.shape[0])
-        d /= np.linalg.norm(d)
-        pattern = np.empty((H, nu))
-        m = d
-        for j in reversed(range(H)):  # sign(B' (A')^(H-1-j) d)
-            pattern[j] = np.where(B.T @ m >= 0, 1.0, -1.0)
-            m = A.T @ m
+        d = rng.normal(size=system.n)
+        pattern = bang_bang_pattern(system.A, system.B, d / np.linalg.norm(d), H)
     else:  # no linear model: a random sign pattern, switched the same way
         pattern = rng.choice([-1.0, 1.0], size=(H, nu))
     k = np.arange(N)

@@ -228,11 +228,13 @@ def active_set(M: np.ndarray, t: np.ndarray, free: np.ndarray, xi: np.ndarray,
     """
     free, xi = free.copy(), xi.copy()
     for _ in range(iterations + 1):
-        if free.sum() < M.shape[0]:  # too few free factors left to match every row
+        if not free.any():
             return None
         Mf = M[:, free]
         rhs = t - M[:, ~free] @ xi[~free]
-        try:
+        try:  # least norm via the normal equations; least squares if they are singular
+            if Mf.shape[1] < Mf.shape[0]:
+                raise np.linalg.LinAlgError
             z = Mf.T @ np.linalg.solve(Mf @ Mf.T, rhs)
         except np.linalg.LinAlgError:
             z = np.linalg.lstsq(Mf, rhs, rcond=None)[0]
