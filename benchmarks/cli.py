@@ -20,6 +20,7 @@ from systems import ModelError, scenario_names
 from . import audit, regression
 from .config import load_config
 from .errors import ConfigError
+from .io import atomic_write_csv
 from .report import write_report
 from .runner import run_config
 
@@ -57,8 +58,6 @@ def _cmd_check(args) -> int:
     frame, cache_note = regression.run_subset(cfg, args.use_cache, progress, args.out)
     diff = regression.compare(base, frame)
     if args.out:
-        from .io import atomic_write_csv
-
         atomic_write_csv(Path(args.out) / "diff.csv", diff)
     n, bad = len(diff), int((~diff["ok"]).sum())
     if bad or args.all:
@@ -84,20 +83,14 @@ def _cmd_baseline(args) -> int:
     cfg = regression.subset_config(args.config)
     progress = False if args.no_progress else None
     frame, cache_note = regression.run_subset(cfg, args.use_cache, progress)
-    per = frame.drop_duplicates(["scenario", "observer"])
-    crashed = per[per["status"] == "error"]
-    unsound = per[(per["violations"].fillna(0) > 0) & per["guaranteed"].astype(bool)]
-    problems = [f"{o} crashed on {s}" for s, o in zip(crashed["scenario"], crashed["observer"],
-                                                        strict=True)]
-    problems += [f"{o} violates containment on {s}"
-                 for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)]
+    problems = regression.baseline_problems(frame)
     if problems and not args.force:
         print("baseline NOT written: " + "; ".join(problems) + " (fix them, or pass --force)",
               file=sys.stderr)
         return 1
     files = regression.write_baseline(frame, args.baseline, cfg, cache_note)
     print(f"wrote {len(files)} golden files to {args.baseline} "
-          f"({per['observer'].nunique()} observers; {cache_note})")
+          f"({frame['observer'].nunique()} observers; {cache_note})")
     return 0
 
 

@@ -130,6 +130,19 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
     return written
 
 
+def baseline_problems(frame: pd.DataFrame) -> list[str]:
+    """Why a run must not become the baseline: a crashed observer, or a guaranteed observer
+    whose sets miss the true state (a bug to fix, not a number to enshrine)."""
+    per = frame.drop_duplicates(["scenario", "observer"])
+    crashed = per[per["status"] == "error"]
+    unsound = per[(pd.to_numeric(per["violations"], errors="coerce").fillna(0) > 0)
+                  & per["guaranteed"].astype(bool)]
+    return ([f"{o} crashed on {s}" for s, o in zip(crashed["scenario"], crashed["observer"],
+                                                     strict=True)]
+            + [f"{o} violates containment on {s}"
+               for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)])
+
+
 def load_baseline(folder: str | Path) -> tuple[pd.DataFrame, dict]:
     """The golden rows of all scenarios and the baseline's meta data."""
     folder = Path(folder)
@@ -225,17 +238,21 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
                              "state not in the baseline"))
             continue
         rtol = float(r.rtol_c)
+        first = (sc, obs) not in status_done  # status and violations: once per observer
+        status_done.add((sc, obs))
         if r.status_c == "error" or r.status_b != r.status_c:
-            if (sc, obs) not in status_done:  # one status row per observer and scenario
-                status_done.add((sc, obs))
+            if first:
                 note = "the observer crashed (see the warning above)" if (
                     r.status_c == "error") else ""
                 rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", False,
                                  note))
             continue
-        if (sc, obs) not in status_done:
-            status_done.add((sc, obs))
+        if first:
             rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", True))
+            vb, vc = float(r.violations_b), float(r.violations_c)
+            same = (math.isnan(vb) and math.isnan(vc)) or vb == vc
+            rows.append(_row(sc, obs, "-", "violations", vb, vc, 0.0, same,
+                             "" if same else "containment changed"))
         if r.status_c == "ok":
             rows.append(_row(sc, obs, label, "rms_radius", float(r.rms_radius_b),
                              float(r.rms_radius_c), rtol,
@@ -243,10 +260,6 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
             tol_rel = rtol + best.get((sc, st), rtol)
             rows.append(_row(sc, obs, label, "rel_rms", float(r.rel_rms_b), float(r.rel_rms_c),
                              tol_rel, _close(float(r.rel_rms_c), float(r.rel_rms_b), tol_rel)))
-        vb, vc = float(r.violations_b), float(r.violations_c)
-        same = (math.isnan(vb) and math.isnan(vc)) or vb == vc
-        rows.append(_row(sc, obs, label, "violations", vb, vc, 0.0, same,
-                         "" if same else "containment changed"))
     return pd.DataFrame(rows, columns=["scenario", "observer", "state", "metric", "baseline",
                                        "current", "rel_diff", "tol", "ok", "note"])
 

@@ -191,3 +191,21 @@ def test_committed_baseline_matches_the_regression_subset():
     ok = frame[frame["status"] == "ok"]
     assert ok["rms_radius"].gt(0).all() and ok.groupby(["scenario", "state"])[
         "rel_rms"].min().round(12).eq(1.0).all()
+
+
+def test_a_containment_failure_fails_the_check(tmp_path, capsys, monkeypatch):
+    cfg = subset(tmp_path, ["FRad-A"], [{"name": "alamo2d-sim", "seed": 2, "noise": "vertex"}])
+    assert gate(tmp_path, "baseline", cfg, "--update") == 0
+    step = frad.FRadA.step
+
+    def shrunk(self, u_prev, y):
+        from observers.sets import Zonotope
+
+        S = step(self, u_prev, y)
+        return Zonotope(S.c, 0.3 * S.G)
+
+    monkeypatch.setattr(frad.FRadA, "step", shrunk)
+    assert gate(tmp_path, "check", cfg) == 1
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()]
+    assert any(r[:6] == ["alamo2d-sim", "FRad-A", "-", "violations", "0"] + r[5:6]
+               and r[5] != "0" and "containment" in r for r in rows), rows
