@@ -137,6 +137,14 @@ class MembershipTester:
                   np.ascontiguousarray(M.T).ravel())  # dense, column by column
         h.run()
         status = h.getModelStatus()
+        if status not in (highspy.HighsModelStatus.kOptimal,
+                          highspy.HighsModelStatus.kInfeasible):
+            # numerical trouble of the fast settings: solve again with HiGHS's robust defaults
+            h.clearSolver()
+            _set_options(h, ROBUST_LP)
+            h.run()
+            status = h.getModelStatus()
+            _set_options(h, FAST_LP)
         if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
             return np.inf, np.inf
         sol = h.getSolution()
@@ -161,15 +169,24 @@ class MembershipTester:
             h.setOptionValue("output_flag", False)
             h.setOptionValue("primal_feasibility_tolerance", LP_TOL)
             h.setOptionValue("dual_feasibility_tolerance", LP_TOL)
-            # small dense LPs: presolve costs more than it saves; primal simplex is fastest
-            h.setOptionValue("presolve", "off")
-            h.setOptionValue("simplex_strategy", 4)
+            _set_options(h, FAST_LP)
             self._highs = h
         return self._highs
 
     def _count(self, m: Membership) -> Membership:
         self.counts[m.method] = self.counts.get(m.method, 0) + 1
         return m
+
+
+#: small dense LPs: presolve costs more than it saves, and primal simplex is fastest ...
+FAST_LP = {"presolve": "off", "simplex_strategy": 4}
+#: ... but when it reports numerical trouble, HiGHS's defaults (presolve, dual simplex) retry
+ROBUST_LP = {"presolve": "on", "simplex_strategy": 1}
+
+
+def _set_options(h: highspy.Highs, options: dict) -> None:
+    for key, value in options.items():
+        h.setOptionValue(key, value)
 
 
 # -- pure kernels ---------------------------------------------------------------------------

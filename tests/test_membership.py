@@ -130,3 +130,16 @@ def test_bounds_are_rounded_outward():
     lb = dual_lower_bound(np.eye(2), np.array([3.0, 0.0]), np.zeros((0, 2)), np.zeros(0),
                           np.array([1.0, 0.0]), np.zeros(0))
     assert 2.0 - 1e-12 < lb < 2.0
+
+
+def test_lp_trouble_of_the_fast_settings_is_retried_with_robust_ones(monkeypatch):
+    from benchmarks import membership
+
+    # the fast settings fail at once (iteration limit 0); the robust ones lift the limit
+    monkeypatch.setattr(membership, "FAST_LP", {"presolve": "off", "simplex_strategy": 4,
+                                                "simplex_iteration_limit": 0})
+    monkeypatch.setattr(membership, "ROBUST_LP", {"presolve": "on", "simplex_strategy": 1,
+                                                  "simplex_iteration_limit": 10**6})
+    Z = Zonotope([0.0, 0.0], [[0.5, 0.5], [0.5, -0.5]])
+    m = MembershipTester().test(Z, [0.6, 0.6], 1e-9)
+    assert m.inside is False and m.distance == pytest.approx(0.1, abs=1e-9)
