@@ -8,7 +8,7 @@ CONFIGS_QUICK := benchmarks/configs/quick.yaml
 RESULTS ?= results
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report clean
+.PHONY: help install test lint bench bench-quick report check baseline audit clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -24,7 +24,7 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)  ## create .venv and install the project with its test extras
 
-test: $(STAMP)  ## run ruff and the test suite (what CI runs)
+test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 	$(PY) -m pytest
 
@@ -41,6 +41,15 @@ bench: $(STAMP)  ## run every benchmark config into results/<config>/ and write 
 bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
+
+check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
+	$(PY) -m benchmarks check
+
+baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
+	$(PY) -m benchmarks baseline --update
+
+audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
+	$(PY) -m benchmarks audit
 
 report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \

@@ -1,12 +1,15 @@
-"""Command line: ``python -m benchmarks {run,report,list} ...``.
+"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit} ...``.
 
-Bad input ends with a one-line ``error: ...`` on stderr and exit code 2.
+Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
+(``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
+exit code 1.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import observers
@@ -14,8 +17,10 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
+from . import audit, regression
 from .config import load_config
 from .errors import ConfigError
+from .io import atomic_write_csv
 from .report import write_report
 from .runner import run_config
 
@@ -29,13 +34,87 @@ def _cmd_run(args) -> int:
     bad = summary[(summary["status"] == "ok") & (summary["violations"].fillna(0) > 0)
                   & summary["guaranteed"].astype(bool)]
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
-    statuses = summary.drop_duplicates(["scenario", "observer"])["status"].value_counts()
+    pairs = summary.drop_duplicates(["scenario", "observer"])
+    for r in pairs[pairs["status"] != "ok"].itertuples(index=False):
+        print(f"note: {r.observer} on {r.scenario}: {r.status}: {r.message}", file=sys.stderr)
+    statuses = pairs["status"].value_counts()
     print("status: " + ", ".join(f"{k} {v}" for k, v in statuses.items()))
     if len(bad):
         names = sorted(set(zip(bad["scenario"], bad["observer"], strict=True)))
         print("CONTAINMENT VIOLATIONS: " + ", ".join(f"{o} on {s}" for s, o in names),
               file=sys.stderr)
         return 1
+    return 0
+
+
+def _cmd_check(args) -> int:
+    cfg = regression.subset_config(args.config)
+    base, meta = regression.load_baseline(args.baseline)
+    if regression.config_changed(cfg, meta):
+        print(f"REGRESSION: {args.config} changed since the baseline in {args.baseline} was "
+              "written; review and run `python -m benchmarks baseline --update`", file=sys.stderr)
+        return 1
+    progress = False if args.no_progress else None
+    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress, args.out)
+    diff = regression.compare(base, frame)
+    if args.out:
+        atomic_write_csv(Path(args.out) / "diff.csv", diff)
+    n, bad = len(diff), int((~diff["ok"]).sum())
+    if bad or args.all:
+        print(regression.format_diff(diff, only_failures=not args.all))
+    where = (f"{frame['observer'].nunique()} observers x {frame['scenario'].nunique()} "
+             f"scenarios; {cache_note}; baseline of {meta.get('created', '?')}")
+    if bad:
+        print(f"check FAILED: {bad} of {n} values differ from the baseline; changed: "
+              f"{', '.join(regression.changed_observers(diff))} ({where})", file=sys.stderr)
+        print("if the change is intended, rewrite the golden files with "
+              "`python -m benchmarks baseline --update` and commit them", file=sys.stderr)
+        return 1
+    print(f"check passed: {n} values within tolerance ({where})")
+    return 0
+
+
+def _cmd_baseline(args) -> int:
+    if not args.update:
+        frame, meta = regression.load_baseline(args.baseline)
+        print(regression.baseline_overview(frame, meta))
+        print("(`--update` re-runs the subset and rewrites these files)")
+        return 0
+    cfg = regression.subset_config(args.config)
+    progress = False if args.no_progress else None
+    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress)
+    problems = regression.baseline_problems(frame)
+    if problems and not args.force:
+        print("baseline NOT written: " + "; ".join(problems) + " (fix them, or pass --force)",
+              file=sys.stderr)
+        return 1
+    files = regression.write_baseline(frame, args.baseline, cfg, cache_note)
+    print(f"wrote {len(files)} golden files to {args.baseline} "
+          f"({frame['observer'].nunique()} observers; {cache_note})")
+    return 0
+
+
+def _cmd_audit(args) -> int:
+    jobs = args.jobs if args.jobs is not None else audit.default_jobs()
+    t0 = time.perf_counter()
+    df = audit.run_audit(args.scenarios, args.observers, args.realisations, jobs,
+                         progress=False if args.no_progress else None)
+    elapsed = time.perf_counter() - t0
+    csv_path, report = audit.write_audit(df, args.out, args.report, args.realisations,
+                                         elapsed, jobs)
+    agg = audit.aggregate(df)
+    bad = agg[agg["guaranteed"] & (agg["violations"] > 0)]
+    print(f"wrote {report} and {csv_path} ({int(agg['runs'].sum())} runs, "
+          f"{int(agg['steps'].sum())} steps, {elapsed:.0f} s)")
+    undecided = int(agg["undecided"].sum())
+    if undecided:
+        print(f"note: {undecided} step(s) undecided at LP precision (see the report)")
+    if len(bad):
+        print("SOUNDNESS VIOLATIONS: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({r.violations} steps)"
+            for r in bad.itertuples(index=False)), file=sys.stderr)
+        return 1
+    print("zero violations for every guaranteed observer")
     return 0
 
 
@@ -75,6 +154,40 @@ def build_parser() -> argparse.ArgumentParser:
     ls = sub.add_parser("list", help="list observers and scenarios")
     ls.add_argument("what", nargs="?", default="all", choices=["observers", "scenarios", "all"])
     ls.set_defaults(func=_cmd_list)
+    subset = argparse.ArgumentParser(add_help=False)
+    subset.add_argument("--config", default=str(regression.DEFAULT_CONFIG),
+                        help="the regression subset (default benchmarks/configs/regression.yaml)")
+    subset.add_argument("--baseline", default=str(regression.DEFAULT_BASELINE),
+                        help="folder of the golden files (default results/baseline)")
+    subset.add_argument("--use-cache", action="store_true",
+                        help="use cached offline designs (default: recompute every design)")
+    subset.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ch = sub.add_parser("check", parents=[subset],
+                        help="re-run the regression subset and compare with the golden files")
+    ch.add_argument("--out", default=str(Path("results") / "check"),
+                    help="where to write this run and diff.csv (default results/check)")
+    ch.add_argument("--all", action="store_true", help="print every compared value")
+    ch.set_defaults(func=_cmd_check)
+    bl = sub.add_parser("baseline", parents=[subset],
+                        help="show the golden files, or rewrite them with --update")
+    bl.add_argument("--update", action="store_true", help="re-run the subset and rewrite them")
+    bl.add_argument("--force", action="store_true",
+                    help="write even if an observer crashed or violates containment")
+    bl.set_defaults(func=_cmd_baseline)
+    au = sub.add_parser("audit", help="soundness audit on many seeded realisations")
+    au.add_argument("--realisations", type=int, default=audit.DEFAULT_REALISATIONS,
+                    help=f"realisations per observer and scenario "
+                         f"(default {audit.DEFAULT_REALISATIONS})")
+    au.add_argument("--scenarios", nargs="+", default=list(audit.AUDIT_SCENARIOS),
+                    help="simulated scenarios (default: " + " ".join(audit.AUDIT_SCENARIOS) + ")")
+    au.add_argument("--observers", nargs="+", help="observer names (default: all registered)")
+    au.add_argument("--jobs", type=int, help="worker processes (default: cores, at most 2)")
+    au.add_argument("--out", default=str(Path("results") / "audit"),
+                    help="folder of soundness.csv (default results/audit)")
+    au.add_argument("--report", default=str(Path("reports") / "soundness.md"),
+                    help="Markdown report (default reports/soundness.md)")
+    au.add_argument("--no-progress", action="store_true", help="no progress bar")
+    au.set_defaults(func=_cmd_audit)
     return p
 
 

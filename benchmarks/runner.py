@@ -22,6 +22,7 @@ from systems import ModelError, Scenario
 from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json
+from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import Progress
 
@@ -50,23 +51,28 @@ class ObserverRun:
 def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: bool):
     """Hull containment per step and state, and exact set membership per step.
 
-    The exact test (an LP per step for zonotopes) runs only where the hull test passes, since
-    a point outside the interval hull is outside the set.
+    The exact test (:mod:`benchmarks.membership`: a membership certificate, else an LP) runs
+    only where the hull test passes, since a point outside the interval hull is outside the set.
     """
     N = len(res.sets)
     x = x_true[:N]
     hull = (x >= res.lo[:N] - tol) & (x <= res.hi[:N] + tol)
     in_set = hull.all(axis=1)
     if exact:
+        tester = MembershipTester()
         for k in np.flatnonzero(in_set):
             S = res.sets[k]
             if hasattr(S, "contains"):
-                in_set[k] = S.contains(x[k], tol)
+                in_set[k] = tester.contains(S, x[k], tol, hull=(res.lo[k], res.hi[k]))
     return hull, in_set
 
 
-def run_observer(name: str, sc: Scenario, options: dict, containment: str) -> ObserverRun:
-    """Design and run one observer; failures become statuses, not exceptions."""
+def run_observer(name: str, sc: Scenario, options: dict, containment: str,
+                 keep_sets: bool = False) -> ObserverRun:
+    """Design and run one observer; failures become statuses, not exceptions.
+
+    ``keep_sets``: keep the estimated sets in ``run.result.sets`` (for the soundness audit).
+    """
     info = observers.get(name)
     try:
         obs = observers.create(name, sc.system, **options)
@@ -90,7 +96,8 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str) -> Ob
     if sc.x_true is not None and len(res.sets):
         run.contained, run.in_set = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
-    res.sets.clear()  # free memory; bounds are kept
+    if not keep_sets:
+        res.sets.clear()  # free memory; bounds are kept
     return run
 
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from observers.sets import Interval, SetError, Zonotope
-from systems import LinearSystem, ModelError, Scenario, scenario, simulate
+from systems import NOISE_MODELS, LinearSystem, ModelError, Scenario, scenario, simulate
 
 from .errors import ConfigError
 
@@ -34,6 +34,38 @@ NAMED_KWARGS = {"seed", "noise", "steps"}
 INLINE_KEYS = {"name", "system", "u", "y", "x_true", "simulate", "options", "tolerance",
                "description"}
 SYSTEM_KEYS = {"A", "B", "C", "W", "V", "X0", "dt"}
+
+
+def _integer(value: Any, what: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ConfigError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _number(value: Any, what: str, *, positive: bool) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = float("nan")
+    if isinstance(value, bool) or not np.isfinite(x) or x < 0 or (positive and x == 0):
+        kind = "a positive" if positive else "a non-negative"
+        raise ConfigError(f"{what} must be {kind} number, got {value!r}")
+    return x
+
+
+def simulation_kwargs(spec: dict, where: str) -> dict[str, Any]:
+    """Validated ``steps`` (>= 1), ``seed`` (>= 0) and ``noise`` (a known model) of ``spec``."""
+    out: dict[str, Any] = {}
+    if "steps" in spec:
+        out["steps"] = _integer(spec["steps"], f"{where}: steps", 1)
+    if "seed" in spec:
+        out["seed"] = _integer(spec["seed"], f"{where}: seed", 0)
+    if "noise" in spec:
+        if spec["noise"] not in NOISE_MODELS:
+            raise ConfigError(f"{where}: unknown noise model '{spec['noise']}' (known: "
+                              f"{', '.join(NOISE_MODELS)})")
+        out["noise"] = spec["noise"]
+    return out
 
 
 def _array(value: Any, what: str, base: Path | None, ndim: int = 2) -> np.ndarray:
@@ -110,22 +142,28 @@ def parse_system(spec: Any, where: str) -> LinearSystem:
     if missing:
         raise ConfigError(f"{where}: system is missing {sorted(missing)}")
     A = _array(spec["A"], f"{where}: A", None)
+    if A.shape[0] != A.shape[1]:
+        raise ConfigError(f"{where}: A must be square, got shape {A.shape}")
     n = A.shape[0]
     C = _array(spec["C"], f"{where}: C", None)
     if C.shape[1] != n and C.shape[0] == n and C.shape[1] == 1:
         C = C.T
     B = _array(spec["B"], f"{where}: B", None) if "B" in spec else np.zeros((n, 0))
     try:
-        return LinearSystem(
+        system = LinearSystem(
             A, B, C,
             W=parse_set(spec["W"], f"{where}: W", n),
             V=parse_set(spec["V"], f"{where}: V", C.shape[0] if C.ndim == 2 else 1),
             X0=parse_set(spec["X0"], f"{where}: X0", n),
-            dt=float(spec.get("dt", 1.0)),
+            dt=_number(spec.get("dt", 1.0), "dt", positive=True),
             name=where,
         )
+        # an unstable mode no output sees makes every estimate grow without bound: not a
+        # benchmark (unobservable but detectable systems, like the 6-tank one, are fine)
+        system.require_detectable(where)
     except ModelError as exc:
         raise ConfigError(f"{where}: {exc}") from None
+    return system
 
 
 def _check_record(a: np.ndarray, what: str, cols: int, rows: int | None = None) -> np.ndarray:
@@ -157,7 +195,9 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
     if sim is not None:
         if not isinstance(sim, dict) or not set(sim) <= {"steps", "seed", "noise"}:
             raise ConfigError(f"{where}: 'simulate' takes steps, seed and noise")
-        steps = int(sim.get("steps", 100))
+        sim = {"steps": 100, "seed": 0, "noise": "uniform",
+               **simulation_kwargs(sim, f"{where}: simulate")}
+        steps = sim["steps"]
         u = (np.zeros((steps, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u", system.nu))
         try:
@@ -184,7 +224,7 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
     return Scenario(
         name=name, system=system, u=u, y=y, x_true=x_true, options=dict(options),
         description=str(spec.get("description", "inline scenario")), source="config",
-        tolerance=float(spec.get("tolerance", 1e-9)),
+        tolerance=_number(spec.get("tolerance", 1e-9), f"{where}: tolerance", positive=False),
         state_names=tuple(f"x{i + 1}" for i in range(system.n)),
     )
 
@@ -202,6 +242,7 @@ def build_scenario(spec: Any, base: Path | None) -> Scenario:
     if unknown:
         raise ConfigError(f"scenario '{spec['name']}': unknown key(s) {sorted(unknown)} "
                           f"(a named scenario takes {', '.join(sorted(NAMED_KWARGS))})")
+    kwargs = simulation_kwargs(kwargs, f"scenario '{spec['name']}'")
     try:
         return scenario(str(spec["name"]), **kwargs)
     except ModelError as exc:

@@ -35,6 +35,10 @@ class Observer(ABC):
     OPTIONS: ClassVar[dict[str, Any]] = {}
     #: system attributes this observer reads (data-driven observers do not read A and B)
     REQUIRES: ClassVar[tuple[str, ...]] = ("A", "B", "C", "W", "V", "X0")
+    #: relative tolerance of the CI regression gate (``python -m benchmarks check``) on this
+    #: observer's RMS radii: 1e-6 for deterministic online computations; observers whose
+    #: numbers depend on an offline solver's output override it (see ``OfflineGain``)
+    REGRESSION_RTOL: ClassVar[float] = 1e-6
 
     def __init__(self, system: Any, **options: Any):
         missing = [a for a in self.REQUIRES if not hasattr(system, a)]

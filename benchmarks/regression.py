@@ -1,0 +1,348 @@
+"""CI regression gate: golden summaries of a fast benchmark subset, and their comparison.
+
+``python -m benchmarks baseline --update`` runs the subset (``configs/regression.yaml``: every
+registered observer on four small records) and writes one golden file per scenario,
+``results/baseline/<scenario>.csv`` (observer x state: ``status``, ``rms_radius``,
+``rel_rms``, ``violations``, ``rtol``), plus ``meta.json``.  ``python -m benchmarks check``
+re-runs the subset and compares:
+
+* the set of (scenario, observer) pairs: a pair missing now or new since the baseline fails
+  (a new observer is gated only once it is in the baseline);
+* ``status`` (ok, noGain, diverged) exactly; an ``error`` status (a crash) always fails;
+* ``rms_radius`` within the observer's relative tolerance ``rtol``;
+* ``rel_rms`` within ``rtol + rtol_best`` (a ratio: the tolerance of the best observer of
+  that state adds), recomputed against the baseline's observers only, so that a new, better
+  observer does not shift the ratios of the others;
+* ``violations`` (interval-hull containment failures, where the true state is known) exactly.
+
+Timings are never compared.
+
+Tolerances are data, not code paths: ``rtol`` is the class attribute ``REGRESSION_RTOL`` of the
+observer (``observers.Observer``: 1e-6, deterministic online computations; ``OfflineGain``:
+1e-4, gains from an SDP solver, accurate to the solver's tolerance).  A plugin sets its own.
+
+Offline designs are recomputed by default (the design cache is switched off for the run,
+``SETOBS_CACHE_DIR=off``), so that the gate tests the design code and never a stale cached
+gain; ``--use-cache`` uses the cache instead.  Both the baseline and the check record which.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+
+import pandas as pd
+
+import observers
+
+from .config import BenchConfig, load_config
+from .errors import ConfigError
+from .io import atomic_write_csv, atomic_write_json
+from .metrics import add_relative_rms
+from .runner import _versions, run_config
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent / "configs" / "regression.yaml"
+DEFAULT_BASELINE = Path("results") / "baseline"
+BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
+                    "rms_radius", "rel_rms", "violations", "rtol"]
+#: absolute floor of every comparison (values that are zero up to rounding)
+ATOL = 1e-12
+DEFAULT_RTOL = 1e-6
+
+
+def regression_rtol(name: str) -> float:
+    """The regression tolerance of observer ``name`` (its class's ``REGRESSION_RTOL``)."""
+    rtol = getattr(observers.get(name).cls, "REGRESSION_RTOL", DEFAULT_RTOL)
+    try:
+        rtol = float(rtol)
+    except (TypeError, ValueError):
+        rtol = math.nan
+    if not (math.isfinite(rtol) and 0 < rtol < 1):
+        raise ConfigError(f"{name}: REGRESSION_RTOL must be a number in (0, 1), got {rtol!r}")
+    return rtol
+
+
+@contextmanager
+def design_cache(use_cache: bool) -> Iterator[str]:
+    """Switch the design cache off for the block unless ``use_cache``; yields a description."""
+    if use_cache:
+        yield f"cached designs ({os.environ.get('SETOBS_CACHE_DIR') or 'default cache folder'})"
+        return
+    old = os.environ.get("SETOBS_CACHE_DIR")
+    os.environ["SETOBS_CACHE_DIR"] = "off"
+    try:
+        yield "designs recomputed (SETOBS_CACHE_DIR=off)"
+    finally:
+        if old is None:
+            os.environ.pop("SETOBS_CACHE_DIR", None)
+        else:
+            os.environ["SETOBS_CACHE_DIR"] = old
+
+
+def subset_config(path: str | Path = DEFAULT_CONFIG) -> BenchConfig:
+    """The regression subset; ``observers: all`` means every registered observer here,
+    including the non-guaranteed baselines (their numbers are regression-tested too)."""
+    cfg = load_config(path)
+    if cfg.raw.get("observers", "all") == "all":
+        excluded = set(map(str, cfg.raw.get("exclude", []) or []))
+        cfg.observers = [i.name for i in observers.available() if i.name not in excluded]
+    return cfg
+
+
+def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None = None,
+               out: str | Path | None = None) -> tuple[pd.DataFrame, str]:
+    """Run the subset; returns the golden-file rows and the design-cache description."""
+    with design_cache(use_cache) as cache_note:
+        _, summary = run_config(cfg, out, progress=progress)
+    frame = summary.copy()
+    frame["rtol"] = [regression_rtol(o) for o in frame["observer"]]
+    return frame[BASELINE_COLUMNS], cache_note
+
+
+def _meta(cfg: BenchConfig, cache_note: str) -> dict:
+    return {
+        "config": {"name": cfg.name, "raw": cfg.raw},
+        "observers": cfg.observers,
+        "design_cache": cache_note,
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "versions": _versions(),
+    }
+
+
+def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
+                   cache_note: str) -> list[Path]:
+    """Write one golden CSV per scenario (atomically), remove stale ones, write meta.json."""
+    folder = Path(folder)
+    written = []
+    for sc, g in frame.groupby("scenario", sort=False):
+        path = folder / f"{sc}.csv"
+        g = g.reset_index(drop=True).assign(rtol=g["rtol"].map("{:g}".format).to_numpy())
+        atomic_write_csv(path, g)
+        written.append(path)
+    for stale in set(folder.glob("*.csv")) - set(written):
+        stale.unlink()
+    atomic_write_json(folder / "meta.json", _meta(cfg, cache_note))
+    return written
+
+
+def baseline_problems(frame: pd.DataFrame) -> list[str]:
+    """Why a run must not become the baseline: a crashed observer, or a guaranteed observer
+    whose sets miss the true state (a bug to fix, not a number to enshrine)."""
+    per = frame.drop_duplicates(["scenario", "observer"])
+    crashed = per[per["status"] == "error"]
+    unsound = per[(pd.to_numeric(per["violations"], errors="coerce").fillna(0) > 0)
+                  & per["guaranteed"].astype(bool)]
+    return ([f"{o} crashed on {s}" for s, o in zip(crashed["scenario"], crashed["observer"],
+                                                     strict=True)]
+            + [f"{o} violates containment on {s}"
+               for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)])
+
+
+def load_baseline(folder: str | Path) -> tuple[pd.DataFrame, dict]:
+    """The golden rows of all scenarios and the baseline's meta data."""
+    folder = Path(folder)
+    files = sorted(folder.glob("*.csv"))
+    if not files:
+        raise ConfigError(f"no baseline in {folder} (write one with "
+                          "`python -m benchmarks baseline --update`)")
+    parts = []
+    for path in files:
+        try:
+            df = pd.read_csv(path)
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"baseline file {path} is not readable CSV: "
+                              f"{str(exc).splitlines()[0]}") from None
+        missing = [c for c in BASELINE_COLUMNS if c not in df.columns]
+        if missing:
+            raise ConfigError(f"baseline file {path} lacks column(s) {missing}")
+        parts.append(df[BASELINE_COLUMNS])
+    meta_path = folder / "meta.json"
+    try:
+        meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"baseline {meta_path} is not valid JSON: {exc.msg}") from None
+    return pd.concat(parts, ignore_index=True), meta
+
+
+# -- comparison -----------------------------------------------------------------------------
+def _close(a: float, b: float, tol: float) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(abs(a - b) <= tol * abs(b) + ATOL)
+
+
+def _rel(a: float, b: float) -> float:
+    if b == 0 or not (math.isfinite(a) and math.isfinite(b)):
+        return math.nan if a == b or (math.isnan(a) and math.isnan(b)) else math.inf
+    return abs(a - b) / abs(b)
+
+
+def _row(sc, obs, state, metric, base, cur, tol, ok, note="") -> dict:
+    rel = _rel(float(cur), float(base)) if isinstance(base, (int, float)) and isinstance(
+        cur, (int, float)) else math.nan
+    return {"scenario": sc, "observer": obs, "state": state, "metric": metric,
+            "baseline": base, "current": cur, "rel_diff": rel, "tol": tol, "ok": bool(ok),
+            "note": note}
+
+
+def _best_rtol(base: pd.DataFrame, rtols: dict[str, float]) -> dict[tuple[str, int], float]:
+    ok = base[(base["status"] == "ok") & base["guaranteed"].astype(bool)]
+    out = {}
+    for (sc, st), g in ok.groupby(["scenario", "state"]):
+        best = g.loc[g["rms_radius"].idxmin(), "observer"]
+        out[(sc, int(st))] = rtols.get(best, float(g.loc[g["rms_radius"].idxmin(), "rtol"]))
+    return out
+
+
+def _normalise(df: pd.DataFrame) -> pd.DataFrame:
+    df = df.copy()
+    for col in ("rms_radius", "rel_rms", "violations", "rtol"):
+        df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
+    df["state"] = df["state"].astype(int)
+    df["status"] = df["status"].astype(str)
+    df["guaranteed"] = df["guaranteed"].astype(str).str.lower().isin(["true", "1"])
+    return df
+
+
+def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
+    """Every compared value as a row (``ok`` False for a regression); see the module doc."""
+    base, cur = _normalise(base), _normalise(cur)
+    rows: list[dict] = []
+    bpairs = set(zip(base["scenario"], base["observer"], strict=True))
+    cpairs = set(zip(cur["scenario"], cur["observer"], strict=True))
+    for sc, obs in sorted(bpairs - cpairs):
+        rows.append(_row(sc, obs, "-", "observer", "present", "missing", "", False,
+                         "in the baseline but not run now (removed or unregistered?)"))
+    for sc, obs in sorted(cpairs - bpairs):
+        rows.append(_row(sc, obs, "-", "observer", "absent", "present", "", False,
+                         "not in the baseline: `python -m benchmarks baseline --update`"))
+    keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
+    common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
+    rtols = {o: float(r) for o, r in zip(common["observer"], common["rtol"], strict=True)}
+    best = _best_rtol(base, rtols)
+    merged = base.merge(common, on=["scenario", "observer", "state"], how="outer",
+                        suffixes=("_b", "_c"), indicator="origin")
+    merged = merged[merged["origin"] != "left_only"].copy()  # missing pairs reported above
+    status_done: set[tuple[str, str]] = set()
+    for r in merged.itertuples(index=False):
+        sc, obs, st = r.scenario, r.observer, int(r.state)
+        name = r.state_name_b if isinstance(r.state_name_b, str) else r.state_name_c
+        label = f"{name}" if isinstance(name, str) else f"x{st + 1}"
+        if r.origin == "right_only":
+            rows.append(_row(sc, obs, label, "state", "absent", "present", "", False,
+                             "state not in the baseline"))
+            continue
+        rtol = float(r.rtol_c)
+        first = (sc, obs) not in status_done  # status and violations: once per observer
+        status_done.add((sc, obs))
+        if r.status_c == "error" or r.status_b != r.status_c:
+            if first:
+                note = "the observer crashed (see the warning above)" if (
+                    r.status_c == "error") else ""
+                rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", False,
+                                 note))
+            continue
+        if first:
+            rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", True))
+            vb, vc = float(r.violations_b), float(r.violations_c)
+            same = (math.isnan(vb) and math.isnan(vc)) or vb == vc
+            rows.append(_row(sc, obs, "-", "violations", vb, vc, 0.0, same,
+                             "" if same else "containment changed"))
+        if r.status_c == "ok":
+            rows.append(_row(sc, obs, label, "rms_radius", float(r.rms_radius_b),
+                             float(r.rms_radius_c), rtol,
+                             _close(float(r.rms_radius_c), float(r.rms_radius_b), rtol)))
+            tol_rel = rtol + best.get((sc, st), rtol)
+            rows.append(_row(sc, obs, label, "rel_rms", float(r.rel_rms_b), float(r.rel_rms_c),
+                             tol_rel, _close(float(r.rel_rms_c), float(r.rel_rms_b), tol_rel)))
+    return pd.DataFrame(rows, columns=["scenario", "observer", "state", "metric", "baseline",
+                                       "current", "rel_diff", "tol", "ok", "note"])
+
+
+def _cell(x) -> str:
+    if isinstance(x, str):
+        return x
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    if isinstance(x, float) and x.is_integer() and abs(x) < 1e6:
+        return f"{int(x)}"
+    return f"{x:.10g}" if isinstance(x, float) else str(x)
+
+
+def _table(rows: pd.DataFrame) -> str:
+    head = ["scenario", "observer", "state", "metric", "baseline", "current", "rel.diff", "tol",
+            "verdict"]
+    body = []
+    for r in rows.itertuples(index=False):
+        rel = "-" if math.isnan(r.rel_diff) else f"{r.rel_diff:.2e}"
+        tol = r.tol if isinstance(r.tol, str) else ("exact" if r.tol == 0 else f"{r.tol:.0e}")
+        verdict = "ok" if r.ok else "REGRESSION" + (f": {r.note}" if r.note else "")
+        body.append([str(r.scenario), str(r.observer), str(r.state), r.metric,
+                     _cell(r.baseline), _cell(r.current), rel, tol or "-", verdict])
+    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h)
+              for i, h in enumerate(head)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)).rstrip()]
+    lines.append("  ".join("-" * w for w in widths))
+    lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths, strict=True)).rstrip()
+              for b in body]
+    return "\n".join(lines)
+
+
+def _consequential(diff: pd.DataFrame) -> pd.Series:
+    """Failing ``rel_rms`` rows whose own ``rms_radius`` passed: the ratio moved because the
+    best observer of that state changed, not this observer."""
+    rms_ok = {(r.scenario, r.observer, r.state) for r in diff.itertuples(index=False)
+              if r.metric == "rms_radius" and r.ok}
+    return pd.Series([(not r.ok) and r.metric == "rel_rms"
+                      and (r.scenario, r.observer, r.state) in rms_ok
+                      for r in diff.itertuples(index=False)], index=diff.index, dtype=bool)
+
+
+def changed_observers(diff: pd.DataFrame) -> list[str]:
+    """Observers with a failing value of their own (not only a shifted ratio)."""
+    own = diff[~diff["ok"] & ~_consequential(diff)]
+    return list(dict.fromkeys(own["observer"]))
+
+
+def format_diff(diff: pd.DataFrame, only_failures: bool = True) -> str:
+    """Fixed-width tables of the compared values (by default only the failing ones): first the
+    observers' own changes, then the ratios that moved only because the best observer of a
+    state changed."""
+    if not only_failures:
+        return _table(diff)
+    follow = _consequential(diff)
+    own = diff[~diff["ok"] & ~follow]
+    parts = [_table(own)]
+    if follow.any():
+        parts += ["", "relative RMS that moved only because the best observer of the state "
+                  "changed:", _table(diff[follow])]
+    return "\n".join(parts)
+
+
+def config_changed(cfg: BenchConfig, meta: dict) -> bool:
+    """Whether the subset's configuration differs from the one the baseline was made with."""
+    raw = meta.get("config", {}).get("raw")
+    if raw is None:
+        return False
+    return json.dumps(raw, sort_keys=True, default=str) != json.dumps(cfg.raw, sort_keys=True,
+                                                                      default=str)
+
+
+def baseline_overview(frame: pd.DataFrame, meta: dict) -> str:
+    """Plain-text overview of a stored baseline (``python -m benchmarks baseline``)."""
+    lines = [f"baseline of {meta.get('created', '?')} ({meta.get('design_cache', '?')}; "
+             f"git {meta.get('versions', {}).get('git', '?')})"]
+    per = frame.drop_duplicates(["scenario", "observer"])
+    for obs, g in per.groupby("observer", sort=False):
+        statuses = ", ".join(f"{s}: {st}" for s, st in zip(g["scenario"], g["status"],
+                                                             strict=True))
+        lines.append(f"  {obs:<12} rtol {float(g['rtol'].iloc[0]):.0e}  {statuses}")
+    n_sc = frame["scenario"].nunique()
+    lines.append(f"{per['observer'].nunique()} observers x {n_sc} scenarios, "
+                 f"{len(frame)} rows")
+    return "\n".join(lines)
