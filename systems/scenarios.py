@@ -23,6 +23,7 @@ from observers.sets import Zonotope
 from .alamo import alamo2d
 from .errors import ModelError
 from .model import LinearSystem
+from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
 from .tank import tank, tank_input
 from .vehicle import STATES as VEHICLE_STATES
@@ -219,12 +220,26 @@ def alamo2d_sim(seed: int = 0, noise: str = "uniform", steps: int = 20) -> Scena
     )
 
 
+def rotating_target_scenario(seed: int = 0, noise: str = "uniform", steps: int = 50) -> Scenario:
+    """Rotating target of Alanwar et al. (ECC 2022, Sec. IV) with its offline experiment."""
+    system, sim, training = rotating_target_record(seed=seed, steps=steps, noise=noise)
+    return _make(
+        name="rotating-target", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 5, "reduction": "girard", "sensors": SENSOR_SIZES},
+        description=(f"rotating target, 3 sensors stacked, simulated ({noise} noise, seed "
+                     f"{seed}); offline experiment T={training.T}, z = x + gamma"),
+        source="Alanwar, Berndt, Johansson, Sandberg, ECC 2022, Sec. IV",
+        paper_table="alanwar2022_datadriven", state_names=("x1", "x2"), training=training,
+    )
+
+
 _FIXED: dict[str, Callable[..., Scenario]] = {
     "vehicle2d-cora": vehicle2d_cora,
     "vehicle6d-cora": vehicle6d_cora,
     "tank30-linear-cora": tank30_linear_cora,
     "alamo2d": alamo2d_published,
     "alamo2d-sim": alamo2d_sim,
+    "rotating-target": rotating_target_scenario,
 }
 _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
     (re.compile(r"vehicle([246])d-sim"), lambda m, **kw: vehicle_sim(int(m.group(1)), **kw)),
@@ -234,7 +249,7 @@ _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
 _LISTED = [
     "vehicle2d-cora", "vehicle6d-cora", "tank30-linear-cora", "tank6-linear", "alamo2d",
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
-    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear",
+    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "rotating-target",
 ]
 
 
