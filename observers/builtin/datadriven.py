@@ -21,6 +21,7 @@ from ..datadriven import (
     implicit_gain,
     implicit_update,
     paper_model_set,
+    refined_model_set,
     reverse_map,
     sound_model_set,
     split_sensors,
@@ -33,6 +34,7 @@ from ..sets.reduction import check_order
 
 REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
 _MODEL_CACHE: dict[str, tuple] = {}
+MODELS = ("sound-lp", "sound", "paper")
 
 
 def _zonotope(S, what: str) -> Zonotope:
@@ -51,9 +53,13 @@ def learn_model_set(data, W: Zonotope, construction: str, state_bound: float):
         h.update(str(a.shape).encode())
     key = f"{h.hexdigest()}:{construction}:{state_bound}"
     if key not in _MODEL_CACHE:
-        if construction == "sound":
+        if construction in ("sound", "sound-lp"):
             res = sound_model_set(data, W, state_bound)
-            _MODEL_CACHE[key] = (res.M, {"rho": res.rho, "cond_D": res.cond_D})
+            info = {"rho": res.rho, "cond_D": res.cond_D}
+            M = res.M
+            if construction == "sound-lp":
+                M = refined_model_set(data, W, M).to_matrix_zonotope()
+            _MODEL_CACHE[key] = (M, info)
         else:
             _MODEL_CACHE[key] = (paper_model_set(data, W, state_bound).to_matrix_zonotope(), {})
         while len(_MODEL_CACHE) > 16:
@@ -68,9 +74,11 @@ class DataDrivenObserver(Observer):
     -------
     training : object with ``u``, ``z``, ``C``, ``Gamma``
         The offline experiment (e.g. ``sc.training``); required.
-    model : {"sound", "paper"}
-        Construction of ``M_Sigma``: our provably sound one (default) or Lemma 1 as published
-        (not guaranteed; see :mod:`observers.datadriven.learning`).
+    model : {"sound-lp", "sound", "paper"}
+        Construction of ``M_Sigma``: our provably sound matrix zonotope (``"sound"``), its
+        interval hull tightened by the per-sample linear constraints (``"sound-lp"``,
+        default; also sound) or Lemma 1 as published (``"paper"``, not guaranteed; see
+        :mod:`observers.datadriven.learning`).
     model_order : float
         Order of the (vectorised) ``M_Sigma`` after its reduction for the online phase.
     state_bound : float
@@ -83,13 +91,14 @@ class DataDrivenObserver(Observer):
     """
 
     REQUIRES = ("C", "W", "V", "X0")
-    OPTIONS = {"training": None, "model": "sound", "model_order": 2.0, "state_bound": 100.0,
+    OPTIONS = {"training": None, "model": "sound-lp", "model_order": 2.0, "state_bound": 100.0,
                "order": 5, "reduction": "girard", "sensors": None}
 
     def validate_options(self) -> None:
         o = self.options
-        if o["model"] not in ("sound", "paper"):
-            raise OptionError(f"{self.name}: model must be 'sound' or 'paper', got {o['model']!r}")
+        if o["model"] not in MODELS:
+            raise OptionError(f"{self.name}: model must be one of {', '.join(MODELS)}, got "
+                              f"{o['model']!r}")
         try:
             check_order(o["order"])
             check_order(o["model_order"])

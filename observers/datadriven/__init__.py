@@ -11,6 +11,7 @@ from .learning import (
     check_training,
     hbr_pinv,
     paper_model_set,
+    refined_model_set,
     sound_model_set,
 )
 from .updates import Sensor, implicit_gain, implicit_update, reverse_map, split_sensors
@@ -24,6 +25,7 @@ __all__ = [
     "implicit_gain",
     "implicit_update",
     "paper_model_set",
+    "refined_model_set",
     "reverse_map",
     "sound_model_set",
     "split_sensors",

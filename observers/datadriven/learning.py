@@ -210,3 +210,20 @@ def sound_model_set(data: TrainingData, W: Zonotope, state_bound: float = 100.0)
     Mbox = IntervalMatrix(Theta_c - box, Theta_c + box).to_matrix_zonotope()
     M = MatrixZonotope(Theta_c, np.concatenate([Lg, Lw])) + (Mbox - Theta_c)
     return SoundModelSet(M, rho, delta, float(sv[0] / sv[-1]))
+
+
+def refined_model_set(data: TrainingData, W: Zonotope, prior: MatrixZonotope,
+                      rounds: int = 2) -> IntervalMatrix:
+    """The interval hull of ``prior`` tightened by the per-sample linear constraints (LPs with
+    dual-checked bounds, :mod:`observers.datadriven.polytope`); sound whenever ``prior`` is."""
+    from .polytope import refine_box
+
+    xh, H = _state_sets(data, 0.0)
+    I = prior.interval_matrix()
+    Wi = W.interval()
+    lo, hi = refine_box(xh, data.u, np.abs(H).sum(axis=1), Wi.center(), Wi.radius(),
+                        I.lo.copy(), I.hi.copy(), rounds)
+    if np.any(lo > hi):
+        raise DesignFailed("the training data are inconsistent with a linear model and the "
+                           "noise bounds (the set of consistent models is empty)")
+    return IntervalMatrix(lo, hi)
