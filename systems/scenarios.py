@@ -25,8 +25,8 @@ from .errors import ModelError
 from .model import LinearSystem
 from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
-from .training import offline_experiment
 from .tank import tank, tank_input
+from .training import offline_experiment
 from .vehicle import STATES as VEHICLE_STATES
 from .vehicle import W_RADII, lane_change_input, vehicle
 
@@ -193,7 +193,7 @@ def tank_linear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 261)
         source=src, paper_table=table, state_names=_tank_states(n),
     )
     if n == 6:  # offline experiment for the data-driven observers
-        sc = _with_training(sc, seed, 500, 0.5, 1.0)
+        sc = _with_training(sc, seed, 2000, 0.5, 0.1)
     return sc
 
 

@@ -28,7 +28,7 @@ from ..datadriven import (
 )
 from ..errors import ObserverError, OptionError
 from ..registry import register
-from ..sets import ConZonotope, Interval, MatrixZonotope, SetError, Zonotope, get_reduction
+from ..sets import ConZonotope, Interval, SetError, Zonotope, get_reduction
 from ..sets import conzonotope_tools as czt
 from ..sets.reduction import check_order
 
