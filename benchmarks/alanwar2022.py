@@ -34,11 +34,11 @@ from observers.datadriven import (  # noqa: E402
     refined_model_set,
     sound_model_set,
 )
-from .geometry import polygon, set_area  # noqa: E402
 from observers.sets import Zonotope  # noqa: E402
 from systems.rotating import INPUT_SET, rotating_target  # noqa: E402
 from systems.training import offline_experiment  # noqa: E402
 
+from .geometry import polygon, set_area  # noqa: E402
 from .io import atomic_savefig, atomic_write_text  # noqa: E402
 from .metrics import median_ms  # noqa: E402
 from .paper import load_table  # noqa: E402
@@ -48,7 +48,7 @@ KF = "KF-N4SID"
 MODEL_BASED = ("FRad-A", "FRad-B", "FRad-C")
 SNAPSHOT = 34  # the paper's snapshot step (published code)
 COLORS = {"DD-Z-A1": "tab:blue", "DD-Z-A2": "tab:orange", "DD-CZ-A1": "tab:green",
-          "DD-CZ-A2": "tab:red", KF: "tab:purple"}
+          "DD-CZ-A2": "tab:red", KF: "tab:purple", KF + " (paper tuning)": "tab:gray"}
 
 
 def _fmt(x: float, d: int = 3) -> str:
@@ -113,12 +113,13 @@ def _create(name: str, sc, **extra):
 def containment(seeds: int) -> tuple[list[str], dict]:
     """Section 2: containment over seeds (every step), KF 3-sigma misses, sizes."""
     variants = [(n, "sound-lp") for n in DD] + [(n, "sound") for n in DD] + [
-        (n, "paper") for n in DD] + [(KF, None)] + [(n, None) for n in MODEL_BASED]
+        (n, "paper") for n in DD] + [(KF, "uniform"), (KF, "paper")] + [
+        (n, None) for n in MODEL_BASED]
     stats = {v: {"miss": 0, "steps": 0, "rad": [], "fail": 0} for v in variants}
     for seed in range(seeds):
         sc = systems.scenario("rotating-target", seed=seed)
         for name, model in variants:
-            extra = {"model": model} if model else {}
+            extra = {"model": model} if name in DD else {"tuning": model}
             if name in MODEL_BASED:
                 extra = {"order": 5}
             st = stats[(name, model)]
@@ -132,11 +133,11 @@ def containment(seeds: int) -> tuple[list[str], dict]:
             st["miss"] += sum(not S.contains(x, 1e-9) for S, x in zip(res.sets, sc.x_true,
                                                                      strict=False))
             st["rad"].append(res.radius[5:].mean(axis=0))
-    rows = ["| observer | M_Sigma | steps checked | steps outside | mean radius x1, x2 "
+    rows = ["| observer | model | steps checked | steps outside | mean radius x1, x2 "
             "(steps >= 5) |", "|---|---|---|---|---|"]
     for (name, model), st in stats.items():
         rad = np.mean(st["rad"], axis=0) if st["rad"] else [np.nan, np.nan]
-        label = model or ("identified (N4SID)" if name == KF else "true A, B")
+        label = (f"N4SID, {model} tuning" if name == KF else model) or "true A, B"
         share = (f"{st['miss']} ({100 * st['miss'] / st['steps']:.1f} %)" if st["steps"]
                  else "-")
         rows.append(f"| {name} | {label} | {st['steps']} | {share} | {_fmt(rad[0])}, "
@@ -188,14 +189,17 @@ def figure(path: Path) -> list[str]:
     """Figure like the paper's Figs. 2-3: x1 bounds over time, sets at the snapshot step."""
     sc = systems.scenario("rotating-target", seed=0)
     runs = {name: observers.run(_create(name, sc), sc.u, sc.y) for name in (*DD, KF)}
+    kf_paper = KF + " (paper tuning)"
+    runs[kf_paper] = observers.run(_create(KF, sc, tuning="paper"), sc.u, sc.y)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
     k = np.arange(sc.N)
-    for ax, names, title in ((axes[0], ("DD-Z-A1", "DD-Z-A2", KF), "zonotopes"),
-                             (axes[1], ("DD-CZ-A1", "DD-CZ-A2", KF), "constrained zonotopes")):
+    for ax, names, title in ((axes[0], ("DD-Z-A1", "DD-Z-A2", KF, kf_paper), "zonotopes"),
+                             (axes[1], ("DD-CZ-A1", "DD-CZ-A2", KF, kf_paper),
+                              "constrained zonotopes")):
         for name in names:
             r = runs[name]
             ax.fill_between(k, r.lo[:, 0], r.hi[:, 0], alpha=0.25, color=COLORS[name],
-                            label=name + (" (3 sigma)" if name == KF else ""))
+                            label=name + (" 3 sigma" if name.startswith(KF) else ""))
         ax.plot(k, sc.x_true[:, 0], "k.-", lw=1, ms=3, label="true x1")
         ax.set(xlabel="step k", ylabel="x1", title=f"bounds of x1, {title}")
         ax.legend(fontsize=8)

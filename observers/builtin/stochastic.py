@@ -7,7 +7,8 @@ the subspace estimate with the PO-MOESP instrumental variable and least squares 
 D).  The identified model is in an arbitrary state basis; it is mapped to the physical one
 through the known experiment sensors ``C_train`` (full column rank): ``x = C_train^+ C_id
 x_id``.  The filter uses the covariances of *uniform* noise on the known sets (``G G' / 3``)
-for W, V and X0, i.e. more statistical knowledge than the set-based observers need.
+for W, V and X0, i.e. more statistical knowledge than the set-based observers need
+(``tuning="paper"`` uses the published code's larger covariances instead).
 """
 
 from __future__ import annotations
@@ -69,10 +70,14 @@ class KalmanN4SID(Observer):
         Block rows of the Hankel matrices of N4SID.
     sigma : float
         Ellipsoid ``{x : (x - x_hat)' P^-1 (x - x_hat) <= sigma^2}`` (3 in the paper).
+    tuning : {"uniform", "paper"}
+        Noise covariances: those of uniform noise on W and V (``G G' / 3``, default), or the
+        published code's ``Q = 5 r_w I``, ``R = r_v I`` (``r`` the radii of W and V), which
+        overstates both noises.
     """
 
     REQUIRES = ("C", "W", "V", "X0")
-    OPTIONS = {"training": None, "block_rows": 4, "sigma": 3.0}
+    OPTIONS = {"training": None, "block_rows": 4, "sigma": 3.0, "tuning": "uniform"}
 
     def validate_options(self) -> None:
         if not (isinstance(self.options["block_rows"], (int, np.integer))
@@ -80,6 +85,9 @@ class KalmanN4SID(Observer):
             raise OptionError(f"{self.name}: block_rows must be a positive integer")
         if not (isinstance(self.options["sigma"], (int, float)) and self.options["sigma"] > 0):
             raise OptionError(f"{self.name}: sigma must be a positive number")
+        if self.options["tuning"] not in ("uniform", "paper"):
+            raise OptionError(f"{self.name}: tuning must be 'uniform' or 'paper', got "
+                              f"{self.options['tuning']!r}")
 
     def design(self) -> None:
         s = self.system
@@ -89,7 +97,11 @@ class KalmanN4SID(Observer):
         self.A, self.B = identify_n4sid(data.u, data.z, data.C, n,
                                         int(self.options["block_rows"]))
         W, V, X0 = _zonotope(s.W), _zonotope(s.V), _zonotope(s.X0)
-        self.Q, self.R = W.G @ W.G.T / 3.0, V.G @ V.G.T / 3.0
+        if self.options["tuning"] == "paper":
+            self.Q = np.diag(5.0 * W.interval().radius())
+            self.R = np.diag(V.interval().radius())
+        else:
+            self.Q, self.R = W.G @ W.G.T / 3.0, V.G @ V.G.T / 3.0
         self.cw, self.cv = W.c, V.c
         self.x0, self.P0 = X0.c, X0.G @ X0.G.T / 3.0
 
