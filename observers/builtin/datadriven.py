@@ -26,23 +26,16 @@ from ..datadriven import (
     sound_model_set,
     split_sensors,
 )
-from ..errors import ObserverError, OptionError
+from ..errors import OptionError
+from ..families import as_zonotope
 from ..registry import register
-from ..sets import ConZonotope, Interval, SetError, Zonotope, get_reduction
+from ..sets import ConZonotope, SetError, Zonotope, get_reduction
 from ..sets import conzonotope_tools as czt
 from ..sets.reduction import check_order
 
 REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
 _MODEL_CACHE: dict[str, tuple] = {}
 MODELS = ("sound-lp", "sound", "paper")
-
-
-def _zonotope(S, what: str) -> Zonotope:
-    if isinstance(S, Zonotope):
-        return S
-    if isinstance(S, Interval):
-        return Zonotope.from_interval(S)
-    raise ObserverError(f"{what} must be a Zonotope or an Interval, got {type(S).__name__}")
 
 
 def learn_model_set(data, W: Zonotope, construction: str, state_bound: float):
@@ -113,9 +106,9 @@ class DataDrivenObserver(Observer):
         self.C = np.asarray(s.C, dtype=float)
         self.n = self.C.shape[1]
         self.nu = int(s.nu)
-        self.W = _zonotope(s.W, "W")
-        self.V = _zonotope(s.V, "V")
-        self.X0 = _zonotope(s.X0, "X0")
+        self.W = as_zonotope(s.W, "W")
+        self.V = as_zonotope(s.V, "V")
+        self.X0 = as_zonotope(s.X0, "X0")
         data = check_training(self.options["training"], self.n, self.nu, self.name)
         M, self.model_info = learn_model_set(data, self.W, self.options["model"],
                                              float(self.options["state_bound"]))

@@ -18,12 +18,9 @@ import numpy as np
 from ..base import Observer
 from ..datadriven import check_training
 from ..errors import DesignFailed, OptionError
+from ..families import as_zonotope
 from ..registry import register
-from ..sets import Ellipsoid, Interval, Zonotope
-
-
-def _zonotope(S) -> Zonotope:
-    return Zonotope.from_interval(S) if isinstance(S, Interval) else S
+from ..sets import Ellipsoid
 
 
 def identify_n4sid(u: np.ndarray, z: np.ndarray, C_train: np.ndarray, n: int,
@@ -96,7 +93,7 @@ class KalmanN4SID(Observer):
         data = check_training(self.options["training"], n, nu, self.name)
         self.A, self.B = identify_n4sid(data.u, data.z, data.C, n,
                                         int(self.options["block_rows"]))
-        W, V, X0 = _zonotope(s.W), _zonotope(s.V), _zonotope(s.X0)
+        W, V, X0 = (as_zonotope(getattr(s, a), a) for a in ("W", "V", "X0"))
         if self.options["tuning"] == "paper":
             self.Q = np.diag(5.0 * W.interval().radius())
             self.R = np.diag(V.interval().radius())

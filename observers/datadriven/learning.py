@@ -34,10 +34,16 @@ Data (Alanwar et al., ECC 2022, eqs. 4-5): inputs ``u(0..T-1)``, outputs ``z(0..
 
         ``M_Sigma = (Xh+ - C_W) P + L + [-Delta Nb, Delta Nb]``,
 
-    a matrix zonotope.  No assumption on the true system is used beyond the noise bounds; if
-    ``C`` is rank deficient the null-space part of ``x`` is covered by ``M V2`` (``M >= ||x||``,
-    as in the paper) and typically makes ``rho(Nb_A) >= 1``, which is reported as a failure.
-    All bounds are widened by a few ulps for floating-point rounding.
+    a matrix zonotope.  No assumption on the true system is used beyond the noise bounds.
+    Experiment sensors ``C`` without full column rank are rejected (the paper's null-space
+    generator ``M V2`` makes ``D`` rank deficient or ``rho(Nb_A) >= 1``: single scalar
+    outputs do not determine [A B]).  All bounds are widened by a few ulps for rounding.
+
+:func:`refined_model_set`
+    The interval hull of the sound set tightened by the linear constraints that each sample
+    imposes on each row of ``[A B]`` (LP bounds made sound by weak duality,
+    :mod:`observers.datadriven.polytope`); unlike the pseudo-inverse bound it shrinks as the
+    experiment grows.
 """
 
 from __future__ import annotations
