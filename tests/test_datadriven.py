@@ -187,3 +187,14 @@ def test_runner_passes_training_and_reports_no_training_as_nogain():
     assert rows.loc[("rotating-target", "DD-Z-A2"), "violations"] == 0
     assert "training" in rows.loc[("alamo2d-sim", "DD-Z-A2"), "message"]
     assert not rows.loc[("rotating-target", "KF-N4SID"), "guaranteed"]
+
+
+def test_planar_geometry_by_hand():
+    from benchmarks.geometry import polygon, set_area
+    from observers.sets import ConZonotope
+
+    G = [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]  # box plus a diagonal segment: area 4 * 3 = 12
+    assert set_area(Zonotope([5.0, -1.0], G)) == pytest.approx(12.0)
+    assert set_area(ConZonotope([0.0, 0.0], G)) == pytest.approx(12.0, rel=1e-9)
+    assert len(polygon(Zonotope([0.0, 0.0], G))) == 6
+    assert set_area(Ellipsoid([0.0, 0.0], np.eye(2))) == pytest.approx(np.pi, rel=1e-3)
