@@ -72,6 +72,8 @@ def paper_rows(key: str | None, n_states: int | None = None,
                     if v and smallest else None)
         for ours in ALIASES.get(name, (name,)):
             out[ours] = PaperRow(v, avg, _num(row.get("t_comp_ms")), absolute, src)
+    for name, t_s in (tab.get("time_per_step_s") or {}).items():  # timings-only tables
+        out.setdefault(name, PaperRow(None, None, 1e3 * float(t_s), None, src))
     return out
 
 

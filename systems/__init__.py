@@ -6,9 +6,11 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 from .alamo import alamo2d
 from .errors import ModelError
 from .model import LinearSystem, NonlinearSystem, observability_matrix
+from .rotating import rotating_target
 from .scenarios import Scenario, register_scenario, scenario, scenario_names
 from .simulate import NOISE_MODELS, Simulation, simulate
 from .tank import tank, tank_input
+from .training import Training, offline_experiment
 from .vehicle import lane_change_input, vehicle
 
 __all__ = [
@@ -18,10 +20,13 @@ __all__ = [
     "NonlinearSystem",
     "Scenario",
     "Simulation",
+    "Training",
     "alamo2d",
     "lane_change_input",
     "observability_matrix",
+    "offline_experiment",
     "register_scenario",
+    "rotating_target",
     "scenario",
     "scenario_names",
     "simulate",

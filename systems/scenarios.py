@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from typing import Any
 
@@ -23,8 +23,10 @@ from observers.sets import Zonotope
 from .alamo import alamo2d
 from .errors import ModelError
 from .model import LinearSystem
+from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
 from .tank import tank, tank_input
+from .training import offline_experiment
 from .vehicle import STATES as VEHICLE_STATES
 from .vehicle import W_RADII, lane_change_input, vehicle
 
@@ -88,6 +90,20 @@ def _make(**kw) -> Scenario:
     return sc
 
 
+def _with_training(sc: Scenario, seed: int, T: int, input_radius: float,
+                   gamma_scale: float) -> Scenario:
+    """Attach a separate seeded offline experiment for the data-driven observers: full-state
+    sensors whose noise box is ``gamma_scale`` times the disturbance radii, inputs uniform in
+    ``[-input_radius, input_radius]``."""
+    s = sc.system
+    gamma_radius = gamma_scale * s.W.interval().hi
+    exp_seed = int(np.random.SeedSequence([seed, 7]).generate_state(1)[0])
+    training = offline_experiment(
+        s, T, exp_seed, Zonotope.box(np.full(s.nu, input_radius)), C=np.eye(s.n),
+        Gamma=Zonotope.box(gamma_radius))
+    return replace(sc, training=training)
+
+
 def _tank_states(n: int) -> tuple[str, ...]:
     return tuple(f"x{i + 1}" for i in range(n))
 
@@ -107,12 +123,13 @@ def _vehicle_cora(dim: int) -> LinearSystem:
 
 def vehicle2d_cora() -> Scenario:
     uy = _csv("vehicle2d_cora_u_y.csv")
-    return _make(
+    sc = _make(
         name="vehicle2d-cora", system=_vehicle_cora(2), u=uy[0:1].T, y=uy[1:2].T, x_true=None,
         options={"order": 100, "reduction": "pca"},
         description="2-state vehicle side-slip model, CORA unit-test record (100 steps)",
         source="CORA testLong_linearSysDT_observe_01_vehicle.m", state_names=VEHICLE_STATES[:2],
     )
+    return _with_training(sc, 0, 500, 0.5, 0.1)
 
 
 def vehicle6d_cora() -> Scenario:
@@ -169,12 +186,15 @@ def tank_linear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 261)
         src = "linearisation of CORA's tank model; input and noise generated here (seeded)"
     sim = simulate(system, u, steps=steps, seed=seed, noise=noise)
     table = {6: "arch2021_table3_tank6_linear"}.get(n, "arch2021_table5_6_tank_scaling")
-    return _make(
+    sc = _make(
         name=f"tank{n}-linear", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
         options={"order": 100, "reduction": "pca"},
         description=f"linearised {n}-tank system, simulated ({noise} noise, seed {seed})",
         source=src, paper_table=table, state_names=_tank_states(n),
     )
+    if n == 6:  # offline experiment for the data-driven observers
+        sc = _with_training(sc, seed, 2000, 0.5, 0.1)
+    return sc
 
 
 def tank_nonlinear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 263) -> Scenario:
@@ -196,7 +216,7 @@ def vehicle_sim(dim: int, seed: int = 0, noise: str = "uniform", steps: int = 35
     """Vehicle model with the double-lane-change input and a seeded simulated record."""
     system = vehicle(dim)
     sim = simulate(system, lane_change_input(steps), steps=steps, seed=seed, noise=noise)
-    return _make(
+    sc = _make(
         name=f"vehicle{dim}d-sim", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
         options={"order": 100, "reduction": "pca"},
         description=(f"{dim}-state vehicle model, simulated lane change "
@@ -205,6 +225,9 @@ def vehicle_sim(dim: int, seed: int = 0, noise: str = "uniform", steps: int = 35
         paper_table="automatica2021_table3_vehicle6" if dim == 6 else None,
         state_names=VEHICLE_STATES[:dim],
     )
+    if dim == 2:  # offline experiment for the data-driven observers
+        sc = _with_training(sc, seed, 500, 0.5, 0.1)
+    return sc
 
 
 def alamo2d_sim(seed: int = 0, noise: str = "uniform", steps: int = 20) -> Scenario:
@@ -219,12 +242,26 @@ def alamo2d_sim(seed: int = 0, noise: str = "uniform", steps: int = 20) -> Scena
     )
 
 
+def rotating_target_scenario(seed: int = 0, noise: str = "uniform", steps: int = 50) -> Scenario:
+    """Rotating target of Alanwar et al. (ECC 2022, Sec. IV) with its offline experiment."""
+    system, sim, training = rotating_target_record(seed=seed, steps=steps, noise=noise)
+    return _make(
+        name="rotating-target", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 5, "reduction": "girard", "sensors": SENSOR_SIZES},
+        description=(f"rotating target, 3 sensors stacked, simulated ({noise} noise, seed "
+                     f"{seed}); offline experiment T={training.T}, z = x + gamma"),
+        source="Alanwar, Berndt, Johansson, Sandberg, ECC 2022, Sec. IV",
+        paper_table="alanwar2022_datadriven", state_names=("x1", "x2"), training=training,
+    )
+
+
 _FIXED: dict[str, Callable[..., Scenario]] = {
     "vehicle2d-cora": vehicle2d_cora,
     "vehicle6d-cora": vehicle6d_cora,
     "tank30-linear-cora": tank30_linear_cora,
     "alamo2d": alamo2d_published,
     "alamo2d-sim": alamo2d_sim,
+    "rotating-target": rotating_target_scenario,
 }
 _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
     (re.compile(r"vehicle([246])d-sim"), lambda m, **kw: vehicle_sim(int(m.group(1)), **kw)),
@@ -234,7 +271,7 @@ _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
 _LISTED = [
     "vehicle2d-cora", "vehicle6d-cora", "tank30-linear-cora", "tank6-linear", "alamo2d",
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
-    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear",
+    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "rotating-target",
 ]
 
 

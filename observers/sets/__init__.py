@@ -12,13 +12,15 @@ All sets are immutable value objects with the same small vocabulary:
 ========================  =====================================================
 
 Zonotopes additionally offer ``Z.reduce(order, method)`` with the strategies of
-:mod:`observers.sets.reduction`.
+:mod:`observers.sets.reduction`.  Matrix sets (:class:`MatrixZonotope`, :class:`IntervalMatrix`)
+map vector sets with ``M @ Z`` (a sound enclosure, see :mod:`observers.sets.matrix_zonotope`).
 """
 
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .errors import SetError
 from .interval import Interval
+from .matrix_zonotope import IntervalMatrix, MatrixZonotope
 from .reduction import PCA, Girard, Reduction, get_reduction, reduction_names, register_reduction
 from .zonotope import Zonotope
 
@@ -27,6 +29,8 @@ __all__ = [
     "Ellipsoid",
     "Girard",
     "Interval",
+    "IntervalMatrix",
+    "MatrixZonotope",
     "PCA",
     "Reduction",
     "SetError",

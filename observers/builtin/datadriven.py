@@ -1,0 +1,263 @@
+"""Data-driven set-based observers of Alanwar, Berndt, Johansson, Sandberg (ECC 2022):
+DD-Z-A1, DD-Z-A2 (zonotopes) and DD-CZ-A1, DD-CZ-A2 (constrained zonotopes).
+
+They learn the set of models ``M_Sigma`` from an offline experiment (``training=``) and never
+read the system's A and B.  Per step: time update ``M_Sigma (S x {u}) + W`` (Theorem 1), then
+the measurement update by reverse mapping (approach 1, Prop. 1) or implicit intersection
+(approach 2, Prop. 2 / Prop. 3, closed-form weights), then order reduction.  The first
+estimate is ``X0`` updated with ``y[0]``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from abc import abstractmethod
+
+import numpy as np
+
+from ..base import Observer
+from ..datadriven import (
+    check_training,
+    implicit_gain,
+    implicit_update,
+    paper_model_set,
+    refined_model_set,
+    reverse_map,
+    sound_model_set,
+    split_sensors,
+)
+from ..errors import OptionError
+from ..families import as_zonotope
+from ..registry import register
+from ..sets import ConZonotope, SetError, Zonotope, get_reduction
+from ..sets import conzonotope_tools as czt
+from ..sets.reduction import check_order
+
+REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
+_MODEL_CACHE: dict[str, tuple] = {}
+MODELS = ("sound-lp", "sound", "paper")
+
+
+def learn_model_set(data, W: Zonotope, construction: str, state_bound: float):
+    """``(M_Sigma, info)`` for the training data, memoised on the data's bytes."""
+    h = hashlib.sha1()
+    for a in (data.u, data.z, data.C, data.Gamma.c, data.Gamma.G, W.c, W.G):
+        h.update(np.ascontiguousarray(a).tobytes())
+        h.update(str(a.shape).encode())
+    key = f"{h.hexdigest()}:{construction}:{state_bound}"
+    if key not in _MODEL_CACHE:
+        if construction in ("sound", "sound-lp"):
+            res = sound_model_set(data, W, state_bound)
+            info = {"rho": res.rho, "cond_D": res.cond_D}
+            M = res.M
+            if construction == "sound-lp":
+                M = refined_model_set(data, W, M).to_matrix_zonotope()
+            _MODEL_CACHE[key] = (M, info)
+        else:
+            _MODEL_CACHE[key] = (paper_model_set(data, W, state_bound).to_matrix_zonotope(), {})
+        while len(_MODEL_CACHE) > 16:
+            _MODEL_CACHE.pop(next(iter(_MODEL_CACHE)))
+    return _MODEL_CACHE[key]
+
+
+class DataDrivenObserver(Observer):
+    """Common design and loop of the four data-driven observers.
+
+    Options
+    -------
+    training : object with ``u``, ``z``, ``C``, ``Gamma``
+        The offline experiment (e.g. ``sc.training``); required.
+    model : {"sound-lp", "sound", "paper"}
+        Construction of ``M_Sigma``: our provably sound matrix zonotope (``"sound"``), its
+        interval hull tightened by the per-sample linear constraints (``"sound-lp"``,
+        default; also sound) or Lemma 1 as published (``"paper"``, not guaranteed; see
+        :mod:`observers.datadriven.learning`).
+    model_order : float
+        Order of the (vectorised) ``M_Sigma`` after its reduction for the online phase.
+    state_bound : float
+        ``M >= ||x||`` for the null space of rank-deficient experiment sensors (paper).
+    order, reduction
+        Order reduction of the estimates (the paper: 5, Girard).
+    sensors : list of int, optional
+        Number of outputs of each sensor (default: split wherever no noise generator couples
+        outputs).
+    """
+
+    REQUIRES = ("C", "W", "V", "X0")
+    OPTIONS = {"training": None, "model": "sound-lp", "model_order": 2.0, "state_bound": 100.0,
+               "order": 5, "reduction": "girard", "sensors": None}
+
+    def validate_options(self) -> None:
+        o = self.options
+        if o["model"] not in MODELS:
+            raise OptionError(f"{self.name}: model must be one of {', '.join(MODELS)}, got "
+                              f"{o['model']!r}")
+        try:
+            check_order(o["order"])
+            check_order(o["model_order"])
+            get_reduction(o["reduction"])
+        except SetError as exc:
+            raise OptionError(f"{self.name}: {exc}") from None
+        if not (isinstance(o["state_bound"], (int, float)) and o["state_bound"] > 0):
+            raise OptionError(f"{self.name}: state_bound must be a positive number")
+
+    def design(self) -> None:
+        s = self.system
+        self.C = np.asarray(s.C, dtype=float)
+        self.n = self.C.shape[1]
+        self.nu = int(s.nu)
+        self.W = as_zonotope(s.W, "W")
+        self.V = as_zonotope(s.V, "V")
+        self.X0 = as_zonotope(s.X0, "X0")
+        data = check_training(self.options["training"], self.n, self.nu, self.name)
+        M, self.model_info = learn_model_set(data, self.W, self.options["model"],
+                                             float(self.options["state_bound"]))
+        self.model_width = M.width()
+        self.M = M.reduce(float(self.options["model_order"]), "pca")
+        try:
+            self.sensors = split_sensors(self.C, self.V.c, self.V.G, self.options["sensors"])
+        except ValueError as exc:
+            raise OptionError(f"{self.name}: {exc}") from None
+        self.order = float(self.options["order"])
+        self._reduction = get_reduction(self.options["reduction"])
+
+    def reset(self) -> None:
+        super().reset()
+        self._S = None
+
+    def step(self, u_prev, y):
+        y = self._measurement(y)
+        if self._S is None:
+            S = self.initial_set()
+        else:
+            S = self.predict(self._S, self._input(u_prev))
+        S = self.reduce(self.update(S, y))
+        self._S = S
+        self.k += 1
+        return S
+
+    @abstractmethod
+    def initial_set(self):
+        """``X0`` in the observer's set representation."""
+
+    @abstractmethod
+    def predict(self, S, u: np.ndarray):
+        """Time update ``M_Sigma (S x {u}) + W`` (Theorem 1)."""
+
+    @abstractmethod
+    def update(self, S, y: np.ndarray):
+        """Measurement update with ``y``."""
+
+    @abstractmethod
+    def reduce(self, S):
+        """Order reduction of the updated set."""
+
+
+class ZonotopeDD(DataDrivenObserver):
+    """Zonotope estimates."""
+
+    def initial_set(self) -> Zonotope:
+        return self.X0
+
+    def predict(self, S: Zonotope, u: np.ndarray) -> Zonotope:
+        ext = Zonotope._trusted(np.concatenate([S.c, u]),
+                                np.vstack([S.G, np.zeros((self.nu, S.G.shape[1]))]))
+        P = self.M @ ext
+        return Zonotope._trusted(P.c + self.W.c, np.hstack([P.G, self.W.G]))
+
+    def reduce(self, S: Zonotope) -> Zonotope:
+        return Zonotope._trusted(S.c, self._reduction.reduce(S.G, self.order))
+
+
+class ConZonotopeDD(DataDrivenObserver):
+    """Constrained-zonotope estimates; ``constraints`` caps the number of constraints kept
+    after each step (default ``CONSTRAINTS_PER_STATE`` times the state dimension); the
+    generators are reduced on the lifted zonotope to ``order`` times its dimension."""
+
+    OPTIONS = {"constraints": None}
+    CONSTRAINTS_PER_STATE = 1
+
+    def initial_set(self) -> ConZonotope:
+        return ConZonotope(self.X0.c, self.X0.G)
+
+    def predict(self, S: ConZonotope, u: np.ndarray) -> ConZonotope:
+        ext = ConZonotope(np.concatenate([S.c, u]),
+                          np.vstack([S.G, np.zeros((self.nu, S.num_generators))]), S.A, S.b)
+        return (self.M @ ext) + self.W
+
+    def reduce(self, S: ConZonotope) -> ConZonotope:
+        nc = self.options["constraints"]
+        nc = self.CONSTRAINTS_PER_STATE * self.n if nc is None else int(nc)
+        return czt.reduce(S, self.order, nc, self._reduction)
+
+
+class ReverseMapping:
+    """Approach 1: intersect with the state sets ``Z_{x|y_i}`` of every sensor (Prop. 1)."""
+
+    def _measurement_sets(self, S, y) -> list[Zonotope]:
+        Z = S if isinstance(S, Zonotope) else Zonotope(S.c, S.G)
+        out = []
+        for sensor in self.sensors:
+            c, G = reverse_map(sensor, y, Z.c, Z.G)
+            out.append(Zonotope(c, G))
+        return out
+
+    def _intersection(self, S, y) -> ConZonotope:
+        out = czt.as_conzonotope(S)
+        for Zi in self._measurement_sets(S, y):
+            out = czt.intersect(out, Zi)
+        return out
+
+
+@register("DD-Z-A1", family="data-driven", set_type="zonotope", ready_for_control=False,
+          reference=REFERENCE + ", Prop. 1")
+class DDZA1(ReverseMapping, ZonotopeDD):
+    """Data-driven, zonotopes, reverse mapping: exact intersection, closed-form enclosure."""
+
+    def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
+        return czt.to_zonotope(self._intersection(S, y))
+
+
+@register("DD-CZ-A1", family="data-driven", set_type="conZonotope", ready_for_control=False,
+          reference=REFERENCE + ", Sec. III-C1")
+class DDCZA1(ReverseMapping, ConZonotopeDD):
+    """Data-driven, constrained zonotopes, reverse mapping: exact intersection."""
+
+    def update(self, S: ConZonotope, y: np.ndarray) -> ConZonotope:
+        return self._intersection(S, y)
+
+
+class ImplicitIntersection:
+    """Approach 2: one gain for all sensors, closed-form minimiser of ``||G_hat||_F``."""
+
+    def _gain(self, G: np.ndarray) -> np.ndarray:
+        return implicit_gain(G, self.C, self.V.G)
+
+
+@register("DD-Z-A2", family="data-driven", set_type="zonotope", ready_for_control=False,
+          reference=REFERENCE + ", Prop. 2")
+class DDZA2(ImplicitIntersection, ZonotopeDD):
+    """Data-driven, zonotopes, implicit intersection with the optimal weights (Prop. 2)."""
+
+    def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
+        L = self._gain(S.G)
+        c, G = implicit_update(S.c, S.G, L, self.C, y, self.V.c, self.V.G)
+        return Zonotope._trusted(c, G)
+
+
+@register("DD-CZ-A2", family="data-driven", set_type="conZonotope", ready_for_control=False,
+          reference=REFERENCE + ", Prop. 3")
+class DDCZA2(ImplicitIntersection, ConZonotopeDD):
+    """Data-driven, constrained zonotopes, implicit intersection (Prop. 3, exact)."""
+
+    # Prop. 3 adds one well-scaled row per output; keeping more of them pays off (approach 1
+    # carries the large null-space generators of Prop. 1 into its rows, and keeps n)
+    CONSTRAINTS_PER_STATE = 4
+
+    def update(self, S: ConZonotope, y: np.ndarray) -> ConZonotope:
+        L = self._gain(S.G)
+        c, G = implicit_update(S.c, S.G, L, self.C, y, self.V.c, self.V.G)
+        nv = self.V.G.shape[1]
+        A = np.block([[S.A, np.zeros((S.num_constraints, nv))], [self.C @ S.G, self.V.G]])
+        b = np.concatenate([S.b, y - self.C @ S.c - self.V.c])
+        return ConZonotope(c, G, A, b)
