@@ -25,9 +25,11 @@ def test_cora_bisection_ends_at_one_minus_two_to_the_minus_seven():
         assert np.linalg.eigvalsh(SM).max() <= 0
 
 
-def test_prad_e_clarabel_design_matches_cora_vehicle2d_gain(cora_refs):
+@pytest.mark.parametrize("solver", ["sdp", "auto"])
+def test_prad_e_design_matches_cora_vehicle2d_gain(solver, cora_refs):
+    # "sdp": our Clarabel solve; "auto" (default): the closed-form Riccati optimum here
     sc = systems.scenario("vehicle2d-cora")
-    obs = observers.create("PRad-E", sc.system, **sc.options)
+    obs = observers.create("PRad-E", sc.system, solver=solver, **sc.options)
     expected = cora_refs["gains_vehicle2D_sdpt3"]["PRad-E"]  # SDPT3 via YALMIP in CORA
     np.testing.assert_allclose(obs.gain_matrix.ravel(), expected, rtol=0, atol=1e-5)
 
@@ -121,7 +123,7 @@ def test_prad_e_beta_below_the_slowest_unobservable_mode_is_no_gain():
 
 @pytest.mark.parametrize(("name", "options", "message"), [
     ("PRad-E", {"beta": 1.0}, r"beta must be a number in \(0, 1\)"),
-    ("PRad-E", {"solver": "mosek"}, "solver must be 'sdp' or 'riccati'"),
+    ("PRad-E", {"solver": "mosek"}, "solver must be 'auto', 'sdp' or 'riccati'"),
     ("Nom-G", {"mu": 0}, r"mu must be a number in \(0, 1\]"),
     ("Hinf-G", {"gamma_slack": -1}, "gamma_slack must be a positive number"),
     ("Hinf-G", {"convention": "cora"}, "convention must be one of 'aligned', 'cora-lagged'"),

@@ -49,22 +49,24 @@ class PRadE(_OfflineGainPropagation):
         which CORA's bisection (tolerance 0.01) stops, 0.9921875: the LMI is feasible for
         every beta, so CORA's bisection always ends there (see
         :func:`~observers.luenberger_gains.cora_bisection_beta`).
-    solver : {"sdp", "riccati"}
-        ``"sdp"`` (default): maximise ``trace(P)`` with cvxpy + Clarabel.  ``"riccati"``: the
-        same unique optimum in closed form from a discrete Riccati equation, in milliseconds
-        also for large systems (see :func:`~observers.luenberger_gains.prad_e_design`).
+    solver : {"auto", "sdp", "riccati"}
+        ``"sdp"``: maximise ``trace(P)`` with cvxpy + Clarabel (as CORA, with SDPT3).
+        ``"riccati"``: the same unique optimum in closed form from a discrete Riccati
+        equation, in milliseconds also for large systems where the SDP takes minutes (see
+        :func:`~observers.luenberger_gains.prad_e_design`).  ``"auto"`` (default):
+        ``"riccati"`` when the noise set V is full-dimensional, else ``"sdp"``.
     gain : array, optional
         Use this gain instead of designing one.
     """
 
-    OPTIONS = {"beta": None, "solver": "sdp"}
+    OPTIONS = {"beta": None, "solver": "auto"}
 
     def validate_options(self) -> None:
         super().validate_options()
         if self.options["beta"] is not None:
             _number(self, "beta", 0.0, 1.0, hi_closed=False)
-        if self.options["solver"] not in ("sdp", "riccati"):
-            raise OptionError(f"{self.name}: solver must be 'sdp' or 'riccati', "
+        if self.options["solver"] not in ("auto", "sdp", "riccati"):
+            raise OptionError(f"{self.name}: solver must be 'auto', 'sdp' or 'riccati', "
                               f"got {self.options['solver']!r}")
 
     @property
