@@ -27,9 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Observer
 from .errors import OptionError
-from .families import as_zonotope
+from .families import LinearModelObserver
 from .sets import Interval
 
 CONVENTIONS = ("aligned", "cora-lagged")
@@ -56,7 +55,7 @@ def interval_bound(x: np.ndarray, G_x: np.ndarray, c_wv: np.ndarray, r_wv: np.nd
     return c - r, c + r
 
 
-class IntervalObserver(Observer):
+class IntervalObserver(LinearModelObserver):
     """Alg. 1 with the constant gain ``self.L`` (set by ``design``); returns intervals.
 
     Subclasses provide ``L`` (n x ny), e.g. through :class:`~observers.offline.OfflineGain`.
@@ -73,13 +72,7 @@ class IntervalObserver(Observer):
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""
-        s = self.system
-        self.A = np.asarray(s.A, dtype=float)
-        self.B = np.asarray(s.B, dtype=float)
-        self.C = np.asarray(s.C, dtype=float)
-        self.X0 = as_zonotope(s.X0, "X0")
-        self.W = as_zonotope(s.W, "W")
-        self.V = as_zonotope(s.V, "V")
+        super().design()
         self.lagged = self.options["convention"] == "cora-lagged"
 
     def reset(self) -> None:
