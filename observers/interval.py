@@ -1,5 +1,6 @@
-"""Interval observer of Tang, Wang, Wang and Zhou (TAC 2019, Alg. 1; Alg. 1 of Althoff & Rath,
-Automatica 2021): a Luenberger point estimate plus an interval bound of its error.
+"""Interval observer of Tang, Wang, Wang, Raissi and Shen (TAC 2019, Alg. 1; Alg. 1 of
+Althoff & Rath, Automatica 2021): a Luenberger point estimate plus an interval bound of its
+error.
 
 With ``M = A - L C`` and ``D = W + (-L) V``, the error ``e_k = x_k - x^_k`` of the point
 estimate ``x^_{k+1} = A x^_k + B u_k + L (y_k - C x^_k)`` lies in

@@ -1,7 +1,7 @@
 """Offline Luenberger gains ``L`` (error dynamics ``e+ = (A - L C) e + w - L v``) for the
 "ready for control" observers of Althoff & Rath (Automatica 2021, Secs. 3.2-3.3):
 
-* :func:`prad_e_design` - P-radius gain of Wang et al. (CCC 2017), PRad-E;
+* :func:`prad_e_design` - P-radius gain of Wang, Zhou, Puig et al. (CCC 2017), PRad-E;
 * :func:`nom_g_design` - nominal gain with decay rate ``mu`` (Wang et al., Automatica 2018), Nom-G;
 * :func:`hinf_g_design` - H-infinity gain of Tang et al. (TAC 2019, eq. 16), Hinf-G.
 
@@ -81,13 +81,22 @@ def _solve(problem, what: str, **solver_options) -> str:
         return lmi.solve(problem, what, **solver_options)
 
 
-def _bmat(blocks: list[list]) -> np.ndarray:
-    """numpy block matrix where ``None`` is a zero block (sizes from the other blocks)."""
+def _bmat(blocks: list[list]):
+    """Block matrix where ``None`` is a zero block (its size read from the other blocks).
+
+    With numpy blocks only it is a numpy array; with any cvxpy expression among them, a cvxpy
+    expression (so each LMI below is written once, for the solver and for the verification).
+    """
     rows = [next(b.shape[0] for b in row if b is not None) for row in blocks]
     cols = [next(row[j].shape[1] for row in blocks if row[j] is not None)
             for j in range(len(blocks[0]))]
-    return np.block([[np.zeros((rows[i], cols[j])) if b is None else b
-                      for j, b in enumerate(row)] for i, row in enumerate(blocks)])
+    filled = [[np.zeros((rows[i], cols[j])) if b is None else b for j, b in enumerate(row)]
+              for i, row in enumerate(blocks)]
+    if all(isinstance(b, np.ndarray) for row in filled for b in row):
+        return np.block(filled)
+    import cvxpy as cp
+
+    return cp.bmat(filled)
 
 
 def check_modes(system, who: str, rate: float = 1.0) -> None:
@@ -135,19 +144,10 @@ def prad_e_lmi(A, C, E, F, beta, P, Y):
     ``F Y'`` in the third block row; that equals ``F' Y'`` for the symmetric (diagonal) ``F``
     of all benchmarks, and only ``F' Y'`` has the right shape for a non-square ``F``.
     """
-    n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
-    Z = np.zeros
-    if isinstance(P, np.ndarray):
-        return _bmat([[-beta * P, None, None, A.T @ P - C.T @ Y.T],
-                      [None, -E.T @ E, None, E.T @ P],
-                      [None, None, -F.T @ F, F.T @ Y.T],
-                      [P @ A - Y @ C, P @ E, Y @ F, -P]])
-    import cvxpy as cp
-
-    return cp.bmat([[-beta * P, Z((n, nw)), Z((n, nv)), A.T @ P - C.T @ Y.T],
-                    [Z((nw, n)), -E.T @ E, Z((nw, nv)), E.T @ P],
-                    [Z((nv, n)), Z((nv, nw)), -F.T @ F, F.T @ Y.T],
-                    [P @ A - Y @ C, P @ E, Y @ F, -P]])
+    return _bmat([[-beta * P, None, None, A.T @ P - C.T @ Y.T],
+                  [None, -E.T @ E, None, E.T @ P],
+                  [None, None, -F.T @ F, F.T @ Y.T],
+                  [P @ A - Y @ C, P @ E, Y @ F, -P]])
 
 
 def prad_e_design(A, C, E, F, beta: float, solver: str = "auto") -> GainDesign:
@@ -242,13 +242,8 @@ def _prad_e_riccati(A, C, QE, QF, beta, what):
 def nom_g_lmi(A, C, mu, P, Y):
     """The Nom-G matrix (Wang et al., Automatica 2018, eq. 36), to be ``> 0``:
     ``[[mu P, (P A - Y C)'], [P A - Y C, P]]``."""
-    if isinstance(P, np.ndarray):
-        M = P @ A - Y @ C
-        return np.block([[mu * P, M.T], [M, P]])
-    import cvxpy as cp
-
     M = P @ A - Y @ C
-    return cp.bmat([[mu * P, M.T], [M, P]])
+    return _bmat([[mu * P, M.T], [M, P]])
 
 
 def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
@@ -301,20 +296,11 @@ def hinf_g_lmi(A, C, E, F, g, P, Y):
     e_0' P e_0`` for ``w_k = E w~_k``, ``v_k = F v~_k``.
     """
     n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
-    if isinstance(P, np.ndarray):
-        M = P @ A - Y @ C
-        return _bmat([[np.eye(n) - P, None, None, M.T],
-                      [None, -g * np.eye(nw), None, (P @ E).T],
-                      [None, None, -g * np.eye(nv), (-Y @ F).T],
-                      [M, P @ E, -Y @ F, -P]])
-    import cvxpy as cp
-
-    Z = np.zeros
     M = P @ A - Y @ C
-    return cp.bmat([[np.eye(n) - P, Z((n, nw)), Z((n, nv)), M.T],
-                    [Z((nw, n)), -g * np.eye(nw), Z((nw, nv)), (P @ E).T],
-                    [Z((nv, n)), Z((nv, nw)), -g * np.eye(nv), (-Y @ F).T],
-                    [M, P @ E, -Y @ F, -P]])
+    return _bmat([[np.eye(n) - P, None, None, M.T],
+                  [None, -g * np.eye(nw), None, (P @ E).T],
+                  [None, None, -g * np.eye(nv), (-Y @ F).T],
+                  [M, P @ E, -Y @ F, -P]])
 
 
 def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1) -> GainDesign:

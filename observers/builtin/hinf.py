@@ -15,7 +15,7 @@ from ..registry import register
 
 @register(
     "Hinf-G", family="interval", set_type="interval", ready_for_control=True,
-    reference="Tang, Wang, Wang, Zhou, IEEE TAC 2019, eq. 16 and Alg. 1 "
+    reference="Tang, Wang, Wang, Raissi, Shen, IEEE TAC 64(11), 2019, eq. 16 and Alg. 1 "
               "(Althoff & Rath 2021, Sec. 3.3)",
 )
 class HinfG(OfflineGain, IntervalObserver):

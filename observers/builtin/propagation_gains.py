@@ -37,7 +37,7 @@ class _OfflineGainPropagation(OfflineGain, ConstantGainPropagationObserver):
 
 @register(
     "PRad-E", family="propagation", set_type="zonotope", ready_for_control=True,
-    reference="Wang, Puig, Cembrano, Xu, CCC 2017, eq. 17 (Althoff & Rath 2021, Sec. 3.2)",
+    reference="Wang, Zhou, Puig, Cembrano, Wang, CCC 2017, eq. 17 (Althoff & Rath 2021, Sec. 3.2)",
 )
 class PRadE(_OfflineGainPropagation):
     """Set propagation with the offline P-radius gain of Wang et al. (max trace P, beta as CORA).
