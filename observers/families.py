@@ -31,7 +31,21 @@ def as_zonotope(S, what: str) -> Zonotope:
     raise ObserverError(f"{what} must be a Zonotope or an Interval, got {type(S).__name__}")
 
 
-class ZonotopeObserver(Observer):
+class LinearModelObserver(Observer):
+    """Observers that read the linear model: ``design`` collects ``A, B, C`` and the sets
+    ``X0, W, V`` as zonotopes (subclasses extend it with ``super().design()``)."""
+
+    def design(self) -> None:
+        s = self.system
+        self.A = np.asarray(s.A, dtype=float)
+        self.B = np.asarray(s.B, dtype=float)
+        self.C = np.asarray(s.C, dtype=float)
+        self.X0 = as_zonotope(s.X0, "X0")
+        self.W = as_zonotope(s.W, "W")
+        self.V = as_zonotope(s.V, "V")
+
+
+class ZonotopeObserver(LinearModelObserver):
     """Common options and system data of the zonotopic observers."""
 
     OPTIONS = {"order": 100, "reduction": "girard"}
@@ -45,13 +59,7 @@ class ZonotopeObserver(Observer):
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""
-        s = self.system
-        self.A = np.asarray(s.A, dtype=float)
-        self.B = np.asarray(s.B, dtype=float)
-        self.C = np.asarray(s.C, dtype=float)
-        self.X0 = as_zonotope(s.X0, "X0")
-        self.W = as_zonotope(s.W, "W")
-        self.V = as_zonotope(s.V, "V")
+        super().design()
         self.E = self.W.G
         self.F = self.V.G
         Vi = self.V.interval()

@@ -105,5 +105,17 @@ def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
     lp.a_matrix_.index_ = csc.indices
     lp.a_matrix_.value_ = csc.data
     h.passModel(lp)
-    h.run()
-    return h.getModelStatus() == highspy.HighsModelStatus.kOptimal
+    # HiGHS's presolve + dual simplex can stop without a verdict ("Not Set") on badly scaled
+    # generators (e.g. entries from 1e-39 to 3 after many steps of a contracting gain): retry
+    # without presolve, then with the interior-point solver; undecided counts as not contained
+    for option, value in _FEASIBILITY_RETRIES:
+        if option is not None:
+            h.setOptionValue(option, value)
+        h.run()
+        status = h.getModelStatus()
+        if status in (highspy.HighsModelStatus.kOptimal, highspy.HighsModelStatus.kInfeasible):
+            break
+    return status == highspy.HighsModelStatus.kOptimal
+
+
+_FEASIBILITY_RETRIES = ((None, None), ("presolve", "off"), ("solver", "ipm"))

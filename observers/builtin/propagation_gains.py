@@ -1,0 +1,111 @@
+"""Set-propagation observers with an offline gain: PRad-E and Nom-G.
+
+Both run the shared loop of :class:`~observers.families.PropagationObserver`
+(``S+ = (A - L C) S + B u + L y + (-L) V + W``, then order reduction) with a constant gain
+designed once in the constructor (:mod:`observers.luenberger_gains`), cached on disk, or
+passed as ``gain=`` (e.g. CORA's stored gains).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import OptionError
+from ..families import ConstantGainPropagationObserver
+from ..luenberger_gains import check_modes, cora_bisection_beta, nom_g_design, prad_e_design
+from ..offline import OfflineGain
+from ..registry import register
+
+
+def _number(obs, key: str, lo: float, hi: float, hi_closed: bool) -> None:
+    """Check that option ``key`` is a number in ``(lo, hi)`` or ``(lo, hi]``."""
+    v = obs.options[key]
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and lo < v and (
+        v <= hi if hi_closed else v < hi)
+    if not ok:
+        raise OptionError(f"{obs.name}: {key} must be a number in ({lo:g}, {hi:g}"
+                          f"{']' if hi_closed else ')'}, got {v!r}")
+
+
+class _OfflineGainPropagation(OfflineGain, ConstantGainPropagationObserver):
+    """Set propagation with ``L = gain_matrix`` from :class:`OfflineGain`."""
+
+    @property
+    def L(self) -> np.ndarray:
+        return self.gain_matrix
+
+
+@register(
+    "PRad-E", family="propagation", set_type="zonotope", ready_for_control=True,
+    reference="Wang, Zhou, Puig, Cembrano, Wang, CCC 2017, eq. 17 (Althoff & Rath 2021, Sec. 3.2)",
+)
+class PRadE(_OfflineGainPropagation):
+    """Set propagation with the offline P-radius gain of Wang et al. (max trace P, beta as CORA).
+
+    Options
+    -------
+    beta : float or None
+        Contraction factor of the P-radius in (0, 1).  ``None`` (default) takes the value at
+        which CORA's bisection (tolerance 0.01) stops, 0.9921875: the LMI is feasible for
+        every beta, so CORA's bisection always ends there (see
+        :func:`~observers.luenberger_gains.cora_bisection_beta`).
+    solver : {"auto", "sdp", "riccati"}
+        ``"sdp"``: maximise ``trace(P)`` with cvxpy + Clarabel (as CORA, with SDPT3).
+        ``"riccati"``: the same unique optimum in closed form from a discrete Riccati
+        equation, in milliseconds also for large systems where the SDP takes minutes (see
+        :func:`~observers.luenberger_gains.prad_e_design`).  ``"auto"`` (default):
+        ``"riccati"`` when the noise set V is full-dimensional, else ``"sdp"``.
+    gain : array, optional
+        Use this gain instead of designing one.
+    """
+
+    OPTIONS = {"beta": None, "solver": "auto"}
+
+    def validate_options(self) -> None:
+        super().validate_options()
+        if self.options["beta"] is not None:
+            _number(self, "beta", 0.0, 1.0, hi_closed=False)
+        if self.options["solver"] not in ("auto", "sdp", "riccati"):
+            raise OptionError(f"{self.name}: solver must be 'auto', 'sdp' or 'riccati', "
+                              f"got {self.options['solver']!r}")
+
+    @property
+    def beta(self) -> float:
+        """The contraction factor used by the design."""
+        b = self.options["beta"]
+        return cora_bisection_beta(0.01) if b is None else float(b)
+
+    def design_gain(self) -> np.ndarray:
+        s = self.system
+        check_modes(s, self.name, rate=np.sqrt(self.beta))
+        return prad_e_design(s.A, s.C, s.W.G, s.V.G, self.beta, self.options["solver"]).L
+
+
+@register(
+    "Nom-G", family="propagation", set_type="zonotope", ready_for_control=True,
+    reference="Wang, Puig, Cembrano, Automatica 93, 2018, eq. 36 (Althoff & Rath 2021, Sec. 3.2)",
+)
+class NomG(_OfflineGainPropagation):
+    """Set propagation with the nominal gain of decay rate mu (analytic centre of its LMI).
+
+    Options
+    -------
+    mu : float
+        Decay rate in (0, 1] of the nominal error (``rho(A - L C)^2 < mu``); 1 as in CORA.
+    gain : array, optional
+        Use this gain instead of designing one.
+
+    The LMI is a feasibility problem; the gain is the analytic centre of its feasible set
+    normalised by ``trace(P) = n`` (see :func:`~observers.luenberger_gains.nom_g_design`).
+    """
+
+    OPTIONS = {"mu": 1.0}
+
+    def validate_options(self) -> None:
+        super().validate_options()
+        _number(self, "mu", 0.0, 1.0, hi_closed=True)
+
+    def design_gain(self) -> np.ndarray:
+        s = self.system
+        check_modes(s, self.name, rate=np.sqrt(self.options["mu"]))
+        return nom_g_design(s.A, s.C, float(self.options["mu"])).L

@@ -1,0 +1,134 @@
+"""PRad-E, Nom-G and Hinf-G gain designs: CORA's stored gain, the closed-form PRad-E optimum,
+independent checks of what each returned gain certifies, caching and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import observers
+import systems
+from observers import luenberger_gains as lg
+from observers.errors import DesignFailed, OptionError
+from observers.sets import Zonotope
+
+
+def test_cora_bisection_ends_at_one_minus_two_to_the_minus_seven():
+    # hand derivation: bracket widths 1/2, 1/4, ..., 1/128 < 0.01 after 7 feasible steps
+    assert lg.cora_bisection_beta(0.01) == 1 - 2.0**-7 == 0.9921875
+    assert lg.cora_bisection_beta(0.1) == 1 - 2.0**-4
+    # why every step is feasible: (P, Y) = (0, 0) satisfies CORA's non-strict LMI for any beta
+    s = systems.vehicle(2)
+    n, m = s.n, s.ny
+    for beta in (0.01, 0.5):
+        SM = lg.prad_e_lmi(s.A, s.C, s.W.G, s.V.G, beta, np.zeros((n, n)), np.zeros((n, m)))
+        assert np.linalg.eigvalsh(SM).max() <= 0
+
+
+@pytest.mark.parametrize("solver", ["sdp", "auto"])
+def test_prad_e_design_matches_cora_vehicle2d_gain(solver, cora_refs):
+    # "sdp": our Clarabel solve; "auto" (default): the closed-form Riccati optimum here
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create("PRad-E", sc.system, solver=solver, **sc.options)
+    expected = cora_refs["gains_vehicle2D_sdpt3"]["PRad-E"]  # SDPT3 via YALMIP in CORA
+    np.testing.assert_allclose(obs.gain_matrix.ravel(), expected, rtol=0, atol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["vehicle2d-cora", "vehicle4d-sim", "alamo2d-sim"])
+def test_prad_e_riccati_optimum_equals_sdp_optimum(name):
+    # two independent routes to the max-trace P: Clarabel on the LMI, and the stabilising
+    # Riccati solution (alamo2d has a rank-1 disturbance set W)
+    s = systems.scenario(name).system
+    beta = lg.cora_bisection_beta()
+    sdp = lg.prad_e_design(s.A, s.C, s.W.G, s.V.G, beta, "sdp")
+    ric = lg.prad_e_design(s.A, s.C, s.W.G, s.V.G, beta, "riccati")
+    np.testing.assert_allclose(sdp.L, ric.L, rtol=1e-4, atol=1e-6)
+    assert sdp.info["trace_P"] == pytest.approx(ric.info["trace_P"], rel=1e-6)
+    # the Riccati P dominates (Loewner order) the SDP's: it is the largest feasible P
+    assert np.linalg.eigvalsh(ric.P - sdp.P).min() > -1e-6 * np.abs(ric.P).max()
+
+
+def test_prad_e_depends_on_w_and_v_only_through_their_ranges():
+    s = systems.vehicle(4)
+    beta = lg.cora_bisection_beta()
+    a = lg.prad_e_design(s.A, s.C, s.W.G, s.V.G, beta, "riccati")
+    b = lg.prad_e_design(s.A, s.C, 7.0 * s.W.G @ np.diag([1, 2, 3, 4]), 0.1 * s.V.G, beta,
+                         "riccati")
+    np.testing.assert_allclose(a.L, b.L, rtol=1e-8, atol=1e-12)
+
+
+def _closed_loop_hinf_norm(M, Bd, n_freq=2000):
+    """max over the unit circle of the largest singular value of (zI - M)^{-1} Bd."""
+    n = M.shape[0]
+    out = 0.0
+    for w in np.linspace(0, np.pi, n_freq):
+        T = np.linalg.solve(np.exp(1j * w) * np.eye(n) - M, Bd)
+        out = max(out, np.linalg.svd(T, compute_uv=False)[0])
+    return out
+
+
+@pytest.mark.parametrize("name", ["vehicle2d-cora", "vehicle4d-sim", "alamo2d-sim"])
+def test_returned_gains_certify_what_their_lmis_promise(name):
+    s = systems.scenario(name).system
+    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    # PRad-E: (A - LC)' P (A - LC) <= beta P
+    d = lg.prad_e_design(A, C, E, F, 0.9, "sdp")
+    M = A - d.L @ C
+    assert np.linalg.eigvalsh(M.T @ d.P @ M - 0.9 * d.P).max() <= 1e-7 * np.abs(d.P).max()
+    # Nom-G: decay rate mu of the nominal error, a point well inside the LMI
+    d = lg.nom_g_design(A, C, mu=1.0)
+    M = A - d.L @ C
+    assert np.linalg.eigvalsh(M.T @ d.P @ M - d.P).max() < 0
+    assert np.trace(d.P) == pytest.approx(s.n, rel=1e-6)
+    assert d.rho < 1
+    # Hinf-G: the H-infinity norm from (w~, v~) to e is at most gamma (frequency sweep),
+    # gamma is within the slack of the minimum, and the minimum is not above it
+    d = lg.hinf_g_design(A, C, E, F, gamma_slack=0.1)
+    assert d.info["gamma"] == pytest.approx(1.1 * d.info["gamma_min"], rel=1e-9)
+    Bd = np.hstack([lg.range_factor(E), -d.L @ lg.range_factor(F)])
+    norm = _closed_loop_hinf_norm(A - d.L @ C, Bd)
+    assert norm <= d.info["gamma"]
+    assert d.rho < 1
+
+
+def test_cached_design_is_reused_without_solving(monkeypatch, tmp_path):
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    s = systems.vehicle(2)
+    first = observers.create("Hinf-G", s)
+
+    def fail(*args, **kwargs):
+        raise AssertionError("design solved again")
+
+    monkeypatch.setattr("observers.builtin.hinf.hinf_g_design", fail)
+    again = observers.create("Hinf-G", s, convention="cora-lagged")  # online option: same key
+    np.testing.assert_array_equal(first.gain_matrix, again.gain_matrix)
+    with pytest.raises(AssertionError, match="solved again"):
+        observers.create("Hinf-G", s, gamma_slack=0.2)  # design option: new key
+
+
+def test_non_detectable_system_gives_a_clear_error():
+    A = np.diag([0.5, 1.2])  # the second state is unstable and not measured
+    s = systems.LinearSystem(A, np.zeros((2, 1)), [[1.0, 0.0]], W=Zonotope.box([0.1, 0.1]),
+                             V=Zonotope.box([0.1]), X0=Zonotope.box([1.0, 1.0]))
+    for name in ("PRad-E", "Nom-G", "Hinf-G"):
+        with pytest.raises(systems.ModelError, match=f"{name}: the pair .A, C. is not detectable"):
+            observers.create(name, s)
+
+
+def test_prad_e_beta_below_the_slowest_unobservable_mode_is_no_gain():
+    s = systems.tank(6, linear=True)  # tank 6 is unobservable with eigenvalue 0.996
+    with pytest.raises(DesignFailed, match="0.996 decay slower than the required rate"):
+        observers.create("PRad-E", s, beta=0.9)
+
+
+@pytest.mark.parametrize(("name", "options", "message"), [
+    ("PRad-E", {"beta": 1.0}, r"beta must be a number in \(0, 1\)"),
+    ("PRad-E", {"solver": "mosek"}, "solver must be 'auto', 'sdp' or 'riccati'"),
+    ("Nom-G", {"mu": 0}, r"mu must be a number in \(0, 1\]"),
+    ("Hinf-G", {"gamma_slack": -1}, "gamma_slack must be a positive number"),
+    ("Hinf-G", {"convention": "cora"}, "convention must be one of 'aligned', 'cora-lagged'"),
+    ("Hinf-G", {"order": 100}, "unknown option"),
+])
+def test_bad_options_are_one_line_errors(name, options, message):
+    with pytest.raises(OptionError, match=message):
+        observers.create(name, systems.vehicle(2), **options)
