@@ -6,6 +6,10 @@ STAMP  := $(VENV)/.installed
 CONFIGS_ALL   := $(wildcard benchmarks/configs/*.yaml)
 CONFIGS_QUICK := benchmarks/configs/quick.yaml
 RESULTS ?= results
+# single-threaded BLAS: faster and far less noisy on the small matrices of the observers
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
+export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
 .PHONY: help install test lint bench bench-quick report check baseline audit clean

@@ -1,10 +1,20 @@
-"""Benchmark runner: YAML configs -> runs.csv / summary.csv -> Markdown report and figures."""
+"""Benchmark runner: YAML configs -> runs.csv / summary.csv -> Markdown report and figures.
 
-from .config import BenchConfig, load_config, parse_config
-from .errors import ConfigError
-from .metrics import add_relative_rms, rms_radius
-from .report import write_report
-from .runner import run_config
+Timings are single-threaded, as in the papers ("single thread executions"): unless the user
+set them, the BLAS thread counts are pinned to 1 before numpy is loaded.  Multi-threaded BLAS
+on small matrices (e.g. 30 x 3000 generator products) is slower and much noisier.
+"""
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+from .config import BenchConfig, load_config, parse_config  # noqa: E402
+from .errors import ConfigError  # noqa: E402
+from .metrics import add_relative_rms, rms_radius  # noqa: E402
+from .report import write_report  # noqa: E402
+from .runner import run_config  # noqa: E402
 
 __all__ = [
     "BenchConfig",
