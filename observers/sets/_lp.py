@@ -25,12 +25,60 @@ _EPS = np.finfo(float).eps
 
 
 def dual_bound(g: np.ndarray, A: np.ndarray, b: np.ndarray, mu: np.ndarray) -> float:
-    """Weak-duality upper bound ``b'mu + ||g - A'mu||_1`` with outward rounding."""
+    """Weak-duality upper bound ``b'mu + ||g - A'mu||_1`` with outward rounding.
+
+    The slack bounds the floating-point error of the evaluation (each computed sum of ``k``
+    products is within ``k eps`` times the sum of the absolute products), so the returned
+    number is not below the exact value of the bound for this ``mu``.
+    """
+    nc, r = A.shape
     t1 = float(b @ mu)
     resid = g - A.T @ mu
     t2 = float(np.abs(resid).sum())
-    slack = 8 * _EPS * (abs(t1) + t2 + float(np.abs(b) @ np.abs(mu)) + float(np.abs(g).sum()))
+    amu = np.abs(mu)
+    scale = (float(np.abs(b) @ amu) + float(np.abs(g).sum()) + float(amu @ np.abs(A).sum(axis=1))
+             + abs(t1) + t2)
+    slack = (nc + r + 4) * _EPS * scale
     return t1 + t2 + slack
+
+
+def _highs() -> highspy.Highs:
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("presolve", "off")  # tiny LPs, re-solved warm: presolve only costs time
+    return h
+
+
+def _box_lp(A: np.ndarray, b: np.ndarray, cost: np.ndarray | None = None) -> highspy.HighsLp:
+    """``HighsLp`` of ``A xi = b``, ``-1 <= xi <= 1`` (column-wise matrix)."""
+    nc, r = A.shape
+    lp = highspy.HighsLp()
+    lp.num_col_ = r
+    lp.num_row_ = nc
+    lp.col_cost_ = np.zeros(r) if cost is None else cost
+    lp.col_lower_ = -np.ones(r)
+    lp.col_upper_ = np.ones(r)
+    lp.row_lower_ = b
+    lp.row_upper_ = b
+    csc = sp.csc_matrix(A)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = csc.indptr
+    lp.a_matrix_.index_ = csc.indices
+    lp.a_matrix_.value_ = csc.data
+    return lp
+
+
+def _dual_point(h: highspy.Highs, nc: int) -> np.ndarray:
+    """Dual point proposed by HiGHS for ``max g'xi`` solved as ``min -g'xi`` (any point is
+    valid for :func:`dual_bound`; ``0`` if HiGHS has none)."""
+    if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
+        raise SetError("constrained zonotope is empty (its constraints are infeasible)")
+    sol = h.getSolution()
+    if sol.dual_valid and len(sol.row_dual) == nc:
+        mu = -np.asarray(sol.row_dual, dtype=float)
+        if np.all(np.isfinite(mu)):
+            return mu
+    return np.zeros(nc)
 
 
 class BoxLP:
@@ -43,39 +91,79 @@ class BoxLP:
     def __init__(self, A: np.ndarray, b: np.ndarray):
         self.A = np.asarray(A, dtype=float)
         self.b = np.asarray(b, dtype=float)
-        nc, r = self.A.shape
-        self._h = highspy.Highs()
-        self._h.setOptionValue("output_flag", False)
-        lp = highspy.HighsLp()
-        lp.num_col_ = r
-        lp.num_row_ = nc
-        lp.col_cost_ = np.zeros(r)
-        lp.col_lower_ = -np.ones(r)
-        lp.col_upper_ = np.ones(r)
-        lp.row_lower_ = self.b
-        lp.row_upper_ = self.b
-        csc = sp.csc_matrix(self.A)
-        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-        lp.a_matrix_.start_ = csc.indptr
-        lp.a_matrix_.index_ = csc.indices
-        lp.a_matrix_.value_ = csc.data
-        self._h.passModel(lp)
-        self._r = r
+        self._h = _highs()
+        self._h.passModel(_box_lp(self.A, self.b))
+        self._r = self.A.shape[1]
+        self._idx = np.arange(self._r, dtype=np.int32)
 
     def maximize(self, g: np.ndarray) -> float:
         """Sound upper bound on ``max g'xi`` over the feasible set (raises if it is empty)."""
+        g = np.asarray(g, float)
         h = self._h
-        h.changeColsCost(self._r, np.arange(self._r, dtype=np.int32), -np.asarray(g, float))
+        h.changeColsCost(self._r, self._idx, -g)
         h.run()
-        status = h.getModelStatus()
-        if status == highspy.HighsModelStatus.kInfeasible:
-            raise SetError("constrained zonotope is empty (its constraints are infeasible)")
-        sol = h.getSolution()
-        if sol.dual_valid and len(sol.row_dual) == self.A.shape[0]:
-            mu = -np.asarray(sol.row_dual, dtype=float)
-        else:  # any mu is valid; mu = 0 gives the bound of the unconstrained box
-            mu = np.zeros(self.A.shape[0])
-        return dual_bound(np.asarray(g, float), self.A, self.b, mu)
+        return dual_bound(g, self.A, self.b, _dual_point(h, self.A.shape[0]))
+
+
+class HullLP:
+    """One HiGHS model kept alive across many constrained zonotopes and directions.
+
+    Observers that return a constrained zonotope per step attach one ``HullLP`` to every set
+    they return (:meth:`ConZonotope.with_solver`); the runner's ``S.interval()`` then solves
+    its 2n LPs in this model instead of building a new one:
+
+    * the constraints ``(A, b)`` are passed to HiGHS once per set (:meth:`load`; the same
+      arrays are recognised by identity);
+    * within a set, the LPs differ only in their cost, so each starts from the basis left by
+      the previous one;
+    * across sets, each direction ``slot`` (e.g. ``+e_i``, ``-e_i``) starts from the optimal
+      basis of the same direction in the previous set when the LP has the same shape (the
+      observers' sets keep their column and row layout from step to step once the order
+      reduction and the constraint bound are active), else from the previous direction's.
+
+    Whatever basis HiGHS starts from, the returned numbers are upper bounds evaluated from a
+    dual point by weak duality (:func:`dual_bound`), so warm starts affect speed only.
+    """
+
+    def __init__(self):
+        self._h = _highs()
+        self._loaded: tuple[np.ndarray, np.ndarray] | None = None
+        self._shape: tuple[int, int] = (-1, -1)
+        self._bases: dict[object, tuple[tuple[int, int], object]] = {}
+        self._idx = np.arange(0, dtype=np.int32)
+        #: number of LPs solved and simplex iterations used (for benchmarks)
+        self.solves = 0
+        self.iterations = 0
+
+    def load(self, A: np.ndarray, b: np.ndarray) -> None:
+        """Make ``A xi = b, -1 <= xi <= 1`` the feasible set (no-op if already loaded)."""
+        if self._loaded is not None and self._loaded[0] is A and self._loaded[1] is b:
+            return
+        self._h.passModel(_box_lp(A, b))
+        self._loaded = (A, b)
+        self._shape = A.shape
+        if self._idx.shape[0] != A.shape[1]:
+            self._idx = np.arange(A.shape[1], dtype=np.int32)
+
+    def maximize(self, g: np.ndarray, A: np.ndarray, b: np.ndarray, slot=None) -> float:
+        """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``.
+
+        ``slot`` names the direction for basis reuse across sets (any hashable).
+        """
+        self.load(A, b)
+        h = self._h
+        if slot is not None:
+            saved = self._bases.get(slot)
+            if saved is not None and saved[0] == self._shape:
+                h.setBasis(saved[1])
+        h.changeColsCost(self._shape[1], self._idx, -g)
+        h.run()
+        self.solves += 1
+        self.iterations += h.getInfo().simplex_iteration_count
+        mu = _dual_point(h, self._shape[0])
+        if slot is not None and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+            self._bases[slot] = (self._shape, h.getBasis())
+        return dual_bound(g, A, b, mu)
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:

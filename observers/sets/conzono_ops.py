@@ -1,0 +1,256 @@
+"""Array kernels of constrained-zonotope operations (pure functions on ``(c, G, A, b)``).
+
+A constrained zonotope is ``{c + G xi : A xi = b, ||xi||_inf <= 1}`` (Scott et al., Automatica
+69, 2016).  These functions work on plain arrays so that observer loops avoid the validation of
+the :class:`~observers.sets.ConZonotope` constructor; the class methods are thin wrappers.
+
+Operations
+----------
+* :func:`intersect` -- generalised intersection ``{x in Z : R x in Y}`` (exact; Scott et al.,
+  Prop. 1), with CORA's block layout (``conIntersect``).
+* :func:`intersect_strips` -- the same set for box-shaped ``Y`` (measurement strips), in the
+  parametrisation of a strip gain ``Lam`` (Alanwar et al.; CORA ``intersectStrip``).
+* :func:`lifted_reduce` -- order reduction of the lifted zonotope ``([c; -b], [G; A])``
+  (Scott et al., Sec. 4.3; CORA ``conZonotope/reduce``), after dropping all-zero constraints
+  and generators.
+* :func:`implied_bounds` / :func:`rescale` -- interval constraint propagation and the exact
+  rescaling of the generator box to the bounds implied by the constraints (Scott et al.,
+  Sec. 4.2).
+* :func:`eliminate_constraints` -- bounds the number of constraints by eliminating one
+  variable per surplus constraint (Gauss-Jordan substitution).  Exact when the constraints
+  imply the eliminated variable's box; otherwise an outer approximation whose loss the
+  choice of variable keeps small (see the function's notes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+_EPS = np.finfo(float).eps
+
+Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def intersect(
+    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
+    cy: np.ndarray, Gy: np.ndarray, Ay: np.ndarray, by: np.ndarray,
+    R: np.ndarray,
+) -> Arrays:
+    """Exact ``{x in Z : R x in Y}`` for constrained zonotopes ``Z = (c, G, A, b)`` and
+    ``Y = (cy, Gy, Ay, by)``.
+
+    Layout (as CORA's ``conIntersect``): ``xi = [xi_z; xi_y]``, generators ``[G, 0]``,
+    constraints ``[A 0; 0 Ay; R G, -Gy] xi = [b; by; cy - R c]``.
+    """
+    nc, r = A.shape
+    ncy, ry = Ay.shape
+    G_new = np.hstack([G, np.zeros((G.shape[0], ry))])
+    A_new = np.vstack([
+        np.hstack([A, np.zeros((nc, ry))]),
+        np.hstack([np.zeros((ncy, r)), Ay]),
+        np.hstack([R @ G, -Gy]),
+    ])
+    b_new = np.concatenate([b, by, cy - R @ c])
+    return c, G_new, A_new, b_new
+
+
+def intersect_strips(
+    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
+    C: np.ndarray, y: np.ndarray, sigma: np.ndarray, Lam: np.ndarray,
+) -> Arrays:
+    """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain.
+
+    For any ``Lam`` (n x m) the result is the same set (CORA ``conZonotope/intersectStrip``):
+    centre ``c + Lam (y - C c)``, generators ``[(I - Lam C) G, Lam diag(sigma)]`` and the new
+    constraints ``C G xi - diag(sigma) xi_new = y - C c`` (old constraints padded with m zero
+    columns).  The gain only changes the parametrisation, hence later order reductions.
+    """
+    nc = A.shape[0]
+    m = C.shape[0]
+    CG = C @ G
+    c_new = c + Lam @ (y - C @ c)
+    G_new = np.hstack([G - Lam @ CG, Lam * sigma])
+    A_new = np.vstack([
+        np.hstack([A, np.zeros((nc, m))]),
+        np.hstack([CG, -np.diag(sigma)]),
+    ])
+    b_new = np.concatenate([b, y - C @ c])
+    return c_new, G_new, A_new, b_new
+
+
+def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:
+    """Drop constraints whose row of ``[A b]`` is zero and generators zero in both ``G`` and ``A``
+    (entries with ``|.| <= tol`` count as zero; CORA ``compact_(cZ, 'zeros', eps)``)."""
+    if A.shape[0]:
+        rows = np.any(np.abs(A) > tol, axis=1) | (np.abs(b) > tol)
+        if not rows.all():
+            A, b = A[rows], b[rows]
+    cols = np.any(np.abs(G) > tol, axis=0)
+    if A.shape[0]:
+        cols |= np.any(np.abs(A) > tol, axis=0)
+    if not cols.all():
+        G, A = G[:, cols], A[:, cols]
+    return c, G, A, b
+
+
+def lifted_reduce(
+    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray, order: float,
+    reduce_generators: Callable[[np.ndarray, float], np.ndarray],
+) -> Arrays:
+    """CORA's order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
+
+    After :func:`compact_zeros`, the lifted zonotope ``([c; -b], [G; A])`` in ``R^(n+nc)`` is
+    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) to
+    the order ``max(1, (order n + nc) / (n + nc))``, so that at most ``order * n + nc``
+    generators remain, and split back.  The constraints are kept (their number is unchanged).
+    """
+    c, G, A, b = compact_zeros(c, G, A, b)
+    n, nc = G.shape[0], A.shape[0]
+    order_up = max(1.0, (order * n + nc) / (n + nc))
+    G_up = reduce_generators(np.vstack([G, A]), order_up)
+    return c, G_up[:n], G_up[n:], b
+
+
+def implied_bounds(
+    A: np.ndarray, b: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None,
+    sweeps: int = 3,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on ``xi`` implied by ``A xi = b`` and ``lo <= xi <= hi`` (default the unit box),
+    by interval constraint propagation (each row solved for each of its variables).
+
+    The bounds are outward-rounded and never tighter than the true projection of the feasible
+    set, so they are safe to use as the new box (:func:`rescale`).  An empty feasible set can
+    show up as ``lo > hi`` somewhere; callers must check.
+    """
+    nc, r = A.shape
+    lo = -np.ones(r) if lo is None else lo.copy()
+    hi = np.ones(r) if hi is None else hi.copy()
+    if nc == 0 or r == 0:
+        return lo, hi
+    absA = np.abs(A)
+    nz = absA > 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(nz, 1.0 / np.where(nz, A, 1.0), 0.0)
+    for _ in range(sweeps):
+        mid, rad = 0.5 * (hi + lo), 0.5 * (hi - lo)
+        s_mid = A @ mid                      # sum_k a_ik mid_k
+        s_rad = absA @ rad                   # sum_k |a_ik| rad_k
+        # for variable j of row i: a_ij xi_j = b_i - sum_{k != j} a_ik xi_k
+        cen = (b - s_mid)[:, None] + A * mid          # b_i - sum_{k != j} a_ik mid_k
+        wid = s_rad[:, None] - absA * rad             # sum_{k != j} |a_ik| rad_k
+        slack = 4 * _EPS * (np.abs(b)[:, None] + (absA @ np.abs(mid))[:, None] + s_rad[:, None]
+                            + absA * (np.abs(mid) + rad))
+        wid = wid + slack
+        x_c = cen * inv
+        x_r = wid * np.abs(inv)
+        new_lo = np.where(nz, x_c - x_r, -np.inf).max(axis=0)
+        new_hi = np.where(nz, x_c + x_r, np.inf).min(axis=0)
+        new_lo = np.maximum(lo, new_lo)
+        new_hi = np.minimum(hi, new_hi)
+        if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
+            break
+        lo, hi = new_lo, new_hi
+    return lo, hi
+
+
+def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
+    """The same set with the generator box shrunk to the bounds implied by the constraints.
+
+    With ``xi_j in [l_j, u_j]`` implied (:func:`implied_bounds`), substitute
+    ``xi_j = m_j + r_j xi'_j`` (``m = (u+l)/2``, ``r = (u-l)/2``): ``c += G m``,
+    ``b -= A m``, ``G, A`` columns scaled by ``r``.  Exact: the set does not change, but the
+    box now carries what the constraints implied, so a later elimination loses less.
+    Columns whose bounds shrink by less than ``min_gain`` are left as they are; fixed
+    variables (``r = 0``) become part of the centre and are dropped.
+    """
+    if A.shape[0] == 0:
+        return c, G, A, b
+    lo, hi = implied_bounds(A, b, sweeps=sweeps)
+    if np.any(lo > hi):
+        return c, G, A, b  # empty (or numerically empty): leave it to the LP to report
+    rad = 0.5 * (hi - lo)
+    mid = 0.5 * (hi + lo)
+    change = (rad < 1.0 - min_gain) | (np.abs(mid) > min_gain)
+    if not change.any():
+        return c, G, A, b
+    rad = np.where(change, rad, 1.0)
+    mid = np.where(change, mid, 0.0)
+    c = c + G @ mid
+    b = b - A @ mid
+    G = G * rad
+    A = A * rad
+    keep = rad > 0.0
+    if not keep.all():
+        G, A = G[:, keep], A[:, keep]
+    return c, G, A, b
+
+
+def eliminate_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Arrays:
+    """Outer approximation with at most ``max_constraints`` constraints.
+
+    Method (after Scott et al. 2016, Sec. 4.2): first :func:`rescale` (exact).  Then, while
+    there are too many constraints, eliminate one variable ``xi_j`` with a pivot row ``i``
+    (largest ``|a_ij|``): from row ``i``, ``xi_j = (b_i - sum_{k!=j} a_ik xi_k) / a_ij`` is
+    substituted into ``c + G xi`` and into the other rows, which removes row ``i`` and
+    column ``j``.  The only information lost is the box ``|xi_j| <= 1``: the result equals
+    ``{c + G xi : A xi = b, |xi_k| <= 1 for k != j}`` (``xi_j`` free), so it contains the set,
+    and it is the same set if the other constraints already imply ``|xi_j| <= 1``.
+
+    Choice of ``j``: the bounds ``[l_j, u_j]`` that the constraints and the other boxes imply
+    on ``xi_j`` (interval propagation without ``xi_j``'s own box) measure how far ``xi_j``
+    can leave its box after elimination, ``e_j = max(0, u_j - 1, -1 - l_j)``; the variable
+    with the smallest ``e_j ||(g_j, a_j)||_2`` (the length of the lifted generator times the
+    possible excess: how far the lifted point can move) is eliminated, exact eliminations (``e_j = 0``) first, ties broken by the larger pivot.
+    """
+    nc = A.shape[0]
+    if nc <= max_constraints:
+        return c, G, A, b
+    c, G, A, b = rescale(c, G, A, b, sweeps=sweeps)
+    G = np.array(G, dtype=float, copy=True)
+    A = np.array(A, dtype=float, copy=True)
+    b = np.array(b, dtype=float, copy=True)
+    c = np.array(c, dtype=float, copy=True)
+    while A.shape[0] > max_constraints:
+        j, i = _pick_elimination(G, A, b)
+        piv = A[i, j]
+        row = A[i] / piv
+        rhs = b[i] / piv
+        gj = G[:, j].copy()
+        aj = A[:, j].copy()
+        c = c + gj * rhs
+        G -= np.outer(gj, row)
+        b = b - aj * rhs
+        A -= np.outer(aj, row)
+        keep_r = np.ones(A.shape[0], dtype=bool)
+        keep_r[i] = False
+        keep_c = np.ones(A.shape[1], dtype=bool)
+        keep_c[j] = False
+        G, A, b = G[:, keep_c], A[keep_r][:, keep_c], b[keep_r]
+    return c, G, A, b
+
+
+def _pick_elimination(G, A, b) -> tuple[int, int]:
+    """Variable ``j`` and pivot row ``i`` of the least lossy elimination (see above)."""
+    nc, r = A.shape
+    absA = np.abs(A)
+    colmax = absA.max(axis=0)
+    cand = colmax > 1e-8 * max(1.0, float(colmax.max()))
+    # bounds on each xi_j implied by the rows, with the other variables in their unit box
+    nz = absA > 0.0
+    s_rad = absA.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(nz, 1.0 / np.where(nz, A, 1.0), 0.0)
+    cen = b[:, None] * inv
+    wid = (s_rad[:, None] - absA) * np.abs(inv)
+    lo = np.where(nz, cen - wid, -np.inf).max(axis=0)
+    hi = np.where(nz, cen + wid, np.inf).min(axis=0)
+    excess = np.maximum(0.0, np.maximum(hi - 1.0, -1.0 - lo))
+    score = excess * np.sqrt((G * G).sum(axis=0) + (A * A).sum(axis=0))
+    score = np.where(cand, score, np.inf)
+    best = score.min()
+    ties = np.flatnonzero(score <= best * (1 + 1e-12) + 1e-300)
+    j = int(ties[np.argmax(colmax[ties])]) if ties.size > 1 else int(ties[0])
+    i = int(np.argmax(absA[:, j]))
+    return j, i
