@@ -88,10 +88,13 @@ class ConZonotopeStripObserver(ZonotopeObserver):
             c = self.A @ c + self.B @ u + self.W.c
             G = np.hstack([self.A @ G, self.E])
             A = np.hstack([A, np.zeros((A.shape[0], self.E.shape[1]))])
-            c, G, A, b = self.intersect(c, G, A, b, y)
-            if self.max_constraints is not None:
-                c, G, A, b = ops.eliminate_constraints(c, G, A, b, self.max_constraints)
-            c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
+            if self.max_constraints is None:  # CORA: intersect, then reduce
+                c, G, A, b = self.intersect(c, G, A, b, y)
+                c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
+            else:  # reduce the prediction, intersect exactly, fold the oldest constraints
+                c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
+                c, G, A, b = self.intersect(c, G, A, b, y)
+                c, G, A, b = ops.fold_constraints(c, G, A, b, self.max_constraints)
         self._state = (c, G, A, b)
         self.k += 1
         return ConZonotope._trusted(c, G, A, b, self._lp)

@@ -106,23 +106,25 @@ class BoxLP:
 
 
 class HullLP:
-    """One HiGHS model kept alive across many constrained zonotopes and directions.
+    """Sound bounds ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1`` for a sequence of sets and many
+    directions, in one HiGHS model kept alive and warm-started.
 
     Observers that return a constrained zonotope per step attach one ``HullLP`` to every set
     they return (:meth:`ConZonotope.with_solver`); the runner's ``S.interval()`` then solves
-    its 2n LPs in this model instead of building a new one:
+    its 2n LPs here instead of building a new model per set:
 
-    * the constraints ``(A, b)`` are passed to HiGHS once per set (:meth:`load`; the same
-      arrays are recognised by identity);
+    * the constraints ``(A, b)`` of a set are passed to HiGHS once (recognised by identity);
     * within a set, the LPs differ only in their cost, so each starts from the basis left by
       the previous one;
-    * across sets, each direction ``slot`` (e.g. ``+e_i``, ``-e_i``) starts from the optimal
-      basis of the same direction in the previous set when the LP has the same shape (the
-      observers' sets keep their column and row layout from step to step once the order
-      reduction and the constraint bound are active), else from the previous direction's.
+    * across sets, each direction ``slot`` (e.g. ``+e_i``, ``-e_i``) starts from its own
+      optimal basis of the previous set when the LP has the same shape (the observers' sets
+      keep their shape from step to step once the order reduction and the constraint bound
+      are active);
+    * the cost is scaled to unit infinity norm (HiGHS' tolerances are absolute).
 
-    Whatever basis HiGHS starts from, the returned numbers are upper bounds evaluated from a
-    dual point by weak duality (:func:`dual_bound`), so warm starts affect speed only.
+    Whatever basis HiGHS starts from and whatever it returns, the reported number is the
+    weak-duality bound of its dual point on the LP as given (:func:`dual_bound`), so warm
+    starts affect speed only, never soundness.
     """
 
     def __init__(self):
@@ -131,7 +133,7 @@ class HullLP:
         self._shape: tuple[int, int] = (-1, -1)
         self._bases: dict[object, tuple[tuple[int, int], object]] = {}
         self._idx = np.arange(0, dtype=np.int32)
-        #: number of LPs solved and simplex iterations used (for benchmarks)
+        #: LPs solved and simplex iterations used (for benchmarks)
         self.solves = 0
         self.iterations = 0
 
@@ -148,19 +150,22 @@ class HullLP:
     def maximize(self, g: np.ndarray, A: np.ndarray, b: np.ndarray, slot=None) -> float:
         """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``.
 
-        ``slot`` names the direction for basis reuse across sets (any hashable).
+        ``slot`` names the direction (any hashable) for basis reuse across sets.
         """
         self.load(A, b)
         h = self._h
+        scale = float(np.abs(g).max(initial=0.0))
+        if scale == 0.0:
+            return dual_bound(g, A, b, np.zeros(A.shape[0]))
         if slot is not None:
             saved = self._bases.get(slot)
             if saved is not None and saved[0] == self._shape:
                 h.setBasis(saved[1])
-        h.changeColsCost(self._shape[1], self._idx, -g)
+        h.changeColsCost(self._shape[1], self._idx, -g / scale)
         h.run()
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
-        mu = _dual_point(h, self._shape[0])
+        mu = _dual_point(h, self._shape[0]) * scale
         if slot is not None and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
             self._bases[slot] = (self._shape, h.getBasis())
         return dual_bound(g, A, b, mu)

@@ -254,3 +254,50 @@ def _pick_elimination(G, A, b) -> tuple[int, int]:
     j = int(ties[np.argmax(colmax[ties])]) if ties.size > 1 else int(ties[0])
     i = int(np.argmax(absA[:, j]))
     return j, i
+
+
+def fold_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Arrays:
+    """Outer approximation keeping at most ``max_constraints`` constraints (the newest ones).
+
+    Method: :func:`rescale` (exact), then the ``k`` oldest constraints ``A_S xi = b_S`` are
+    folded into the centre, the generators and the kept constraints ``A_R xi = b_R`` and
+    dropped:
+
+    ``{c + Lam b_S + (G - Lam A_S) xi : (A_R - N A_S) xi = b_R - N b_S, |xi| <= 1}``
+
+    contains the set for all ``Lam`` (n x k) and ``N`` ((nc-k) x k), since both rewrites add
+    ``Lam (b_S - A_S xi) = 0`` and ``N (b_S - A_S xi) = 0`` on the set.  In the lifted
+    zonotope ``([c; -b], [G; A])`` this is a shear followed by the projection that drops the
+    folded coordinates; ``[Lam; N] = [G; A_R] A_S' (A_S A_S')^+`` (least squares, i.e. the
+    F-radius-minimising choice) regresses the other coordinates on the dropped ones, so that
+    little of the lifted generators points along the dropped directions.  For a single
+    measurement row ``[C_i G_z, F_i]`` of CZN-A, ``Lam`` is the F-radius strip gain of Alamo
+    et al. applied with today's generators to a measurement ``k`` steps old, and ``N`` keeps
+    the newer measurement rows consistent with the shifted centre.  The newest constraints
+    stay exact up to this shear.
+    """
+    nc = A.shape[0]
+    if nc <= max_constraints:
+        return c, G, A, b
+    c, G, A, b = rescale(c, G, A, b, sweeps=sweeps)
+    k = nc - max_constraints
+    AS, bS = A[:k], b[:k]
+    AR, bR = A[k:], b[k:]
+    n = G.shape[0]
+    gain = _regress(np.vstack([G, AR]), AS)
+    Lam, N = gain[:n], gain[n:]
+    return c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS
+
+
+def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (normal equations on
+    the small k x k Gram matrix; any ``K`` keeps :func:`fold_constraints` sound)."""
+    gram = X @ X.T
+    cross = Y @ X.T
+    try:
+        K = np.linalg.solve(gram, cross.T).T
+        if np.all(np.isfinite(K)):
+            return K
+    except np.linalg.LinAlgError:
+        pass
+    return cross @ np.linalg.pinv(gram)
