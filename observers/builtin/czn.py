@@ -9,12 +9,16 @@ reduction.  They differ only in the parametrisation of the intersection:
   of Wang et al. (Alanwar et al., arXiv 2010.11097), which shapes the generators that the
   later reductions act on.
 
-Beyond CORA (which lets the number of constraints grow by m per step), the option
-``max_constraints`` bounds it: after each intersection the box of the generator variables is
-shrunk to the bounds the constraints imply (exact), and the surplus constraints are removed by
-eliminating the variables whose box the constraints (nearly) imply
-(:func:`observers.sets.conzono_ops.eliminate_constraints`).  ``max_constraints=None`` gives
-CORA's behaviour.
+Beyond CORA (which lets the number of constraints grow by m per step, so that the LPs of the
+interval hull grow without bound), the option ``max_constraints`` bounds it (default: the
+constraints of the last two measurements, ``2 m``): the prediction is reduced first, the
+intersection with ``y[k]`` is exact, then the box of the generator variables is shrunk to the
+bounds the constraints imply (exact) and the oldest surplus constraints are folded into the
+generators by a least-squares shear of the lifted zonotope and dropped
+(:func:`observers.sets.conzono_ops.fold_constraints`).  The newest measurements stay exact;
+what an old measurement told is kept as far as a zonotope update with an F-radius gain keeps
+it.  ``max_constraints=None`` gives CORA's behaviour (and order of operations: intersect,
+then reduce), which the conformance tests use.
 
 Interval hulls: every returned set carries the observer's :class:`~observers.sets._lp.HullLP`,
 one HiGHS model kept alive across steps, so the runner's ``S.interval()`` (2n LPs, sound
@@ -34,7 +38,7 @@ from ..sets._lp import HullLP
 from ..strip import wang_frad_gain
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m
-DEFAULT_CONSTRAINT_STEPS = 4
+DEFAULT_CONSTRAINT_STEPS = 2
 
 
 class ConZonotopeStripObserver(ZonotopeObserver):
@@ -45,9 +49,9 @@ class ConZonotopeStripObserver(ZonotopeObserver):
     order, reduction
         Order and zonotope strategy of the lifted reduction (as CORA).
     max_constraints : int, "auto" or None
-        Bound on the number of constraints kept after each step; ``"auto"`` is
-        ``4 m`` (the measurements of the last four steps' worth of constraints), ``None``
-        keeps all of them (CORA: m more per step).
+        Bound on the number of constraints kept after each step; ``"auto"`` is ``2 m`` (the
+        measurements of the last two steps), ``None`` keeps all of them (CORA: m more per
+        step, with CORA's order of intersection and reduction).
     """
 
     OPTIONS = {"max_constraints": "auto"}

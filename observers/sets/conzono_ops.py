@@ -16,10 +16,9 @@ Operations
 * :func:`implied_bounds` / :func:`rescale` -- interval constraint propagation and the exact
   rescaling of the generator box to the bounds implied by the constraints (Scott et al.,
   Sec. 4.2).
-* :func:`eliminate_constraints` -- bounds the number of constraints by eliminating one
-  variable per surplus constraint (Gauss-Jordan substitution).  Exact when the constraints
-  imply the eliminated variable's box; otherwise an outer approximation whose loss the
-  choice of variable keeps small (see the function's notes).
+* :func:`fold_constraints` -- bounds the number of constraints: the oldest ones are folded
+  into the centre, generators and remaining constraints by a least-squares shear of the
+  lifted zonotope and dropped (an outer approximation; the newest constraints stay exact).
 """
 
 from __future__ import annotations
@@ -185,75 +184,6 @@ def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
     if not keep.all():
         G, A = G[:, keep], A[:, keep]
     return c, G, A, b
-
-
-def eliminate_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Arrays:
-    """Outer approximation with at most ``max_constraints`` constraints.
-
-    Method (after Scott et al. 2016, Sec. 4.2): first :func:`rescale` (exact).  Then, while
-    there are too many constraints, eliminate one variable ``xi_j`` with a pivot row ``i``
-    (largest ``|a_ij|``): from row ``i``, ``xi_j = (b_i - sum_{k!=j} a_ik xi_k) / a_ij`` is
-    substituted into ``c + G xi`` and into the other rows, which removes row ``i`` and
-    column ``j``.  The only information lost is the box ``|xi_j| <= 1``: the result equals
-    ``{c + G xi : A xi = b, |xi_k| <= 1 for k != j}`` (``xi_j`` free), so it contains the set,
-    and it is the same set if the other constraints already imply ``|xi_j| <= 1``.
-
-    Choice of ``j``: the bounds ``[l_j, u_j]`` that the constraints and the other boxes imply
-    on ``xi_j`` (interval propagation without ``xi_j``'s own box) measure how far ``xi_j``
-    can leave its box after elimination, ``e_j = max(0, u_j - 1, -1 - l_j)``; the variable
-    with the smallest ``e_j ||(g_j, a_j)||_2`` (the length of the lifted generator times the
-    possible excess: how far the lifted point can move) is eliminated, exact eliminations (``e_j = 0``) first, ties broken by the larger pivot.
-    """
-    nc = A.shape[0]
-    if nc <= max_constraints:
-        return c, G, A, b
-    c, G, A, b = rescale(c, G, A, b, sweeps=sweeps)
-    G = np.array(G, dtype=float, copy=True)
-    A = np.array(A, dtype=float, copy=True)
-    b = np.array(b, dtype=float, copy=True)
-    c = np.array(c, dtype=float, copy=True)
-    while A.shape[0] > max_constraints:
-        j, i = _pick_elimination(G, A, b)
-        piv = A[i, j]
-        row = A[i] / piv
-        rhs = b[i] / piv
-        gj = G[:, j].copy()
-        aj = A[:, j].copy()
-        c = c + gj * rhs
-        G -= np.outer(gj, row)
-        b = b - aj * rhs
-        A -= np.outer(aj, row)
-        keep_r = np.ones(A.shape[0], dtype=bool)
-        keep_r[i] = False
-        keep_c = np.ones(A.shape[1], dtype=bool)
-        keep_c[j] = False
-        G, A, b = G[:, keep_c], A[keep_r][:, keep_c], b[keep_r]
-    return c, G, A, b
-
-
-def _pick_elimination(G, A, b) -> tuple[int, int]:
-    """Variable ``j`` and pivot row ``i`` of the least lossy elimination (see above)."""
-    nc, r = A.shape
-    absA = np.abs(A)
-    colmax = absA.max(axis=0)
-    cand = colmax > 1e-8 * max(1.0, float(colmax.max()))
-    # bounds on each xi_j implied by the rows, with the other variables in their unit box
-    nz = absA > 0.0
-    s_rad = absA.sum(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(nz, 1.0 / np.where(nz, A, 1.0), 0.0)
-    cen = b[:, None] * inv
-    wid = (s_rad[:, None] - absA) * np.abs(inv)
-    lo = np.where(nz, cen - wid, -np.inf).max(axis=0)
-    hi = np.where(nz, cen + wid, np.inf).min(axis=0)
-    excess = np.maximum(0.0, np.maximum(hi - 1.0, -1.0 - lo))
-    score = excess * np.sqrt((G * G).sum(axis=0) + (A * A).sum(axis=0))
-    score = np.where(cand, score, np.inf)
-    best = score.min()
-    ties = np.flatnonzero(score <= best * (1 + 1e-12) + 1e-300)
-    j = int(ties[np.argmax(colmax[ties])]) if ties.size > 1 else int(ties[0])
-    i = int(np.argmax(absA[:, j]))
-    return j, i
 
 
 def fold_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Arrays:

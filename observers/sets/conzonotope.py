@@ -186,13 +186,13 @@ class ConZonotope:
             self._c, self._G, self._A, self._b, float(order), strategy.reduce))
 
     def reduce_constraints(self, max_constraints: int) -> ConZonotope:
-        """Enclosure with at most ``max_constraints`` constraints (exact rescaling, then
-        elimination of the least informative variables; see
-        :func:`observers.sets.conzono_ops.eliminate_constraints`)."""
+        """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
+        are folded into the generators (exact rescaling, then a least-squares shear; see
+        :func:`observers.sets.conzono_ops.fold_constraints`)."""
         if not isinstance(max_constraints, (int, np.integer)) or max_constraints < 0:
             raise SetError(f"max_constraints must be a non-negative integer, "
                            f"got {max_constraints!r}")
-        return ConZonotope._trusted(*ops.eliminate_constraints(
+        return ConZonotope._trusted(*ops.fold_constraints(
             self._c, self._G, self._A, self._b, int(max_constraints)))
 
     def rescale(self) -> ConZonotope:
