@@ -46,6 +46,7 @@ def _highs() -> highspy.Highs:
     h = highspy.Highs()
     h.setOptionValue("output_flag", False)
     h.setOptionValue("presolve", "off")  # tiny LPs, re-solved warm: presolve only costs time
+    h.setOptionValue("simplex_scale_strategy", 0)  # fewer iterations on these LPs (measured)
     return h
 
 

@@ -27,6 +27,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .reduction import split_indices
+
 _EPS = np.finfo(float).eps
 
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -82,34 +84,50 @@ def intersect_strips(
 def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:
     """Drop constraints whose row of ``[A b]`` is zero and generators zero in both ``G`` and ``A``
     (entries with ``|.| <= tol`` count as zero; CORA ``compact_(cZ, 'zeros', eps)``)."""
-    if A.shape[0]:
-        rows = np.any(np.abs(A) > tol, axis=1) | (np.abs(b) > tol)
-        if not rows.all():
-            A, b = A[rows], b[rows]
+    rows, cols = _nonzero_parts(G, A, b, tol)
+    return c, G[:, cols], A[rows][:, cols], b[rows]
+
+
+def _nonzero_parts(G, A, b, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the constraints and generators kept by :func:`compact_zeros`."""
+    rows = np.flatnonzero(np.any(np.abs(A) > tol, axis=1) | (np.abs(b) > tol))
     cols = np.any(np.abs(G) > tol, axis=0)
     if A.shape[0]:
         cols |= np.any(np.abs(A) > tol, axis=0)
-    if not cols.all():
-        G, A = G[:, cols], A[:, cols]
-    return c, G, A, b
+    return rows, np.flatnonzero(cols)
 
 
 def lifted_reduce(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray, order: float,
     reduce_generators: Callable[[np.ndarray, float], np.ndarray],
-) -> Arrays:
+    provenance: bool = False,
+):
     """CORA's order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
 
     After :func:`compact_zeros`, the lifted zonotope ``([c; -b], [G; A])`` in ``R^(n+nc)`` is
     reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) to
     the order ``max(1, (order n + nc) / (n + nc))``, so that at most ``order * n + nc``
     generators remain, and split back.  The constraints are kept (their number is unchanged).
+
+    With ``provenance=True`` two more arrays are returned: the input columns that the first
+    output columns are copies of (``None`` if the strategy does not keep columns unchanged
+    in front, as the built-in ones do), and the input rows kept.
     """
-    c, G, A, b = compact_zeros(c, G, A, b)
+    rows, cols = _nonzero_parts(G, A, b, _EPS)
+    G, A, b = G[:, cols], A[rows][:, cols], b[rows]
     n, nc = G.shape[0], A.shape[0]
     order_up = max(1.0, (order * n + nc) / (n + nc))
-    G_up = reduce_generators(np.vstack([G, A]), order_up)
-    return c, G_up[:n], G_up[n:], b
+    G_lift = np.vstack([G, A])
+    G_up = reduce_generators(G_lift, order_up)
+    if not provenance:
+        return c, G_up[:n], G_up[n:], b
+    kept = split_indices(G_lift, order_up)[0]
+    if G_up.shape[1] < kept.shape[0] or not np.array_equal(G_up[:, :kept.shape[0]],
+                                                           G_lift[:, kept]):
+        kept = None
+    else:
+        kept = cols[kept]
+    return c, G_up[:n], G_up[n:], b, kept, rows
 
 
 def implied_bounds(
@@ -162,7 +180,8 @@ def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
     ``b -= A m``, ``G, A`` columns scaled by ``r``.  Exact: the set does not change, but the
     box now carries what the constraints implied, so a later elimination loses less.
     Columns whose bounds shrink by less than ``min_gain`` are left as they are; fixed
-    variables (``r = 0``) become part of the centre and are dropped.
+    variables (``r = 0``) become part of the centre and their columns zero (columns are
+    never removed here, so that callers can keep track of them).
     """
     if A.shape[0] == 0:
         return c, G, A, b
@@ -176,18 +195,15 @@ def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
         return c, G, A, b
     rad = np.where(change, rad, 1.0)
     mid = np.where(change, mid, 0.0)
-    c = c + G @ mid
-    b = b - A @ mid
-    G = G * rad
-    A = A * rad
-    keep = rad > 0.0
-    if not keep.all():
-        G, A = G[:, keep], A[:, keep]
-    return c, G, A, b
+    return c + G @ mid, G * rad, A * rad, b - A @ mid
 
 
-def fold_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Arrays:
+def fold_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3,
+                     age: np.ndarray | None = None):
     """Outer approximation keeping at most ``max_constraints`` constraints (the newest ones).
+
+    The constraints are taken as oldest first, unless ``age`` (one number per constraint,
+    larger = older) is given; then the indices of the kept constraints are returned as well.
 
     Method: :func:`rescale` (exact), then the ``k`` oldest constraints ``A_S xi = b_S`` are
     folded into the centre, the generators and the kept constraints ``A_R xi = b_R`` and
@@ -208,15 +224,21 @@ def fold_constraints(c, G, A, b, max_constraints: int, sweeps: int = 3) -> Array
     """
     nc = A.shape[0]
     if nc <= max_constraints:
-        return c, G, A, b
+        return (c, G, A, b) if age is None else (c, G, A, b, np.arange(nc))
     c, G, A, b = rescale(c, G, A, b, sweeps=sweeps)
     k = nc - max_constraints
-    AS, bS = A[:k], b[:k]
-    AR, bR = A[k:], b[k:]
+    if age is None:
+        fold, kept = np.arange(k), np.arange(k, nc)
+    else:
+        order = np.argsort(-np.asarray(age), kind="stable")
+        fold, kept = np.sort(order[:k]), np.sort(order[k:])
+    AS, bS = A[fold], b[fold]
+    AR, bR = A[kept], b[kept]
     n = G.shape[0]
     gain = _regress(np.vstack([G, AR]), AS)
     Lam, N = gain[:n], gain[n:]
-    return c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS
+    out = (c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS)
+    return out if age is None else (*out, kept)
 
 
 def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:

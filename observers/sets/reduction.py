@@ -45,19 +45,27 @@ def split_generators(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarra
     Zero columns are dropped first.  The to-be-reduced block is returned sorted by the metric
     ``||g||_1 - ||g||_inf`` (stable), the unreduced block in the original column order.
     """
+    keep, picked = split_indices(G, order)
+    return G[:, keep], G[:, picked]
+
+
+def split_indices(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray]:
+    """Column indices of :func:`split_generators`: (unreduced in original order, reduced in
+    the order of the metric); all-zero columns are in neither."""
     check_order(order)
-    G = G[:, np.any(G != 0.0, axis=0)]
-    n, r = G.shape
+    nonzero = np.flatnonzero(np.any(G != 0.0, axis=0))
+    n = G.shape[0]
+    r = nonzero.shape[0]
     if r <= n * order:
-        return G, G[:, :0]
+        return nonzero, nonzero[:0]
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    absG = np.abs(G)
+    absG = np.abs(G[:, nonzero])
     h = absG.sum(axis=0) - absG.max(axis=0)
     picked = np.argsort(h, kind="stable")[:n_reduced]
     keep = np.ones(r, dtype=bool)
     keep[picked] = False
-    return G[:, keep], G[:, picked]
+    return nonzero[keep], nonzero[picked]
 
 
 def check_order(order: float) -> None:
