@@ -27,15 +27,16 @@ bounds from dual points) warm-starts each direction from the previous step's bas
 
 from __future__ import annotations
 
+from abc import abstractmethod
+
 import numpy as np
 
 from ..errors import OptionError
 from ..families import ZonotopeObserver
 from ..registry import register
-from ..sets import ConZonotope
+from ..sets import ConZonotope, HullLP
 from ..sets import conzono_ops as ops
-from ..sets._lp import HullLP
-from ..strip import wang_frad_gain
+from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m
 DEFAULT_CONSTRAINT_STEPS = 2
@@ -77,9 +78,9 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         self._age: np.ndarray | None = None  # steps since each constraint was added
         self._lp = HullLP()
 
+    @abstractmethod
     def intersect(self, c, G, A, b, y):
         """Exact intersection of ``(c, G, A, b)`` with the measurement set of ``y``."""
-        raise NotImplementedError
 
     def step(self, u_prev, y) -> ConZonotope:
         y = self._measurement(y)
@@ -173,26 +174,16 @@ class CZNA(ConZonotopeStripObserver):
     "CZN-B", family="strip", set_type="conzonotope", ready_for_control=False,
     reference="Alanwar, Rath, Said, Johansson, Althoff, arXiv 2010.11097; Scott et al. 2016",
 )
-class CZNB(ConZonotopeStripObserver):
+class CZNB(WangGainVariant, ConZonotopeStripObserver):
     """Constrained zonotopes, strip intersection parametrised by the F-radius gain.
 
     Options
     -------
     variant : {"cora", "textbook"}
-        As for FRad-B: ``"cora"`` (default) computes the gain from the predicted set's
-        ``G G'`` with ``A`` applied once more, ``R = A G G' A' + E E'``; ``"textbook"`` uses
-        ``R = G G'`` of the predicted set.
+        As for FRad-B (:class:`~observers.builtin.frad.WangGainVariant`): ``"cora"``
+        (default) computes the gain from the predicted set's ``G G'`` with ``A`` applied once
+        more, ``R = A G G' A' + E E'``; ``"textbook"`` uses ``R = G G'``.
     """
 
-    OPTIONS = {"variant": "cora"}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        if self.options["variant"] not in ("cora", "textbook"):
-            raise OptionError(f"CZN-B: variant must be 'cora' or 'textbook', "
-                              f"got {self.options['variant']!r}")
-
     def intersect(self, c, G, A, b, y):
-        Amat = self.A if self.options["variant"] == "cora" else None
-        Lam = wang_frad_gain(G @ G.T, Amat, self.C, self.E, self.F)
-        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma, Lam)
+        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma, self.wang_gain(G))

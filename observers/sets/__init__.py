@@ -12,9 +12,13 @@ All sets are immutable value objects with the same small vocabulary:
 ========================  =====================================================
 
 Zonotopes additionally offer ``Z.reduce(order, method)`` with the strategies of
-:mod:`observers.sets.reduction`.
+:mod:`observers.sets.reduction`.  Constrained zonotopes add the exact ``intersect`` and
+``intersect_strips``, CORA's lifted ``reduce``, ``rescale`` and ``reduce_constraints``
+(array kernels in :mod:`observers.sets.conzono_ops`); their LP bounds can share a warm HiGHS
+model (:class:`HullLP`, ``S.with_solver(lp)``).
 """
 
+from ._lp import HullLP
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .errors import SetError
@@ -26,6 +30,7 @@ __all__ = [
     "ConZonotope",
     "Ellipsoid",
     "Girard",
+    "HullLP",
     "Interval",
     "PCA",
     "Reduction",
