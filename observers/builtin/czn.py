@@ -12,9 +12,9 @@ reduction.  They differ only in the parametrisation of the intersection:
 Beyond CORA (which lets the number of constraints grow by m per step, so that the LPs of the
 interval hull grow without bound), the option ``max_constraints`` bounds it (default: the
 constraints of the last two measurements, ``2 m``): the prediction is reduced first, the
-intersection with ``y[k]`` is exact, then the box of the generator variables is shrunk to the
-bounds the constraints imply (exact) and the oldest surplus constraints are folded into the
-generators by a least-squares shear of the lifted zonotope and dropped
+intersection with ``y[k]`` is exact, then the oldest surplus constraints are folded into the
+generators and the newer constraints by a least-squares shear of the lifted zonotope and
+dropped
 (:func:`observers.sets.conzono_ops.fold_constraints`).  The newest measurements stay exact;
 what an old measurement told is kept as far as a zonotope update with an F-radius gain keeps
 it.  ``max_constraints=None`` gives CORA's behaviour (and order of operations: intersect,
@@ -75,7 +75,6 @@ class ConZonotopeStripObserver(ZonotopeObserver):
     def reset(self) -> None:
         super().reset()
         self._state: tuple[np.ndarray, ...] | None = None
-        self._age: np.ndarray | None = None  # steps since each constraint was added
         self._lp = HullLP()
 
     @abstractmethod
@@ -88,7 +87,6 @@ class ConZonotopeStripObserver(ZonotopeObserver):
             G0 = self.X0.G
             c, G, A, b = self.intersect(self.X0.c, G0, np.zeros((0, G0.shape[1])),
                                         np.zeros(0), y)
-            self._age = np.zeros(A.shape[0])
         else:
             u = self._input(u_prev)
             c, G, A, b = self._state
@@ -98,59 +96,13 @@ class ConZonotopeStripObserver(ZonotopeObserver):
             if self.max_constraints is None:  # CORA: intersect, then reduce
                 c, G, A, b = self.intersect(c, G, A, b, y)
                 c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
-            else:
-                c, G, A, b = self._bounded_update(c, G, A, b, y)
+            else:  # reduce the prediction, intersect exactly, fold the oldest constraints
+                c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
+                c, G, A, b = self.intersect(c, G, A, b, y)
+                c, G, A, b = ops.fold_constraints(c, G, A, b, self.max_constraints)
         self._state = (c, G, A, b)
         self.k += 1
         return ConZonotope._trusted(c, G, A, b, self._lp)
-
-    def _bounded_update(self, c, G, A, b, y):
-        """Reduce the prediction, intersect exactly, fold the oldest constraints, and keep
-        every generator and constraint that survives at its previous position (so that the
-        hull LPs of consecutive steps have aligned columns and rows, and each direction's
-        HiGHS basis of the previous step is a good start)."""
-        r_prev, nc_prev = self._state[1].shape[1], self._state[2].shape[0]
-        col_from = np.concatenate([np.arange(r_prev), np.full(G.shape[1] - r_prev, -1)])
-        c, G, A, b, kept, rows = ops.lifted_reduce(c, G, A, b, self.order, self._reduce,
-                                                   provenance=True)
-        r = G.shape[1]
-        col_from = (np.full(r, -1) if kept is None else
-                    np.concatenate([col_from[kept], np.full(r - kept.shape[0], -1)]))
-        row_from, age = np.arange(nc_prev)[rows], self._age[rows] + 1
-        c, G, A, b = self.intersect(c, G, A, b, y)
-        col_from = np.concatenate([col_from, np.full(G.shape[1] - r, -1)])
-        m_new = A.shape[0] - row_from.shape[0]
-        row_from = np.concatenate([row_from, np.full(m_new, -1)])
-        age = np.concatenate([age, np.zeros(m_new)])
-        c, G, A, b, kept_rows = ops.fold_constraints(c, G, A, b, self.max_constraints,
-                                                     age=age)
-        row_from, age = row_from[kept_rows], age[kept_rows]
-        cp, rp = stable_positions(col_from), stable_positions(row_from)
-        G2 = np.empty_like(G)
-        G2[:, cp] = G
-        A2 = np.empty_like(A)
-        A2[np.ix_(rp, cp)] = A
-        b2 = np.empty_like(b)
-        b2[rp] = b
-        self._age = np.empty_like(age)
-        self._age[rp] = age
-        return c, G2, A2, b2
-
-
-def stable_positions(origin: np.ndarray) -> np.ndarray:
-    """New positions of items whose previous positions are ``origin`` (``-1``: new item).
-
-    An item keeps its previous position if it is within the new length; the other items fill
-    the free positions in their order.
-    """
-    k = origin.shape[0]
-    stay = (origin >= 0) & (origin < k)
-    pos = np.empty(k, dtype=np.int64)
-    pos[stay] = origin[stay]
-    taken = np.zeros(k, dtype=bool)
-    taken[origin[stay]] = True
-    pos[~stay] = np.flatnonzero(~taken)
-    return pos
 
 
 @register(

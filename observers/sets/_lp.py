@@ -108,31 +108,31 @@ class BoxLP:
 
 class HullLP:
     """Sound bounds ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1`` for a sequence of sets and many
-    directions, in one HiGHS model kept alive and warm-started.
+    directions, in one HiGHS model kept alive.
 
     Observers that return a constrained zonotope per step attach one ``HullLP`` to every set
     they return (:meth:`ConZonotope.with_solver`); the runner's ``S.interval()`` then solves
     its 2n LPs here instead of building a new model per set:
 
-    * the constraints ``(A, b)`` of a set are passed to HiGHS once (recognised by identity);
-    * within a set, the LPs differ only in their cost, so each starts from the basis left by
+    * the constraints ``(A, b)`` of a set are passed to HiGHS once (recognised by identity),
+      with presolve and scaling off (both only cost time on these small LPs, measured);
+    * the 2n LPs of a set differ only in their cost, so each starts from the optimal basis of
       the previous one;
-    * across sets, each direction ``slot`` (e.g. ``+e_i``, ``-e_i``) starts from its own
-      optimal basis of the previous set when the LP has the same shape (the observers' sets
-      keep their shape from step to step once the order reduction and the constraint bound
-      are active);
     * the cost is scaled to unit infinity norm (HiGHS' tolerances are absolute).
 
+    Starting each direction from its own optimal basis of the previous step was tried (with
+    and without keeping the generators and constraints at fixed positions from step to step)
+    and took *more* simplex iterations on the vehicle benchmark than the basis of the
+    previous direction, so it is not done.
+
     Whatever basis HiGHS starts from and whatever it returns, the reported number is the
-    weak-duality bound of its dual point on the LP as given (:func:`dual_bound`), so warm
-    starts affect speed only, never soundness.
+    weak-duality bound of its dual point (:func:`dual_bound`), so warm starts affect speed
+    only, never soundness.
     """
 
     def __init__(self):
         self._h = _highs()
         self._loaded: tuple[np.ndarray, np.ndarray] | None = None
-        self._shape: tuple[int, int] = (-1, -1)
-        self._bases: dict[object, tuple[tuple[int, int], object]] = {}
         self._idx = np.arange(0, dtype=np.int32)
         #: LPs solved and simplex iterations used (for benchmarks)
         self.solves = 0
@@ -144,32 +144,21 @@ class HullLP:
             return
         self._h.passModel(_box_lp(A, b))
         self._loaded = (A, b)
-        self._shape = A.shape
         if self._idx.shape[0] != A.shape[1]:
             self._idx = np.arange(A.shape[1], dtype=np.int32)
 
-    def maximize(self, g: np.ndarray, A: np.ndarray, b: np.ndarray, slot=None) -> float:
-        """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``.
-
-        ``slot`` names the direction (any hashable) for basis reuse across sets.
-        """
+    def maximize(self, g: np.ndarray, A: np.ndarray, b: np.ndarray) -> float:
+        """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``."""
         self.load(A, b)
-        h = self._h
         scale = float(np.abs(g).max(initial=0.0))
         if scale == 0.0:
             return dual_bound(g, A, b, np.zeros(A.shape[0]))
-        if slot is not None:
-            saved = self._bases.get(slot)
-            if saved is not None and saved[0] == self._shape:
-                h.setBasis(saved[1])
-        h.changeColsCost(self._shape[1], self._idx, -g / scale)
+        h = self._h
+        h.changeColsCost(A.shape[1], self._idx, -g / scale)
         h.run()
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
-        mu = _dual_point(h, self._shape[0]) * scale
-        if slot is not None and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
-            self._bases[slot] = (self._shape, h.getBasis())
-        return dual_bound(g, A, b, mu)
+        return dual_bound(g, A, b, _dual_point(h, A.shape[0]) * scale)
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:

@@ -22,11 +22,11 @@ class ConZonotope:
     objective value (see :mod:`observers.sets._lp`).  Generators that appear in no constraint
     are left out of the LPs (their contribution ``sum |G_ij|`` is added exactly).
 
-    A set may carry a shared, warm LP model (:meth:`with_solver`, used by the observers so
-    that the interval hull of each step reuses the HiGHS model and bases of the previous
-    step).  The solver is not part of the value: it changes neither equality nor results
-    beyond solver tolerance, and the bounds are sound whichever basis it starts from.
-    The interval hull is computed once per set and cached.
+    A set may carry a shared LP model (:meth:`with_solver`, used by the observers so that the
+    interval hull of each step reuses one HiGHS model instead of building one per set).
+    The solver is not part of the value: it changes neither equality nor results beyond
+    solver tolerance, and the bounds are sound whichever basis it starts from.  The interval
+    hull is computed once per set and cached.
     """
 
     __slots__ = ("_c", "_G", "_A", "_b", "_solver", "_hull")
@@ -187,8 +187,8 @@ class ConZonotope:
 
     def reduce_constraints(self, max_constraints: int) -> ConZonotope:
         """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
-        are folded into the generators (exact rescaling, then a least-squares shear; see
-        :func:`observers.sets.conzono_ops.fold_constraints`)."""
+        are folded into the generators and the kept constraints by a least-squares shear of
+        the lifted zonotope (see :func:`observers.sets.conzono_ops.fold_constraints`)."""
         if not isinstance(max_constraints, (int, np.integer)) or max_constraints < 0:
             raise SetError(f"max_constraints must be a non-negative integer, "
                            f"got {max_constraints!r}")
@@ -225,8 +225,8 @@ class ConZonotope:
         rad_free = np.abs(Gf).sum(axis=1)
         lp = self._lp()
         n = self.dim
-        hi = np.array([lp.maximize(Gc[i], Ac, self._b, slot=i) for i in range(n)])
-        lo = np.array([lp.maximize(-Gc[i], Ac, self._b, slot=~i) for i in range(n)])
+        hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
+        lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
         # outward rounding of the final sums
         up = np.nextafter(self._c + (hi + rad_free), np.inf)
         down = np.nextafter(self._c - (lo + rad_free), -np.inf)

@@ -45,27 +45,19 @@ def split_generators(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarra
     Zero columns are dropped first.  The to-be-reduced block is returned sorted by the metric
     ``||g||_1 - ||g||_inf`` (stable), the unreduced block in the original column order.
     """
-    keep, picked = split_indices(G, order)
-    return G[:, keep], G[:, picked]
-
-
-def split_indices(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray]:
-    """Column indices of :func:`split_generators`: (unreduced in original order, reduced in
-    the order of the metric); all-zero columns are in neither."""
     check_order(order)
-    nonzero = np.flatnonzero(np.any(G != 0.0, axis=0))
-    n = G.shape[0]
-    r = nonzero.shape[0]
+    G = G[:, np.any(G != 0.0, axis=0)]
+    n, r = G.shape
     if r <= n * order:
-        return nonzero, nonzero[:0]
+        return G, G[:, :0]
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    absG = np.abs(G[:, nonzero])
+    absG = np.abs(G)
     h = absG.sum(axis=0) - absG.max(axis=0)
     picked = np.argsort(h, kind="stable")[:n_reduced]
     keep = np.ones(r, dtype=bool)
     keep[picked] = False
-    return nonzero[keep], nonzero[picked]
+    return G[:, keep], G[:, picked]
 
 
 def check_order(order: float) -> None:
