@@ -61,11 +61,12 @@ def _box_lp(A: np.ndarray, b: np.ndarray, cost: np.ndarray | None = None) -> hig
     lp.col_upper_ = np.ones(r)
     lp.row_lower_ = b
     lp.row_upper_ = b
-    csc = sp.csc_matrix(A)
+    cols, rows = np.nonzero(A.T)  # column-wise nonzeros, sorted by column then row
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = csc.indptr
-    lp.a_matrix_.index_ = csc.indices
-    lp.a_matrix_.value_ = csc.data
+    lp.a_matrix_.start_ = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=r))]
+                                         ).astype(np.int32)
+    lp.a_matrix_.index_ = rows.astype(np.int32)
+    lp.a_matrix_.value_ = A.T[cols, rows]
     return lp
 
 
