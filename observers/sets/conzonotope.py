@@ -227,9 +227,11 @@ class ConZonotope:
         n = self.dim
         hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
         lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
-        # outward rounding of the final sums
-        up = np.nextafter(self._c + (hi + rad_free), np.inf)
-        down = np.nextafter(self._c - (lo + rad_free), -np.inf)
+        # outward rounding of the final sums (a few ulps of the summands)
+        c = self._c
+        slack = 4 * np.finfo(float).eps * (np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
+        up = c + (hi + rad_free) + slack
+        down = c - (lo + rad_free) - slack
         self._hull = Interval(down, up)
         return self._hull
 
@@ -242,11 +244,12 @@ class ConZonotope:
         else:
             Gc, Ac, Gf = self._split_free()
             lp = self._lp()
-            vals = np.array([
-                np.nextafter(di @ self._c + np.abs(Gf.T @ di).sum()
-                             + lp.maximize(Gc.T @ di, Ac, self._b), np.inf)
-                for di in D.T
-            ])
+            vals = np.empty(D.shape[1])
+            for k, di in enumerate(D.T):
+                t = (di @ self._c, np.abs(Gf.T @ di).sum(), lp.maximize(Gc.T @ di, Ac, self._b))
+                slack = (self.dim + 4) * np.finfo(float).eps * (np.abs(di) @ np.abs(self._c)
+                                                               + abs(t[1]) + abs(t[2]))
+                vals[k] = sum(t) + slack
         return float(vals[0]) if d.ndim == 1 else vals
 
     def contains(self, x, tol: float = 0.0) -> bool:
