@@ -12,7 +12,8 @@ reduction.  They differ only in the parametrisation of the intersection:
 Beyond CORA (which lets the number of constraints grow by m per step, so that the LPs of the
 interval hull grow without bound), the option ``max_constraints`` bounds it (default: the
 constraints of the last two measurements, ``2 m``): the prediction is reduced first, the
-intersection with ``y[k]`` is exact, then the oldest surplus constraints are folded into the
+intersection with ``y[k]`` is exact, then the box of the generator variables is shrunk to the
+bounds the constraints imply (exact), and the oldest surplus constraints are folded into the
 generators and the newer constraints by a least-squares shear of the lifted zonotope and
 dropped
 (:func:`observers.sets.conzono_ops.fold_constraints`).  The newest measurements stay exact;

