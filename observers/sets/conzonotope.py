@@ -227,9 +227,10 @@ class ConZonotope:
         n = self.dim
         hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
         lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
-        # outward rounding of the final sums (a few ulps of the summands)
+        # outward rounding of the free generators' sums and of the final sums
         c = self._c
-        slack = 4 * np.finfo(float).eps * (np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
+        slack = (Gf.shape[1] + 4) * np.finfo(float).eps * (
+            np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
         up = c + (hi + rad_free) + slack
         down = c - (lo + rad_free) - slack
         self._hull = Interval(down, up)
@@ -247,8 +248,8 @@ class ConZonotope:
             vals = np.empty(D.shape[1])
             for k, di in enumerate(D.T):
                 t = (di @ self._c, np.abs(Gf.T @ di).sum(), lp.maximize(Gc.T @ di, Ac, self._b))
-                slack = (self.dim + 4) * np.finfo(float).eps * (np.abs(di) @ np.abs(self._c)
-                                                               + abs(t[1]) + abs(t[2]))
+                slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
+                    np.abs(di) @ np.abs(self._c) + abs(t[1]) + abs(t[2]))
                 vals[k] = sum(t) + slack
         return float(vals[0]) if d.ndim == 1 else vals
 
