@@ -21,21 +21,14 @@ class FRadA(PerStripObserver):
         return alamo_frad_gain(G, self.C[i], self.sigma[i])
 
 
-@register(
-    "FRad-B", family="strip", set_type="zonotope", ready_for_control=False,
-    reference="Wang, Puig, Cembrano, Automatica 93, 2018",
-)
-class FRadB(AllStripsObserver):
-    """All strips at once with the F-radius gain of Wang et al. (online).
+class WangGainVariant:
+    """Mixin: the all-strips F-radius gain of Wang et al. with CORA's or the textbook prior.
 
-    Options
-    -------
-    variant : {"cora", "textbook"}
-        ``"cora"`` (default) reproduces CORA, which computes the gain from the *predicted*
-        set's ``G G'`` and applies ``A`` (and adds ``E E'``) once more:
-        ``R = A G G' A' + E E'``.  ``"textbook"`` uses the predicted covariance itself,
-        ``R = G G'``, as in the paper (where G is the previous estimate's, so that
-        ``A G G' A' + E E'`` is the prediction).
+    Option ``variant``: ``"cora"`` (default) reproduces CORA, which computes the gain from
+    the *predicted* set's ``G G'`` and applies ``A`` (and adds ``E E'``) once more:
+    ``R = A G G' A' + E E'``.  ``"textbook"`` uses the predicted covariance itself,
+    ``R = G G'``, as in the paper (where G is the previous estimate's, so that
+    ``A G G' A' + E E'`` is the prediction).  Used by FRad-B and CZN-B.
     """
 
     OPTIONS = {"variant": "cora"}
@@ -43,12 +36,30 @@ class FRadB(AllStripsObserver):
     def validate_options(self) -> None:
         super().validate_options()
         if self.options["variant"] not in ("cora", "textbook"):
-            raise OptionError(f"FRad-B: variant must be 'cora' or 'textbook', "
+            raise OptionError(f"{self.name}: variant must be 'cora' or 'textbook', "
                               f"got {self.options['variant']!r}")
 
-    def gain(self, G: np.ndarray) -> np.ndarray:
+    def wang_gain(self, G: np.ndarray) -> np.ndarray:
+        """Gain (n x m) for the predicted set's generators ``G``."""
         A = self.A if self.options["variant"] == "cora" else None
         return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
+
+
+@register(
+    "FRad-B", family="strip", set_type="zonotope", ready_for_control=False,
+    reference="Wang, Puig, Cembrano, Automatica 93, 2018",
+)
+class FRadB(WangGainVariant, AllStripsObserver):
+    """All strips at once with the F-radius gain of Wang et al. (online).
+
+    Options
+    -------
+    variant : {"cora", "textbook"}
+        See :class:`WangGainVariant` (``"cora"``: CORA's double application of ``A``).
+    """
+
+    def gain(self, G: np.ndarray) -> np.ndarray:
+        return self.wang_gain(G)
 
 
 @register(

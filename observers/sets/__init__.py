@@ -14,8 +14,13 @@ All sets are immutable value objects with the same small vocabulary:
 Zonotopes additionally offer ``Z.reduce(order, method)`` with the strategies of
 :mod:`observers.sets.reduction`.  Matrix sets (:class:`MatrixZonotope`, :class:`IntervalMatrix`)
 map vector sets with ``M @ Z`` (a sound enclosure, see :mod:`observers.sets.matrix_zonotope`).
+Constrained zonotopes add the exact ``intersect`` and
+``intersect_strips``, CORA's lifted ``reduce``, ``rescale`` and ``reduce_constraints``
+(array kernels in :mod:`observers.sets.conzono_ops`); their LP bounds can share a warm HiGHS
+model (:class:`HullLP`, ``S.with_solver(lp)``).
 """
 
+from ._lp import HullLP
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .errors import SetError
@@ -28,6 +33,7 @@ __all__ = [
     "ConZonotope",
     "Ellipsoid",
     "Girard",
+    "HullLP",
     "Interval",
     "IntervalMatrix",
     "MatrixZonotope",

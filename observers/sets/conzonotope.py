@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import conzono_ops as ops
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
-from ._lp import BoxLP, box_feasible
+from ._lp import HullLP, box_feasible
 from .errors import SetError
 from .interval import Interval
+from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
 
@@ -17,10 +19,17 @@ class ConZonotope:
 
     Interval hulls and support values are computed by linear programs (HiGHS) and are
     guaranteed outer bounds: they are evaluated from a dual point, never from the primal
-    objective value (see :mod:`observers.sets._lp`).
+    objective value (see :mod:`observers.sets._lp`).  Generators that appear in no constraint
+    are left out of the LPs (their contribution ``sum |G_ij|`` is added exactly).
+
+    A set may carry a shared LP model (:meth:`with_solver`, used by the observers so that the
+    interval hull of each step reuses one HiGHS model instead of building one per set).
+    The solver is not part of the value: it changes neither equality nor results beyond
+    solver tolerance, and the bounds are sound whichever basis it starts from.  The interval
+    hull is computed once per set and cached.
     """
 
-    __slots__ = ("_c", "_G", "_A", "_b")
+    __slots__ = ("_c", "_G", "_A", "_b", "_solver", "_hull")
     __array_ufunc__ = None
 
     def __init__(self, c, G=None, A=None, b=None):
@@ -39,11 +48,47 @@ class ConZonotope:
                 raise SetError("constraint matrix A given without offsets b")
             b = vector(b, "constraint offsets b", dim=A.shape[0]) if A.shape[0] else np.zeros(0)
         self._c, self._G, self._A, self._b = frozen(c), frozen(G), frozen(A), frozen(b)
+        self._solver: HullLP | None = None
+        self._hull: Interval | None = None
+
+    @classmethod
+    def _trusted(cls, c, G, A, b, solver: HullLP | None = None) -> ConZonotope:
+        """Build from float arrays of matching shapes without validation (hot loops).
+
+        The arrays are frozen in place; the caller must not keep writing to them.
+        """
+        obj = object.__new__(cls)
+        for a in (c, G, A, b):
+            a.setflags(write=False)
+        obj._c, obj._G, obj._A, obj._b = c, G, A, b
+        obj._solver, obj._hull = solver, None
+        return obj
 
     @classmethod
     def from_zonotope(cls, Z: Zonotope) -> ConZonotope:
         """The zonotope ``Z`` without constraints."""
         return cls(Z.c, Z.G)
+
+    @classmethod
+    def from_set(cls, S) -> ConZonotope:
+        """``S`` (ConZonotope, Zonotope or Interval) as a constrained zonotope."""
+        if isinstance(S, ConZonotope):
+            return S
+        if isinstance(S, Interval):
+            S = Zonotope.from_interval(S)
+        if isinstance(S, Zonotope):
+            return cls.from_zonotope(S)
+        raise SetError(f"cannot convert {type(S).__name__} to a constrained zonotope")
+
+    def with_solver(self, solver: HullLP) -> ConZonotope:
+        """The same set, computing its LPs in the shared warm model ``solver``."""
+        if not isinstance(solver, HullLP):
+            raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
+        return ConZonotope._trusted(self._c, self._G, self._A, self._b, solver)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(c, G, A, b)`` (read-only arrays)."""
+        return self._c, self._G, self._A, self._b
 
     # -- data -----------------------------------------------------------------------------
     c = property(lambda self: self._c, doc="Centre.")
@@ -103,14 +148,93 @@ class ConZonotope:
     def __neg__(self) -> ConZonotope:
         return ConZonotope(-self._c, -self._G, self._A, self._b)
 
+    def intersect(self, Y, R=None) -> ConZonotope:
+        """Exact generalised intersection ``{x in self : R x in Y}`` (``R`` defaults to the
+        identity; ``Y`` a ConZonotope, Zonotope or Interval of dimension ``R.shape[0]``)."""
+        Y = ConZonotope.from_set(Y)
+        R = np.eye(self.dim) if R is None else matrix(R, "intersection map R", cols=self.dim)
+        if R.shape[0] != Y.dim:
+            raise SetError(f"intersection map R has {R.shape[0]} rows but the set has "
+                           f"dimension {Y.dim}")
+        return ConZonotope._trusted(*ops.intersect(
+            self._c, self._G, self._A, self._b, Y._c, Y._G, Y._A, Y._b, R))
+
+    def intersect_strips(self, C, y, sigma, gain=None) -> ConZonotope:
+        """Exact intersection with the strips ``|C x - y| <= sigma`` (one per row of ``C``).
+
+        ``gain`` (n x m, default zero) only chooses the parametrisation of the result (CORA's
+        ``intersectStrip`` for constrained zonotopes); the set is the same for every gain.
+        """
+        C = matrix(C, "strip normals C", cols=self.dim)
+        m = C.shape[0]
+        y = vector(y, "strip centres y", dim=m)
+        sigma = vector(sigma, "strip half-widths sigma", dim=m)
+        if np.any(sigma < 0):
+            raise SetError("strip half-widths sigma must be non-negative")
+        Lam = np.zeros((self.dim, m)) if gain is None else matrix(
+            gain, "strip gain", rows=self.dim, cols=m)
+        return ConZonotope._trusted(*ops.intersect_strips(
+            self._c, self._G, self._A, self._b, C, y, sigma, Lam))
+
+    def reduce(self, order: float, method: str | Reduction = "girard") -> ConZonotope:
+        """Enclosure with at most ``order * n + nc`` generators by reducing the lifted zonotope
+        ``([c; -b], [G; A])`` (Scott et al. 2016, Sec. 4.3; CORA's ``reduce``).  The number of
+        constraints does not change; see :meth:`reduce_constraints`."""
+        check_order(order)
+        strategy = get_reduction(method)
+        return ConZonotope._trusted(*ops.lifted_reduce(
+            self._c, self._G, self._A, self._b, float(order), strategy.reduce))
+
+    def reduce_constraints(self, max_constraints: int) -> ConZonotope:
+        """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
+        are folded into the generators and the kept constraints by a least-squares shear of
+        the lifted zonotope (see :func:`observers.sets.conzono_ops.fold_constraints`)."""
+        if not isinstance(max_constraints, (int, np.integer)) or max_constraints < 0:
+            raise SetError(f"max_constraints must be a non-negative integer, "
+                           f"got {max_constraints!r}")
+        return ConZonotope._trusted(*ops.fold_constraints(
+            self._c, self._G, self._A, self._b, int(max_constraints)))
+
+    def rescale(self) -> ConZonotope:
+        """The same set with the generator box shrunk to the bounds implied by the constraints
+        (interval constraint propagation; exact)."""
+        return ConZonotope._trusted(*ops.rescale(self._c, self._G, self._A, self._b))
+
+    def compact(self) -> ConZonotope:
+        """The same set without all-zero constraints and generators."""
+        return ConZonotope._trusted(*ops.compact_zeros(self._c, self._G, self._A, self._b))
+
+    def _lp(self) -> HullLP:
+        return self._solver if self._solver is not None else HullLP()
+
+    def _split_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Generators in some constraint (with their columns of A) and the others."""
+        coupled = np.any(self._A != 0.0, axis=0)
+        if coupled.all():
+            return self._G, self._A, self._G[:, :0]
+        return self._G[:, coupled], self._A[:, coupled], self._G[:, ~coupled]
+
     def interval(self) -> Interval:
-        """Guaranteed interval hull from 2n LPs sharing one feasible set."""
+        """Guaranteed interval hull from 2n LPs sharing one feasible set (cached)."""
+        if self._hull is not None:
+            return self._hull
         if self.num_constraints == 0:
-            return Zonotope(self._c, self._G).interval()
-        lp = BoxLP(self._A, self._b)
-        hi = np.array([lp.maximize(g) for g in self._G])
-        lo = np.array([-lp.maximize(-g) for g in self._G])
-        return Interval(self._c + lo, self._c + hi)
+            self._hull = Zonotope(self._c, self._G).interval()
+            return self._hull
+        Gc, Ac, Gf = self._split_free()
+        rad_free = np.abs(Gf).sum(axis=1)
+        lp = self._lp()
+        n = self.dim
+        hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
+        lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
+        # outward rounding of the free generators' sums and of the final sums
+        c = self._c
+        slack = (Gf.shape[1] + 4) * np.finfo(float).eps * (
+            np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
+        up = c + (hi + rad_free) + slack
+        down = c - (lo + rad_free) - slack
+        self._hull = Interval(down, up)
+        return self._hull
 
     def support(self, d) -> float | np.ndarray:
         """Guaranteed upper bound of the support function (vector ``d`` or one per column)."""
@@ -119,8 +243,14 @@ class ConZonotope:
         if self.num_constraints == 0:
             vals = D.T @ self._c + np.abs(self._G.T @ D).sum(axis=0)
         else:
-            lp = BoxLP(self._A, self._b)
-            vals = np.array([di @ self._c + lp.maximize(self._G.T @ di) for di in D.T])
+            Gc, Ac, Gf = self._split_free()
+            lp = self._lp()
+            vals = np.empty(D.shape[1])
+            for k, di in enumerate(D.T):
+                t = (di @ self._c, np.abs(Gf.T @ di).sum(), lp.maximize(Gc.T @ di, Ac, self._b))
+                slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
+                    np.abs(di) @ np.abs(self._c) + abs(t[1]) + abs(t[2]))
+                vals[k] = sum(t) + slack
         return float(vals[0]) if d.ndim == 1 else vals
 
     def contains(self, x, tol: float = 0.0) -> bool:
