@@ -35,11 +35,12 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every benchmark config into results/<config>/ and write the reports
+bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) and reports/<config>.md
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
+		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
 
 bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
