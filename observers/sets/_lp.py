@@ -7,6 +7,11 @@ Every bound returned here is *sound by construction*: the LP solver only propose
 
 with a small outward rounding of the floating-point evaluation.  A primal objective value at
 solver tolerance is never used as a bound.
+
+Interval hulls and support values of constrained zonotopes solve many such LPs with one
+feasible set; :class:`HullLP` solves them together with a batched dual simplex
+(:mod:`observers.sets._dual_simplex`) and falls back to HiGHS for any LP that the batched
+solver does not finish.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ try:  # highspy is a hard dependency; keep the import error readable
 except ImportError as exc:  # pragma: no cover - exercised only on broken installs
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
+from . import _dual_simplex
 from .errors import SetError
 
 _EPS = np.finfo(float).eps
@@ -31,13 +37,19 @@ def dual_bound(g: np.ndarray, A: np.ndarray, b: np.ndarray, mu: np.ndarray) -> f
     products is within ``k eps`` times the sum of the absolute products), so the returned
     number is not below the exact value of the bound for this ``mu``.
     """
+    return float(dual_bounds(np.asarray(g, float)[None, :], A, b,
+                             np.asarray(mu, float)[None, :])[0])
+
+
+def dual_bounds(Gd: np.ndarray, A: np.ndarray, b: np.ndarray, Mu: np.ndarray) -> np.ndarray:
+    """:func:`dual_bound` for every row: ``b'mu_k + ||g_k - A'mu_k||_1`` (outward rounded)
+    for cost rows ``Gd`` (K x r) and dual points ``Mu`` (K x nc)."""
     nc, r = A.shape
-    t1 = float(b @ mu)
-    resid = g - A.T @ mu
-    t2 = float(np.abs(resid).sum())
-    amu = np.abs(mu)
-    scale = (float(np.abs(b) @ amu) + float(np.abs(g).sum()) + float(amu @ np.abs(A).sum(axis=1))
-             + abs(t1) + t2)
+    t1 = Mu @ b
+    t2 = np.abs(Gd - Mu @ A).sum(axis=1)
+    aMu = np.abs(Mu)
+    scale = (aMu @ np.abs(b) + np.abs(Gd).sum(axis=1) + aMu @ np.abs(A).sum(axis=1)
+             + np.abs(t1) + t2)
     slack = (nc + r + 4) * _EPS * scale
     return t1 + t2 + slack
 
@@ -129,15 +141,29 @@ class HullLP:
     Whatever basis HiGHS starts from and whatever it returns, the reported number is the
     weak-duality bound of its dual point (:func:`dual_bound`), so warm starts affect speed
     only, never soundness.
+
+    :meth:`maximize_many` solves many directions at once: with ``solver="batched"``
+    (default) by the batched dual simplex of :mod:`observers.sets._dual_simplex` (all 2n
+    LPs of an interval hull in lock step, about 10x faster than 2n warm HiGHS runs on the
+    vehicle benchmark), with HiGHS for the LPs it does not finish (and to report empty
+    sets); with ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`.  Either
+    way each bound is the weak-duality bound of a dual point.
     """
 
-    def __init__(self):
+    SOLVERS = ("batched", "highs")
+
+    def __init__(self, solver: str = "batched"):
+        if solver not in self.SOLVERS:
+            raise SetError(f"unknown LP solver {solver!r} (known: {', '.join(self.SOLVERS)})")
+        self.solver = solver
         self._h = _highs()
         self._loaded: tuple[np.ndarray, np.ndarray] | None = None
         self._idx = np.arange(0, dtype=np.int32)
-        #: LPs solved and simplex iterations used (for benchmarks)
+        #: LPs solved, simplex iterations used (summed over the LPs) and LPs handed to HiGHS
+        #: by the batched solver (for benchmarks)
         self.solves = 0
         self.iterations = 0
+        self.fallbacks = 0
 
     def load(self, A: np.ndarray, b: np.ndarray) -> None:
         """Make ``A xi = b, -1 <= xi <= 1`` the feasible set (no-op if already loaded)."""
@@ -160,6 +186,21 @@ class HullLP:
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
         return dual_bound(g, A, b, _dual_point(h, A.shape[0]) * scale)
+
+    def maximize_many(self, Gd: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Sound upper bounds on ``max Gd[k]'xi  s.t.  A xi = b, -1 <= xi <= 1`` for every row
+        ``k`` of ``Gd`` (raises :class:`SetError` if the feasible set is empty)."""
+        Gd = np.atleast_2d(np.asarray(Gd, dtype=float))
+        if self.solver == "highs" or A.shape[0] == 0:
+            return np.array([self.maximize(g, A, b) for g in Gd])
+        res = _dual_simplex.solve(A, b, Gd)
+        bounds = dual_bounds(Gd, A, b, res.mu)
+        self.solves += Gd.shape[0]
+        self.iterations += res.problem_iterations
+        for k in np.nonzero(~res.converged)[0]:  # not finished: HiGHS (both bounds are valid)
+            self.fallbacks += 1
+            bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
+        return bounds
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:

@@ -223,10 +223,9 @@ class ConZonotope:
             return self._hull
         Gc, Ac, Gf = self._split_free()
         rad_free = np.abs(Gf).sum(axis=1)
-        lp = self._lp()
         n = self.dim
-        hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
-        lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
+        hilo = self._lp().maximize_many(np.vstack([Gc, -Gc]), Ac, self._b)
+        hi, lo = hilo[:n], hilo[n:]
         # outward rounding of the free generators' sums and of the final sums
         c = self._c
         slack = (Gf.shape[1] + 4) * np.finfo(float).eps * (
@@ -244,13 +243,12 @@ class ConZonotope:
             vals = D.T @ self._c + np.abs(self._G.T @ D).sum(axis=0)
         else:
             Gc, Ac, Gf = self._split_free()
-            lp = self._lp()
-            vals = np.empty(D.shape[1])
-            for k, di in enumerate(D.T):
-                t = (di @ self._c, np.abs(Gf.T @ di).sum(), lp.maximize(Gc.T @ di, Ac, self._b))
-                slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
-                    np.abs(di) @ np.abs(self._c) + abs(t[1]) + abs(t[2]))
-                vals[k] = sum(t) + slack
+            lp_vals = self._lp().maximize_many((Gc.T @ D).T, Ac, self._b)
+            t0 = D.T @ self._c
+            t1 = np.abs(Gf.T @ D).sum(axis=0)
+            slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
+                np.abs(D.T) @ np.abs(self._c) + t1 + np.abs(lp_vals))
+            vals = t0 + t1 + lp_vals + slack
         return float(vals[0]) if d.ndim == 1 else vals
 
     def contains(self, x, tol: float = 0.0) -> bool:

@@ -1,0 +1,346 @@
+"""Batched bounded dual simplex for many box LPs sharing one feasible set.
+
+Solves, for the rows ``g_k`` of a cost matrix ``Gd`` (K x r) at once,
+
+    max  g_k' xi   s.t.   A xi = b,   -1 <= xi <= 1          (A: p x r, few rows, many columns),
+
+and returns one dual point ``mu_k`` per problem.  The caller turns every ``mu_k`` into a bound
+by weak duality (``b'mu + ||g - A'mu||_1``, :func:`observers.sets._lp.dual_bounds`), so this
+solver decides tightness and speed only, never soundness: a wrong basis, a stalled problem or
+a rounding error gives a looser bound, not a wrong one.
+
+Method (the dual of these LPs is the least-absolute-deviations problem
+``min_mu b'mu + sum_j |g_j - a_j'mu|`` in only ``p`` unknowns):
+
+* one logical variable per row (``A xi + s = b``, ``s`` fixed at 0) gives the starting basis;
+  every nonbasic boxed variable sits at the bound given by the sign of its reduced cost, so
+  every basis is dual feasible and the dual simplex needs no phase 1;
+* leaving row: largest primal infeasibility weighted by exact dual steepest-edge weights
+  (the squared row norms of ``B^-1``, cheap for ``p x p`` bases);
+* ratio test with bound flipping (Fourer's long step): the dual objective is minimised
+  exactly along the edge (a weighted median of the breakpoints), passing every breakpoint at
+  which the slope stays negative and flipping those variables to their other bound;
+  breakpoints are ordered by integer keys (the bit patterns of non-negative floats order
+  like the floats; the low bits carry the column index), one ``np.sort`` per iteration
+  (steps often pass hundreds of breakpoints, so partial orderings did not pay off);
+* the K problems run in lock step as batched numpy operations (the constraint matrix is
+  shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
+  paid once for all of them;
+* the costs are perturbed (relative 1e-9, away from zero) against stalling on the highly
+  degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
+  duals of the exact costs are evaluated; problems whose optimality gap (dual objective
+  minus the objective of the primal basic solution) is not negligible get clean-up
+  iterations with the exact costs.
+
+A problem that is not optimal within the iteration budget, or whose dual looks unbounded (an
+empty set, or numerical trouble), is reported as not converged; the caller solves it with
+HiGHS (:class:`observers.sets._lp.HullLP`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: primal feasibility tolerance on the basic variables (xi lives in [-1, 1])
+PRIMAL_TOL = 1e-9
+#: reduced costs below this, relative to the magnitudes that cancel in them, count as zero
+DUAL_TOL = 1e-12
+#: relative pivot tolerance of the ratio test (against the largest entry of the pivot row)
+PIVOT_TOL = 1e-9
+#: relative size of the cost perturbation
+PERTURBATION = 1e-9
+#: accepted optimality gap, relative to the magnitudes in the dual objective
+GAP_TOL = 1e-11
+#: the basis inverse is recomputed from scratch after this many updates
+REFACTOR_EVERY = 24
+_INF_KEY = np.array(np.inf).view(np.uint64)[()]
+
+
+@dataclass
+class DualSimplexResult:
+    """Dual points ``mu`` (K x p), which problems reached optimality, and the work done
+    (lock-step iterations, and iterations summed over the problems)."""
+
+    mu: np.ndarray
+    converged: np.ndarray
+    iterations: int
+    problem_iterations: int
+
+
+def max_iterations(p: int) -> int:
+    """Default iteration budget for ``p`` rows (optimal bases need at least ``p`` pivots)."""
+    return 8 * p + 40
+
+
+def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = None,
+          seed: int = 0) -> DualSimplexResult:
+    """Dual points of ``max Gd[k]' xi  s.t.  A xi = b, |xi| <= 1`` for every row ``k``.
+
+    See the module docstring; ``seed`` fixes the cost perturbation (results are
+    deterministic).
+    """
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float)
+    Gd = np.atleast_2d(np.asarray(Gd, dtype=float))
+    p = A.shape[0]
+    K = Gd.shape[0]
+    if max_iter is None:
+        max_iter = max_iterations(p)
+    if p == 0:
+        return DualSimplexResult(np.zeros((K, 0)), np.ones(K, bool), 0, 0)
+    rng = np.random.default_rng(seed)
+    away = np.where(Gd < 0.0, -1.0, 1.0)
+    pert = Gd + away * (PERTURBATION * np.abs(Gd)) * (1.0 + rng.random(Gd.shape))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        lp = _BatchLP(A, b, pert, start=(np.tile(crash_basis(A), (K, 1)), None))
+        its = lp.iterate(max_iter)
+        lp.refactor()
+        lp.c[:, :lp.r] = Gd
+        mu = lp.duals()
+        good = lp.certified(mu)
+        if not good.all() and its < max_iter:  # clean-up with the exact costs
+            sub = np.nonzero(~good)[0]
+            clean = _BatchLP(A, b, Gd[sub], start=lp.subset(sub))
+            its += clean.iterate(max_iter - its)
+            clean.refactor()
+            mu[sub] = clean.duals()
+            good[sub] = clean.certified(mu[sub])
+            lp.work += clean.work
+    return DualSimplexResult(mu, good, its, lp.work)
+
+
+def crash_basis(A: np.ndarray, share: float = 0.5, max_cond: float = 1e6) -> np.ndarray:
+    """A starting basis close to diagonal (column indices; ``r + i`` is the logical of row i).
+
+    For every row the column most aligned with that row's unit vector among those whose entry
+    in the row is at least ``share`` of the row's largest entry (e.g. the measurement-noise
+    generators of the newest constraints); logicals where no distinct column qualifies or
+    where the basis would be ill-conditioned.  Any basis is dual feasible here (all
+    variables are boxed), so the choice affects the number of iterations only.
+    """
+    p, r = A.shape
+    logical = r + np.arange(p)
+    if r == 0:
+        return logical
+    absA = np.abs(A)
+    rowmax = absA.max(axis=1, keepdims=True)
+    align = absA / (np.linalg.norm(A, axis=0) + np.finfo(float).tiny)
+    score = np.where((absA >= share * rowmax) & (rowmax > 0.0), align, -1.0)
+    pick = np.argmax(score, axis=1)
+    ok = score[np.arange(p), pick] > 0.0
+    seen: set[int] = set()
+    basis = logical.copy()
+    for i, j in enumerate(pick.tolist()):
+        if ok[i] and j not in seen:
+            seen.add(j)
+            basis[i] = j
+    B = np.hstack([A, np.eye(p)])[:, basis]
+    try:
+        Binv = np.linalg.inv(B)
+    except np.linalg.LinAlgError:
+        return logical
+    if not np.abs(B).sum(axis=0).max() * np.abs(Binv).sum(axis=0).max() <= max_cond:
+        return logical  # 1-norm condition number
+    return basis
+
+
+class _BatchLP:
+    """State of K bounded dual simplex runs on ``[A, I] (xi; s) = b``.
+
+    ``start`` optionally gives the bases (K x p column indices) and nonbasic bounds
+    (K x (r + p), or ``None``) to start from; the default is the logical basis.  Nonbasic
+    bounds are taken from the signs of the reduced costs, keeping the given ones where a
+    reduced cost is zero up to rounding.
+    """
+
+    def __init__(self, A: np.ndarray, b: np.ndarray, cost: np.ndarray,
+                 start: tuple[np.ndarray, np.ndarray] | None = None):
+        p, r = A.shape
+        K = cost.shape[0]
+        N = r + p
+        self.p, self.r, self.N, self.K = p, r, N, K
+        self.M = np.hstack([A, np.eye(p)])
+        self.MT = np.ascontiguousarray(self.M.T)
+        self.absM = np.abs(self.M)
+        self.b = b
+        bits = max(1, int(N - 1).bit_length())
+        self.col = np.arange(N, dtype=np.uint64)
+        self.col_mask = np.uint64((1 << bits) - 1)
+        self.colnorm = np.linalg.norm(self.M, axis=0)
+        self.lo = np.concatenate([-np.ones(r), np.zeros(p)])
+        self.up = np.concatenate([np.ones(r), np.zeros(p)])
+        self.unbounded = np.zeros(K, bool)
+        self.work = 0
+        self.c = np.zeros((K, N))
+        self.c[:, :r] = cost
+        if start is None:
+            self.basis = np.tile(np.arange(r, N), (K, 1))
+            z_old = None
+        else:
+            self.basis, z_old = np.array(start[0], dtype=np.intp), start[1]
+        self.refactor()
+        self.lB = self.lo[self.basis]
+        self.uB = self.up[self.basis]
+        mu = self.duals()
+        d = self.c - mu @ self.M
+        # bound by the sign of the reduced cost; a reduced cost that is zero up to rounding
+        # (cancellation in c_j - m_j'mu) keeps its previous bound
+        z = np.where(d > 0.0, 1.0, -1.0)
+        if z_old is not None:
+            tiny = DUAL_TOL * (np.abs(self.c) + np.abs(mu) @ self.absM)
+            z = np.where(np.abs(d) <= tiny, np.where(z_old != 0.0, z_old, z), z)
+        z[:, r:] = 0.0
+        np.put_along_axis(z, self.basis, 0.0, axis=1)
+        D = np.abs(d)
+        D[:, r:] = 0.0
+        np.put_along_axis(D, self.basis, 0.0, axis=1)
+        self.D, self.z = D, z
+
+    def subset(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bases and nonbasic bounds of some problems (to restart them)."""
+        return self.basis[rows], self.z[rows]
+
+    def refactor(self) -> None:
+        """Recompute ``B^-1`` from the basis columns."""
+        B = self.M[:, self.basis].transpose(1, 0, 2)
+        try:
+            self.Binv = np.linalg.inv(B)
+        except np.linalg.LinAlgError:
+            if not hasattr(self, "Binv"):
+                self.Binv = np.linalg.pinv(B)
+            else:  # keep the updated inverse where the basis is (numerically) singular
+                ok = np.linalg.cond(B) < 1e14
+                self.Binv[ok] = np.linalg.inv(B[ok])
+        self.updates = 0
+
+    # -- iterations --------------------------------------------------------------------------
+    _STATE = ("z", "D", "Binv", "basis", "lB", "uB", "unbounded")
+
+    def iterate(self, max_iter: int) -> int:
+        """Dual simplex iterations until every problem is optimal, stuck or out of budget;
+        returns the number of lock-step iterations.
+
+        State: ``z`` (nonbasic structurals at -1/+1, basic and logical variables 0) and the
+        dual slacks ``D = |d|`` of the reduced costs ``d`` (``d = z D`` for nonbasic
+        structurals).  Breakpoint of column j on the edge: ``t_j = D_j / w_j`` for
+        ``w_j = s z_j alpha_j > 0``; its key is the bit pattern of ``t_j`` as an unsigned
+        integer (negative ratios, NaN and infinity sort after every candidate).  Problems
+        that are done are dropped from the working arrays once they are a third of them.
+        """
+        col, col_mask = self.col, self.col_mask
+        M, MT, b = self.M, self.MT, self.b
+        eye = np.eye(self.p)
+        live = np.arange(self.K)
+        z, D, Binv, basis, lB, uB, unbounded = (getattr(self, a) for a in self._STATE)
+        it = 0
+        while it < max_iter:
+            if self.updates >= REFACTOR_EVERY:
+                self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+                self.refactor()
+                Binv = self.Binv[live]
+            n = live.shape[0]
+            ar = np.arange(n)
+            # leaving row: primal infeasibility with dual steepest-edge weights
+            xB = np.einsum("kij,kj->ki", Binv, b - z @ MT)
+            above = xB - uB
+            viol = np.maximum(above, lB - xB)
+            weight = np.einsum("kij,kij->ki", Binv, Binv)
+            score = np.where(viol > PRIMAL_TOL, viol * viol / weight, -1.0)
+            rr = np.argmax(score, axis=1)
+            delta = viol[ar, rr]
+            act = (delta > PRIMAL_TOL) & ~unbounded
+            n_act = int(np.count_nonzero(act))
+            if n_act == 0:
+                break
+            if 3 * n_act <= 2 * n:  # compact: keep the problems still working
+                self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+                live = live[act]
+                z, D, Binv, basis, lB, uB, unbounded = (
+                    getattr(self, a)[live] for a in self._STATE)
+                continue
+            it += 1
+            self.work += n_act
+            s = np.where(above[ar, rr] > 0.0, -1.0, 1.0)  # above: leave at the upper bound
+            # ratio test with bound flipping
+            alpha = Binv[ar, rr] @ M
+            w = alpha * z
+            w *= s[:, None]
+            key = ((D / w).view(np.uint64) & ~col_mask) | col
+            kq, found = self._entering(np.sort(key, axis=1), w, delta)
+            q = (kq & col_mask).astype(np.intp)
+            # a tiny pivot element: leave the problem to HiGHS
+            found &= np.abs(alpha[ar, q]) >= PIVOT_TOL * np.sqrt(weight[ar, rr]) * self.colnorm[q]
+            bad = act & ~found
+            if bad.any():  # dual unbounded along this edge (empty set) or numerical trouble
+                unbounded |= bad
+                act &= ~bad
+            tq = np.where(act, D[ar, q] / w[ar, q], 0.0)
+            kq = np.where(act, kq, 0)
+            # step: dual slacks move by tq w; the passed breakpoints flip to their other bound
+            u = D - tq[:, None] * w
+            D = np.abs(u)
+            z = np.where(key < kq[:, None], -z, z)
+            # pivot (problems not active pivot their leaving variable back in: no change)
+            la = basis[ar, rr]
+            q = np.where(act, q, la)
+            z[ar, la] = np.where(s < 0.0, uB[ar, rr], lB[ar, rr])
+            z[ar, q] = 0.0
+            D[ar, la] = tq
+            D[ar, q] = 0.0
+            basis[ar, rr] = q
+            lB[ar, rr] = self.lo[q]
+            uB[ar, rr] = self.up[q]
+            colq = np.einsum("kij,kj->ki", Binv, MT[q])
+            colq = np.where(act[:, None], colq, eye[rr])
+            row = Binv[ar, rr] / colq[ar, rr][:, None]
+            Binv -= colq[:, :, None] * row[:, None, :]
+            Binv[ar, rr] = row
+            self.updates += 1
+        self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+        return it
+
+    def _store(self, live, *arrays) -> None:
+        """Write the working arrays of the problems ``live`` back into the full state."""
+        for name, a in zip(self._STATE, arrays, strict=True):
+            full = getattr(self, name)
+            if a is not full:
+                full[live] = a
+
+    def _entering(self, ks, w, delta):
+        """Key of the entering breakpoint among the sorted keys ``ks`` (the first at which the
+        slope of the dual objective, ``delta`` minus twice the passed ``w``, is <= 0), and
+        whether there is one among the candidates."""
+        rows = np.arange(ks.shape[0])
+        idx = (ks & self.col_mask).astype(np.intp) + (rows * self.N)[:, None]
+        reach = np.cumsum(w.ravel()[idx], axis=1)
+        reach *= 2.0  # slope lost at each breakpoint: |alpha_j| (u_j - l_j)
+        hit = reach >= delta[:, None]
+        pos = np.argmax(hit, axis=1)
+        kq = ks[rows, pos]
+        return kq, hit[rows, pos] & (kq < _INF_KEY)
+
+    # -- results -----------------------------------------------------------------------------
+    def duals(self) -> np.ndarray:
+        """``mu = B^-T c_B`` of the current bases."""
+        cB = np.take_along_axis(self.c, self.basis, axis=1)
+        return np.einsum("kji,kj->ki", self.Binv, cB)
+
+    def certified(self, mu: np.ndarray) -> np.ndarray:
+        """Problems whose dual objective at ``mu`` exceeds the objective of the primal basic
+        solution (feasible up to ``PRIMAL_TOL``) by a negligible amount."""
+        xB = np.einsum("kij,kj->ki", self.Binv, self.b - self.z @ self.MT)
+        feasible = np.maximum(xB - self.uB, self.lB - xB).max(axis=1) <= PRIMAL_TOL
+        r = self.r
+        g = self.c[:, :r]
+        x = self.z[:, :r].copy()
+        inB = self.basis < r
+        rows, cols = np.nonzero(inB)
+        x[rows, self.basis[rows, cols]] = xB[rows, cols]
+        primal = np.einsum("kj,kj->k", g, x)
+        resid = g - mu @ self.M[:, :r]
+        dual = self.b @ mu.T + np.abs(resid).sum(axis=1)
+        size = np.abs(self.b) @ np.abs(mu).T + np.abs(g).sum(axis=1) + 1e-300
+        ok = feasible & ~self.unbounded & np.isfinite(dual) & (dual - primal <= GAP_TOL * size)
+        return ok
