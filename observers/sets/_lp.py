@@ -28,6 +28,10 @@ from . import _dual_simplex
 from .errors import SetError
 
 _EPS = np.finfo(float).eps
+_EMPTY = "constrained zonotope is empty (its constraints are infeasible)"
+#: |b_i| above which a constraint row without variables (0 = b_i) is infeasible (HiGHS's
+#: primal feasibility tolerance)
+_ROW_FEASIBILITY_TOL = 1e-7
 
 
 def dual_bound(g: np.ndarray, A: np.ndarray, b: np.ndarray, mu: np.ndarray) -> float:
@@ -86,7 +90,7 @@ def _dual_point(h: highspy.Highs, nc: int) -> np.ndarray:
     """Dual point proposed by HiGHS for ``max g'xi`` solved as ``min -g'xi`` (any point is
     valid for :func:`dual_bound`; ``0`` if HiGHS has none)."""
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
-        raise SetError("constrained zonotope is empty (its constraints are infeasible)")
+        raise SetError(_EMPTY)
     sol = h.getSolution()
     if sol.dual_valid and len(sol.row_dual) == nc:
         mu = -np.asarray(sol.row_dual, dtype=float)
@@ -176,6 +180,10 @@ class HullLP:
 
     def maximize(self, g: np.ndarray, A: np.ndarray, b: np.ndarray) -> float:
         """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``."""
+        if A.shape[1] == 0:  # no variables: 0 = b (HiGHS does not check rows without columns)
+            if np.any(np.abs(b) > _ROW_FEASIBILITY_TOL):
+                raise SetError(_EMPTY)
+            return 0.0
         self.load(A, b)
         scale = float(np.abs(g).max(initial=0.0))
         if scale == 0.0:

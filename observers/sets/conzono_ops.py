@@ -12,13 +12,24 @@ Operations
   parametrisation of a strip gain ``Lam`` (Alanwar et al.; CORA ``intersectStrip``).
 * :func:`lifted_reduce` -- order reduction of the lifted zonotope ``([c; -b], [G; A])``
   (Scott et al., Sec. 4.3; CORA ``conZonotope/reduce``), after dropping all-zero constraints
-  and generators.
+  and generators; the order counts either per state dimension (CORA: ``order n + nc``
+  generators) or per lifted dimension (``order (n + nc)``, the data-driven observers).
+* :func:`normalize_constraints` -- rows of ``A xi = b`` scaled to unit largest entry (exact;
+  puts constraint rows on one scale before a lifted reduction).
 * :func:`implied_bounds` / :func:`rescale` -- interval constraint propagation and the exact
   rescaling of the generator box to the bounds implied by the constraints (Scott et al.,
   Sec. 4.2).
-* :func:`fold_constraints` -- bounds the number of constraints: the oldest ones are folded
-  into the centre, generators and remaining constraints by a least-squares shear of the
-  lifted zonotope and dropped (an outer approximation; the newest constraints stay exact).
+* constraint elimination, bounding the number of constraints by dropping the oldest ones
+  (the first rows) into an enclosure, as named strategies (:data:`CONSTRAINT_ELIMINATIONS`):
+
+  - ``"fold"`` (:func:`fold_constraints`): rescale, then a least-squares shear of the whole
+    lifted zonotope (generators *and* kept constraints) along the dropped rows;
+  - ``"frobenius"`` (:func:`eliminate_constraints`): the enclosure ``<c + L b_S, G - L A_S>``
+    with the Frobenius-optimal gain ``L = G A_S' (A_S A_S')^+`` (Scott et al. 2016, Raghuraman
+    & Koeln 2022); kept constraints unchanged.
+
+  Both are sound for any gain (every feasible ``xi`` has ``A_S xi = b_S``); ``"fold"`` keeps
+  more of what the dropped rows implied (box rescaling, kept rows sheared consistently).
 """
 
 from __future__ import annotations
@@ -94,22 +105,39 @@ def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:
     return c, G, A, b
 
 
+#: meanings of the order of :func:`lifted_reduce`
+ORDER_BASES = ("state", "lifted")
+
+
 def lifted_reduce(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray, order: float,
-    reduce_generators: Callable[[np.ndarray, float], np.ndarray],
+    reduce_generators: Callable[[np.ndarray, float], np.ndarray], per: str = "state",
 ) -> Arrays:
-    """CORA's order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
+    """Order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
 
     After :func:`compact_zeros`, the lifted zonotope ``([c; -b], [G; A])`` in ``R^(n+nc)`` is
-    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) to
-    the order ``max(1, (order n + nc) / (n + nc))``, so that at most ``order * n + nc``
-    generators remain, and split back.  The constraints are kept (their number is unchanged).
+    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) and
+    split back.  ``per="state"`` (CORA's ``conZonotope/reduce``): lifted order
+    ``max(1, (order n + nc) / (n + nc))``, at most ``order * n + nc`` generators remain;
+    ``per="lifted"``: lifted order ``order``, at most ``order * (n + nc)`` generators.  The
+    constraints are kept (their number is unchanged).
     """
     c, G, A, b = compact_zeros(c, G, A, b)
     n, nc = G.shape[0], A.shape[0]
-    order_up = max(1.0, (order * n + nc) / (n + nc))
-    G_up = reduce_generators(np.vstack([G, A]), order_up)
+    if per == "state":
+        order = max(1.0, (order * n + nc) / (n + nc))
+    G_up = reduce_generators(np.vstack([G, A]), order)
     return c, G_up[:n], G_up[n:], b
+
+
+def normalize_constraints(c, G, A, b) -> Arrays:
+    """The same set with every constraint row of ``[A b]`` divided by the largest ``|A_ij|``
+    of the row (zero rows unchanged)."""
+    if A.shape[0] == 0:
+        return c, G, A, b
+    s = np.abs(A).max(axis=1)
+    s = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 1.0)
+    return c, G, A * s[:, None], b * s
 
 
 def implied_bounds(
@@ -180,6 +208,20 @@ def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
     return c + G @ mid, G * rad, A * rad, b - A @ mid
 
 
+def eliminate_constraints(c, G, A, b, max_constraints: int) -> Arrays:
+    """Outer approximation keeping the ``max_constraints`` newest (last) constraints: the
+    older rows ``A_S xi = b_S`` are eliminated by ``<c + L b_S, G - L A_S>`` with the
+    Frobenius-optimal gain ``L = G A_S' (A_S A_S')^+`` (minimises ``||G - L A_S||_F``); the
+    kept constraints are unchanged.  Sound for any ``L``: feasible ``xi`` have
+    ``A_S xi = b_S``, so ``c + G xi = c + L b_S + (G - L A_S) xi``."""
+    k = A.shape[0] - max_constraints
+    if k <= 0:
+        return c, G, A, b
+    AS, bS = A[:k], b[:k]
+    L = _regress(G, AS)
+    return c + L @ bS, G - L @ AS, A[k:], b[k:]
+
+
 def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     """Outer approximation keeping at most ``max_constraints`` constraints (the newest ones,
     i.e. the last rows: the observers append the constraints of each new measurement).
@@ -216,15 +258,15 @@ def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     return c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS
 
 
+#: constraint-elimination strategies by name (``ConZonotope.reduce_constraints(k, method)``)
+CONSTRAINT_ELIMINATIONS: dict[str, Callable[..., Arrays]] = {
+    "fold": fold_constraints,
+    "frobenius": eliminate_constraints,
+}
+
+
 def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (normal equations on
-    the small k x k Gram matrix; any ``K`` keeps :func:`fold_constraints` sound)."""
-    gram = X @ X.T
-    cross = Y @ X.T
-    try:
-        K = np.linalg.solve(gram, cross.T).T
-        if np.all(np.isfinite(K)):
-            return K
-    except np.linalg.LinAlgError:
-        pass
-    return cross @ np.linalg.pinv(gram)
+    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (least squares on
+    the small k x k Gram matrix, minimum-norm if it is singular; any ``K`` keeps the
+    constraint eliminations sound)."""
+    return np.linalg.lstsq(X @ X.T, X @ Y.T, rcond=None)[0].T

@@ -152,6 +152,8 @@ class ConZonotope:
         """Exact generalised intersection ``{x in self : R x in Y}`` (``R`` defaults to the
         identity; ``Y`` a ConZonotope, Zonotope or Interval of dimension ``R.shape[0]``)."""
         Y = ConZonotope.from_set(Y)
+        if R is None and Y.dim != self.dim:
+            raise SetError(f"cannot intersect sets of dimensions {self.dim} and {Y.dim}")
         R = np.eye(self.dim) if R is None else matrix(R, "intersection map R", cols=self.dim)
         if R.shape[0] != Y.dim:
             raise SetError(f"intersection map R has {R.shape[0]} rows but the set has "
@@ -176,24 +178,43 @@ class ConZonotope:
         return ConZonotope._trusted(*ops.intersect_strips(
             self._c, self._G, self._A, self._b, C, y, sigma, Lam))
 
-    def reduce(self, order: float, method: str | Reduction = "girard") -> ConZonotope:
-        """Enclosure with at most ``order * n + nc`` generators by reducing the lifted zonotope
-        ``([c; -b], [G; A])`` (Scott et al. 2016, Sec. 4.3; CORA's ``reduce``).  The number of
-        constraints does not change; see :meth:`reduce_constraints`."""
+    def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
+               ) -> ConZonotope:
+        """Enclosure by reducing the lifted zonotope ``([c; -b], [G; A])`` with the zonotope
+        strategy ``method`` (Scott et al. 2016, Sec. 4.3).  ``per="state"`` (CORA's
+        ``reduce``): at most ``order * n + nc`` generators; ``per="lifted"``: at most
+        ``order * (n + nc)``.  The number of constraints does not change; see
+        :meth:`reduce_constraints`."""
         check_order(order)
+        if per not in ops.ORDER_BASES:
+            raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
+                           f"got {per!r}")
         strategy = get_reduction(method)
         return ConZonotope._trusted(*ops.lifted_reduce(
-            self._c, self._G, self._A, self._b, float(order), strategy.reduce))
+            self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
 
-    def reduce_constraints(self, max_constraints: int) -> ConZonotope:
+    def reduce_constraints(self, max_constraints: int, method: str = "fold") -> ConZonotope:
         """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
-        are folded into the generators and the kept constraints by a least-squares shear of
-        the lifted zonotope (see :func:`observers.sets.conzono_ops.fold_constraints`)."""
-        if not isinstance(max_constraints, (int, np.integer)) or max_constraints < 0:
+        are eliminated by the named strategy: ``"fold"`` (rescaling, then a least-squares
+        shear of generators and kept constraints) or ``"frobenius"`` (Frobenius-optimal gain
+        on the generators); see :mod:`observers.sets.conzono_ops`."""
+        if isinstance(max_constraints, bool) or not isinstance(
+                max_constraints, (int, np.integer)) or max_constraints < 0:
             raise SetError(f"max_constraints must be a non-negative integer, "
                            f"got {max_constraints!r}")
-        return ConZonotope._trusted(*ops.fold_constraints(
+        try:
+            eliminate = ops.CONSTRAINT_ELIMINATIONS[method]
+        except (KeyError, TypeError):
+            known = ", ".join(sorted(ops.CONSTRAINT_ELIMINATIONS))
+            raise SetError(f"unknown constraint elimination {method!r} (known: {known})"
+                           ) from None
+        return ConZonotope._trusted(*eliminate(
             self._c, self._G, self._A, self._b, int(max_constraints)))
+
+    def normalize_constraints(self) -> ConZonotope:
+        """The same set with every constraint row scaled to unit largest entry (exact)."""
+        return ConZonotope._trusted(*ops.normalize_constraints(self._c, self._G, self._A,
+                                                               self._b))
 
     def rescale(self) -> ConZonotope:
         """The same set with the generator box shrunk to the bounds implied by the constraints
@@ -259,9 +280,11 @@ class ConZonotope:
         tols = np.concatenate([np.full(self.dim, tol), np.zeros(self.num_constraints)])
         return box_feasible(M, t, tols)
 
-    def to_zonotope(self) -> Zonotope:
-        """Outer approximation obtained by dropping the constraints."""
-        return Zonotope(self._c, self._G)
+    def to_zonotope(self, method: str = "frobenius") -> Zonotope:
+        """Enclosing zonotope: all constraints eliminated with the named strategy (see
+        :meth:`reduce_constraints`; ``"frobenius"`` by default)."""
+        E = self.reduce_constraints(0, method)
+        return Zonotope(E._c, E._G)
 
     # -- value semantics --------------------------------------------------------------------
     def __eq__(self, other) -> bool:
