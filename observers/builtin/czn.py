@@ -22,8 +22,10 @@ it.  ``max_constraints=None`` gives CORA's behaviour (and order of operations: i
 then reduce), which the conformance tests use.
 
 Interval hulls: every returned set carries the observer's :class:`~observers.sets._lp.HullLP`,
-one HiGHS model kept alive across steps, so the runner's ``S.interval()`` (2n LPs, sound
-bounds from dual points) warm-starts each direction from the previous step's basis.
+so the runner's ``S.interval()`` solves its 2n LPs together with the batched dual simplex of
+:mod:`observers.sets._dual_simplex` (HiGHS, kept alive across steps, only for an LP it does not
+finish); every bound is the weak-duality bound of a dual point, hence sound whatever the
+solver does.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ Method (the dual of these LPs is the least-absolute-deviations problem
 * the K problems run in lock step as batched numpy operations (the constraint matrix is
   shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
   paid once for all of them;
-* the costs are perturbed (relative 1e-9, away from zero) against stalling on the highly
+* the costs are perturbed (relative 1e-11, away from zero) against stalling on the highly
   degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
   duals of the exact costs are evaluated; problems whose optimality gap (dual objective
   minus the objective of the primal basic solution) is not negligible get clean-up
@@ -40,6 +40,7 @@ HiGHS (:class:`observers.sets._lp.HullLP`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -50,7 +51,7 @@ DUAL_TOL = 1e-12
 #: relative pivot tolerance of the ratio test (against the largest entry of the pivot row)
 PIVOT_TOL = 1e-9
 #: relative size of the cost perturbation
-PERTURBATION = 1e-9
+PERTURBATION = 1e-11
 #: accepted optimality gap, relative to the magnitudes in the dual objective
 GAP_TOL = 1e-11
 #: the basis inverse is recomputed from scratch after this many updates
@@ -90,11 +91,9 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = N
         max_iter = max_iterations(p)
     if p == 0:
         return DualSimplexResult(np.zeros((K, 0)), np.ones(K, bool), 0, 0)
-    rng = np.random.default_rng(seed)
-    away = np.where(Gd < 0.0, -1.0, 1.0)
-    pert = Gd + away * (PERTURBATION * np.abs(Gd)) * (1.0 + rng.random(Gd.shape))
+    pert = Gd * (1.0 + PERTURBATION * _jitter(Gd.shape, seed))  # away from zero: |g| grows
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        lp = _BatchLP(A, b, pert, start=(np.tile(crash_basis(A), (K, 1)), None))
+        lp = _BatchLP(A, b, pert)
         its = lp.iterate(max_iter)
         lp.refactor()
         lp.c[:, :lp.r] = Gd
@@ -111,48 +110,63 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = N
     return DualSimplexResult(mu, good, its, lp.work)
 
 
-def crash_basis(A: np.ndarray, share: float = 0.5, max_cond: float = 1e6) -> np.ndarray:
-    """A starting basis close to diagonal (column indices; ``r + i`` is the logical of row i).
+@lru_cache(maxsize=8)
+def _jitter_cached(shape: tuple[int, int], seed: int) -> np.ndarray:
+    out = 1.0 + np.random.default_rng(seed).random(shape)
+    out.setflags(write=False)
+    return out
+
+
+def _jitter(shape: tuple[int, ...], seed: int) -> np.ndarray:
+    """Fixed pseudo-random factors in [1, 2) (cached: the same shapes recur every step)."""
+    return _jitter_cached((int(shape[0]), int(shape[1])), int(seed))
+
+
+def crash_basis(M: np.ndarray, colnorm: np.ndarray, share: float = 0.5,
+                max_cond: float = 1e6) -> tuple[np.ndarray, np.ndarray]:
+    """A starting basis close to diagonal and its inverse: column indices into
+    ``M = [A, I]`` (p x (r + p); ``r + i`` is the logical of row i), ``colnorm`` the column
+    norms of ``M``.
 
     For every row the column most aligned with that row's unit vector among those whose entry
     in the row is at least ``share`` of the row's largest entry (e.g. the measurement-noise
     generators of the newest constraints); logicals where no distinct column qualifies or
-    where the basis would be ill-conditioned.  Any basis is dual feasible here (all
-    variables are boxed), so the choice affects the number of iterations only.
+    where the basis would be ill-conditioned (1-norm condition number above ``max_cond``).
+    Any basis is dual feasible here (all variables are boxed), so the choice affects the
+    number of iterations only.
     """
-    p, r = A.shape
-    logical = r + np.arange(p)
+    p, N = M.shape
+    r = N - p
+    logical = np.arange(r, N)
     if r == 0:
-        return logical
-    absA = np.abs(A)
-    rowmax = absA.max(axis=1, keepdims=True)
-    align = absA / (np.linalg.norm(A, axis=0) + np.finfo(float).tiny)
-    score = np.where((absA >= share * rowmax) & (rowmax > 0.0), align, -1.0)
-    pick = np.argmax(score, axis=1)
-    ok = score[np.arange(p), pick] > 0.0
-    seen: set[int] = set()
+        return logical, np.eye(p)
+    absA = np.abs(M[:, :r])
+    score = np.where(absA >= share * absA.max(axis=1, keepdims=True), absA, 0.0)
+    score /= colnorm[:r] + np.finfo(float).tiny
+    pick = np.argmax(score, axis=1).tolist()
     basis = logical.copy()
-    for i, j in enumerate(pick.tolist()):
-        if ok[i] and j not in seen:
+    seen: set[int] = set()
+    for i, j in enumerate(pick):
+        if score[i, j] > 0.0 and j not in seen:
             seen.add(j)
             basis[i] = j
-    B = np.hstack([A, np.eye(p)])[:, basis]
+    B = M[:, basis]
     try:
         Binv = np.linalg.inv(B)
     except np.linalg.LinAlgError:
-        return logical
+        return logical, np.eye(p)
     if not np.abs(B).sum(axis=0).max() * np.abs(Binv).sum(axis=0).max() <= max_cond:
-        return logical  # 1-norm condition number
-    return basis
+        return logical, np.eye(p)
+    return basis, Binv
 
 
 class _BatchLP:
-    """State of K bounded dual simplex runs on ``[A, I] (xi; s) = b``.
+    """State of K bounded dual simplex runs on ``M (xi; s) = b`` with ``M = [A, I]``.
 
-    ``start`` optionally gives the bases (K x p column indices) and nonbasic bounds
-    (K x (r + p), or ``None``) to start from; the default is the logical basis.  Nonbasic
-    bounds are taken from the signs of the reduced costs, keeping the given ones where a
-    reduced cost is zero up to rounding.
+    ``start`` optionally gives the bases (K x p column indices of ``M``) and nonbasic bounds
+    (K x (r + p)) to start from; the default is the same :func:`crash_basis` for every
+    problem.  Nonbasic bounds are taken from the signs of the reduced costs, keeping the
+    given ones where a reduced cost is zero up to rounding.
     """
 
     def __init__(self, A: np.ndarray, b: np.ndarray, cost: np.ndarray,
@@ -161,41 +175,46 @@ class _BatchLP:
         K = cost.shape[0]
         N = r + p
         self.p, self.r, self.N, self.K = p, r, N, K
-        self.M = np.hstack([A, np.eye(p)])
-        self.MT = np.ascontiguousarray(self.M.T)
-        self.absM = np.abs(self.M)
+        M = self.M = np.hstack([A, np.eye(p)])
+        self.MT = np.ascontiguousarray(M.T)
         self.b = b
-        bits = max(1, int(N - 1).bit_length())
-        self.col = np.arange(N, dtype=np.uint64)
-        self.col_mask = np.uint64((1 << bits) - 1)
-        self.colnorm = np.linalg.norm(self.M, axis=0)
+        # sort keys carry the flat index (row * N + column) of a breakpoint in their low bits
+        bits = max(1, int(K * N - 1).bit_length())
+        self.flat = np.arange(K * N, dtype=np.intp).reshape(K, N)
+        self.key_mask = np.uint64((1 << bits) - 1)
+        self.colnorm = np.sqrt(np.einsum("ij,ij->j", M, M))
         self.lo = np.concatenate([-np.ones(r), np.zeros(p)])
         self.up = np.concatenate([np.ones(r), np.zeros(p)])
         self.unbounded = np.zeros(K, bool)
         self.work = 0
         self.c = np.zeros((K, N))
         self.c[:, :r] = cost
-        if start is None:
-            self.basis = np.tile(np.arange(r, N), (K, 1))
+        if start is None:  # one crash basis for all problems
+            basis, Binv = crash_basis(M, self.colnorm)
+            self.basis = np.tile(basis, (K, 1))
+            self.Binv = np.tile(Binv, (K, 1, 1))
+            self.updates = 0
+            mu = self.c[:, basis] @ Binv
             z_old = None
         else:
             self.basis, z_old = np.array(start[0], dtype=np.intp), start[1]
-        self.refactor()
+            self.refactor()
+            mu = self.duals()
         self.lB = self.lo[self.basis]
         self.uB = self.up[self.basis]
-        mu = self.duals()
-        d = self.c - mu @ self.M
+        d = self.c - mu @ M
         # bound by the sign of the reduced cost; a reduced cost that is zero up to rounding
         # (cancellation in c_j - m_j'mu) keeps its previous bound
-        z = np.where(d > 0.0, 1.0, -1.0)
+        z = np.copysign(1.0, d)
         if z_old is not None:
-            tiny = DUAL_TOL * (np.abs(self.c) + np.abs(mu) @ self.absM)
+            tiny = DUAL_TOL * (np.abs(self.c) + np.abs(mu) @ np.abs(M))
             z = np.where(np.abs(d) <= tiny, np.where(z_old != 0.0, z_old, z), z)
-        z[:, r:] = 0.0
-        np.put_along_axis(z, self.basis, 0.0, axis=1)
         D = np.abs(d)
+        z[:, r:] = 0.0
         D[:, r:] = 0.0
-        np.put_along_axis(D, self.basis, 0.0, axis=1)
+        flat = (self.basis + (np.arange(K) * N)[:, None]).ravel()
+        z.ravel()[flat] = 0.0
+        D.ravel()[flat] = 0.0
         self.D, self.z = D, z
 
     def subset(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -224,12 +243,13 @@ class _BatchLP:
 
         State: ``z`` (nonbasic structurals at -1/+1, basic and logical variables 0) and the
         dual slacks ``D = |d|`` of the reduced costs ``d`` (``d = z D`` for nonbasic
-        structurals).  Breakpoint of column j on the edge: ``t_j = D_j / w_j`` for
-        ``w_j = s z_j alpha_j > 0``; its key is the bit pattern of ``t_j`` as an unsigned
+        structurals).  Leaving row ``rr`` with sign ``s`` (-1: above its upper bound);
+        ``alpha = s e_rr' B^-1 M``; breakpoint of column j: ``t_j = D_j / w_j`` for
+        ``w_j = z_j alpha_j > 0``; its key is the bit pattern of ``t_j`` as an unsigned
         integer (negative ratios, NaN and infinity sort after every candidate).  Problems
         that are done are dropped from the working arrays once they are a third of them.
         """
-        col, col_mask = self.col, self.col_mask
+        N, key_mask = self.N, self.key_mask
         M, MT, b = self.M, self.MT, self.b
         eye = np.eye(self.p)
         live = np.arange(self.K)
@@ -242,13 +262,13 @@ class _BatchLP:
                 Binv = self.Binv[live]
             n = live.shape[0]
             ar = np.arange(n)
+            flat = self.flat[:n]
             # leaving row: primal infeasibility with dual steepest-edge weights
             xB = np.einsum("kij,kj->ki", Binv, b - z @ MT)
             above = xB - uB
             viol = np.maximum(above, lB - xB)
             weight = np.einsum("kij,kij->ki", Binv, Binv)
-            score = np.where(viol > PRIMAL_TOL, viol * viol / weight, -1.0)
-            rr = np.argmax(score, axis=1)
+            rr = np.argmax(np.where(viol > PRIMAL_TOL, viol * viol / weight, -1.0), axis=1)
             delta = viol[ar, rr]
             act = (delta > PRIMAL_TOL) & ~unbounded
             n_act = int(np.count_nonzero(act))
@@ -263,25 +283,24 @@ class _BatchLP:
             it += 1
             self.work += n_act
             s = np.where(above[ar, rr] > 0.0, -1.0, 1.0)  # above: leave at the upper bound
+            rho = Binv[ar, rr]
             # ratio test with bound flipping
-            alpha = Binv[ar, rr] @ M
+            alpha = (rho * s[:, None]) @ M
             w = alpha * z
-            w *= s[:, None]
-            key = ((D / w).view(np.uint64) & ~col_mask) | col
-            kq, found = self._entering(np.sort(key, axis=1), w, delta)
-            q = (kq & col_mask).astype(np.intp)
+            key = ((D / w).view(np.uint64) & ~key_mask) | flat.view(np.uint64)
+            kq, found = self._entering(np.sort(key, axis=1), w, 0.5 * delta)
+            q = (kq & key_mask).astype(np.intp) - ar * N
+            aq = alpha[ar, q]
             # a tiny pivot element: leave the problem to HiGHS
-            found &= np.abs(alpha[ar, q]) >= PIVOT_TOL * np.sqrt(weight[ar, rr]) * self.colnorm[q]
+            found &= np.abs(aq) >= PIVOT_TOL * np.sqrt(weight[ar, rr]) * self.colnorm[q]
             bad = act & ~found
             if bad.any():  # dual unbounded along this edge (empty set) or numerical trouble
                 unbounded |= bad
                 act &= ~bad
             tq = np.where(act, D[ar, q] / w[ar, q], 0.0)
-            kq = np.where(act, kq, 0)
             # step: dual slacks move by tq w; the passed breakpoints flip to their other bound
-            u = D - tq[:, None] * w
-            D = np.abs(u)
-            z = np.where(key < kq[:, None], -z, z)
+            D = np.abs(D - tq[:, None] * w)
+            z = np.where(key < np.where(act, kq, 0)[:, None], -z, z)
             # pivot (problems not active pivot their leaving variable back in: no change)
             la = basis[ar, rr]
             q = np.where(act, q, la)
@@ -292,9 +311,8 @@ class _BatchLP:
             basis[ar, rr] = q
             lB[ar, rr] = self.lo[q]
             uB[ar, rr] = self.up[q]
-            colq = np.einsum("kij,kj->ki", Binv, MT[q])
-            colq = np.where(act[:, None], colq, eye[rr])
-            row = Binv[ar, rr] / colq[ar, rr][:, None]
+            colq = np.where(act[:, None], np.einsum("kij,kj->ki", Binv, MT[q]), eye[rr])
+            row = rho / colq[ar, rr][:, None]
             Binv -= colq[:, :, None] * row[:, None, :]
             Binv[ar, rr] = row
             self.updates += 1
@@ -308,15 +326,14 @@ class _BatchLP:
             if a is not full:
                 full[live] = a
 
-    def _entering(self, ks, w, delta):
+    def _entering(self, ks, w, half_delta):
         """Key of the entering breakpoint among the sorted keys ``ks`` (the first at which the
         slope of the dual objective, ``delta`` minus twice the passed ``w``, is <= 0), and
         whether there is one among the candidates."""
         rows = np.arange(ks.shape[0])
-        idx = (ks & self.col_mask).astype(np.intp) + (rows * self.N)[:, None]
-        reach = np.cumsum(w.ravel()[idx], axis=1)
-        reach *= 2.0  # slope lost at each breakpoint: |alpha_j| (u_j - l_j)
-        hit = reach >= delta[:, None]
+        # slope lost at each breakpoint: |alpha_j| (u_j - l_j) = 2 w_j
+        passed = np.cumsum(w.ravel()[(ks & self.key_mask).view(np.intp)], axis=1)
+        hit = passed >= half_delta[:, None]
         pos = np.argmax(hit, axis=1)
         kq = ks[rows, pos]
         return kq, hit[rows, pos] & (kq < _INF_KEY)

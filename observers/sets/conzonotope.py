@@ -17,13 +17,14 @@ class ConZonotope:
     """Constrained zonotope with centre ``c`` (n), generators ``G`` (n x r) and constraints
     ``A xi = b`` (``A``: nc x r, ``b``: nc).
 
-    Interval hulls and support values are computed by linear programs (HiGHS) and are
-    guaranteed outer bounds: they are evaluated from a dual point, never from the primal
-    objective value (see :mod:`observers.sets._lp`).  Generators that appear in no constraint
-    are left out of the LPs (their contribution ``sum |G_ij|`` is added exactly).
+    Interval hulls and support values are computed by linear programs (all directions at once
+    by a batched dual simplex, HiGHS for any LP it does not finish) and are guaranteed outer
+    bounds: they are evaluated from a dual point, never from the primal objective value (see
+    :mod:`observers.sets._lp`).  Generators that appear in no constraint are left out of the
+    LPs (their contribution ``sum |G_ij|`` is added exactly).
 
-    A set may carry a shared LP model (:meth:`with_solver`, used by the observers so that the
-    interval hull of each step reuses one HiGHS model instead of building one per set).
+    A set may carry a shared LP solver (:meth:`with_solver`, used by the observers so that the
+    HiGHS fallback of each step reuses one model instead of building one per set).
     The solver is not part of the value: it changes neither equality nor results beyond
     solver tolerance, and the bounds are sound whichever basis it starts from.  The interval
     hull is computed once per set and cached.
@@ -81,7 +82,7 @@ class ConZonotope:
         raise SetError(f"cannot convert {type(S).__name__} to a constrained zonotope")
 
     def with_solver(self, solver: HullLP) -> ConZonotope:
-        """The same set, computing its LPs in the shared warm model ``solver``."""
+        """The same set, computing its LPs with the shared solver ``solver``."""
         if not isinstance(solver, HullLP):
             raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
         return ConZonotope._trusted(self._c, self._G, self._A, self._b, solver)
