@@ -183,9 +183,9 @@ class _BatchLP:
         self.flat = np.arange(K * N, dtype=np.intp).reshape(K, N)
         self.key_mask = np.uint64((1 << bits) - 1)
         self.colnorm = np.sqrt(np.einsum("ij,ij->j", M, M))
-        self.lo = np.concatenate([-np.ones(r), np.zeros(p)])
-        self.up = np.concatenate([np.ones(r), np.zeros(p)])
+        self.up = np.concatenate([np.ones(r), np.zeros(p)])  # bounds -up <= (xi; s) <= up
         self.unbounded = np.zeros(K, bool)
+        self.any_unbounded = False
         self.work = 0
         self.c = np.zeros((K, N))
         self.c[:, :r] = cost
@@ -200,7 +200,6 @@ class _BatchLP:
             self.basis, z_old = np.array(start[0], dtype=np.intp), start[1]
             self.refactor()
             mu = self.duals()
-        self.lB = self.lo[self.basis]
         self.uB = self.up[self.basis]
         d = self.c - mu @ M
         # bound by the sign of the reduced cost; a reduced cost that is zero up to rounding
@@ -235,88 +234,98 @@ class _BatchLP:
         self.updates = 0
 
     # -- iterations --------------------------------------------------------------------------
-    _STATE = ("z", "D", "Binv", "basis", "lB", "uB", "unbounded")
+    _STATE = ("z", "D", "Binv", "basis", "uB", "unbounded")
 
     def iterate(self, max_iter: int) -> int:
         """Dual simplex iterations until every problem is optimal, stuck or out of budget;
         returns the number of lock-step iterations.
 
-        State: ``z`` (nonbasic structurals at -1/+1, basic and logical variables 0) and the
-        dual slacks ``D = |d|`` of the reduced costs ``d`` (``d = z D`` for nonbasic
-        structurals).  Leaving row ``rr`` with sign ``s`` (-1: above its upper bound);
-        ``alpha = s e_rr' B^-1 M``; breakpoint of column j: ``t_j = D_j / w_j`` for
-        ``w_j = z_j alpha_j > 0``; its key is the bit pattern of ``t_j`` as an unsigned
-        integer (negative ratios, NaN and infinity sort after every candidate).  Problems
-        that are done are dropped from the working arrays once they are a third of them.
+        State: ``z`` (nonbasic structurals at -1/+1, basic and logical variables 0), the dual
+        slacks ``D = |d|`` of the reduced costs ``d`` (``d = z D`` for nonbasic structurals)
+        and the upper bounds ``uB`` of the basic variables (1 structural, 0 logical; every
+        lower bound is ``-uB``).  Leaving row ``rr``: ``alpha = s e_rr' B^-1 M`` with ``s``
+        the negated sign of the basic value; breakpoint of column j: ``t_j = D_j / w_j`` for
+        ``w_j = z_j alpha_j > 0``, sorted by keys that hold the bit pattern of ``t_j`` in the
+        high bits (negative ratios, NaN and infinity sort after every candidate) and the flat
+        index of the entry in the low bits.  Problems that are done are dropped from the
+        working arrays once they are a third of them.
         """
-        N, key_mask = self.N, self.key_mask
+        key_mask, up = self.key_mask, self.up
         M, MT, b = self.M, self.MT, self.b
-        eye = np.eye(self.p)
+        high = ~key_mask
+        colnorm2 = self.colnorm * self.colnorm
         live = np.arange(self.K)
-        z, D, Binv, basis, lB, uB, unbounded = (getattr(self, a) for a in self._STATE)
+        z, D, Binv, basis, uB, unbounded = (getattr(self, a) for a in self._STATE)
         it = 0
         while it < max_iter:
             if self.updates >= REFACTOR_EVERY:
-                self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+                self._store(live, z, D, Binv, basis, uB, unbounded)
                 self.refactor()
                 Binv = self.Binv[live]
             n = live.shape[0]
             ar = np.arange(n)
-            flat = self.flat[:n]
+            flat, off = self.flat[:n], self.flat[:n, 0]
             # leaving row: primal infeasibility with dual steepest-edge weights
             xB = np.einsum("kij,kj->ki", Binv, b - z @ MT)
-            above = xB - uB
-            viol = np.maximum(above, lB - xB)
+            viol = np.abs(xB) - uB
+            np.maximum(viol, 0.0, out=viol)
             weight = np.einsum("kij,kij->ki", Binv, Binv)
-            rr = np.argmax(np.where(viol > PRIMAL_TOL, viol * viol / weight, -1.0), axis=1)
+            rr = np.argmax(viol * viol / weight, axis=1)
             delta = viol[ar, rr]
-            act = (delta > PRIMAL_TOL) & ~unbounded
+            act = delta > PRIMAL_TOL
+            if self.any_unbounded:
+                act &= ~unbounded
             n_act = int(np.count_nonzero(act))
             if n_act == 0:
                 break
             if 3 * n_act <= 2 * n:  # compact: keep the problems still working
-                self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+                self._store(live, z, D, Binv, basis, uB, unbounded)
                 live = live[act]
-                z, D, Binv, basis, lB, uB, unbounded = (
-                    getattr(self, a)[live] for a in self._STATE)
+                z, D, Binv, basis, uB, unbounded = (getattr(self, a)[live] for a in self._STATE)
                 continue
             it += 1
             self.work += n_act
-            s = np.where(above[ar, rr] > 0.0, -1.0, 1.0)  # above: leave at the upper bound
+            sgn = np.sign(xB[ar, rr])  # +1: above the upper bound, leaves at it
             rho = Binv[ar, rr]
             # ratio test with bound flipping
-            alpha = (rho * s[:, None]) @ M
+            alpha = (rho * -sgn[:, None]) @ M
             w = alpha * z
-            key = ((D / w).view(np.uint64) & ~key_mask) | flat.view(np.uint64)
-            kq, found = self._entering(np.sort(key, axis=1), w, 0.5 * delta)
-            q = (kq & key_mask).astype(np.intp) - ar * N
-            aq = alpha[ar, q]
-            # a tiny pivot element: leave the problem to HiGHS
-            found &= np.abs(aq) >= PIVOT_TOL * np.sqrt(weight[ar, rr]) * self.colnorm[q]
-            bad = act & ~found
-            if bad.any():  # dual unbounded along this edge (empty set) or numerical trouble
-                unbounded |= bad
-                act &= ~bad
-            tq = np.where(act, D[ar, q] / w[ar, q], 0.0)
+            key = ((D / w).view(np.uint64) & high) | flat.view(np.uint64)
+            ks = np.sort(key, axis=1)
+            passed = np.cumsum(w.ravel()[(ks & key_mask).view(np.intp)], axis=1)
+            hit = passed >= 0.5 * delta[:, None]  # slope lost per breakpoint: 2 w_j
+            pos = np.argmax(hit, axis=1)
+            kq = ks[ar, pos]
+            qf = (kq & key_mask).view(np.intp)
+            q = qf - off
+            wq = w.ravel()[qf]  # = |alpha_q| for a candidate
+            # entering found, and not a tiny pivot element (else: leave the problem to HiGHS)
+            found = hit[ar, pos] & (wq * wq >= PIVOT_TOL ** 2 * weight[ar, rr] * colnorm2[q])
+            ok = act & found
+            if int(np.count_nonzero(ok)) < n_act:  # dual unbounded (empty set) or trouble
+                unbounded |= act & ~found
+                self.any_unbounded = True
+                act = ok
+            tq = np.where(act, D.ravel()[qf] / wq, 0.0)
             # step: dual slacks move by tq w; the passed breakpoints flip to their other bound
             D = np.abs(D - tq[:, None] * w)
             z = np.where(key < np.where(act, kq, 0)[:, None], -z, z)
             # pivot (problems not active pivot their leaving variable back in: no change)
             la = basis[ar, rr]
             q = np.where(act, q, la)
-            z[ar, la] = np.where(s < 0.0, uB[ar, rr], lB[ar, rr])
-            z[ar, q] = 0.0
-            D[ar, la] = tq
-            D[ar, q] = 0.0
+            fl, fq = off + la, off + q
+            z.ravel()[fl] = sgn * uB[ar, rr]
+            z.ravel()[fq] = 0.0
+            D.ravel()[fl] = tq
+            D.ravel()[fq] = 0.0
             basis[ar, rr] = q
-            lB[ar, rr] = self.lo[q]
-            uB[ar, rr] = self.up[q]
-            colq = np.where(act[:, None], np.einsum("kij,kj->ki", Binv, MT[q]), eye[rr])
+            uB[ar, rr] = up[q]
+            colq = np.einsum("kij,kj->ki", Binv, MT[q])
             row = rho / colq[ar, rr][:, None]
             Binv -= colq[:, :, None] * row[:, None, :]
             Binv[ar, rr] = row
             self.updates += 1
-        self._store(live, z, D, Binv, basis, lB, uB, unbounded)
+        self._store(live, z, D, Binv, basis, uB, unbounded)
         return it
 
     def _store(self, live, *arrays) -> None:
@@ -326,18 +335,6 @@ class _BatchLP:
             if a is not full:
                 full[live] = a
 
-    def _entering(self, ks, w, half_delta):
-        """Key of the entering breakpoint among the sorted keys ``ks`` (the first at which the
-        slope of the dual objective, ``delta`` minus twice the passed ``w``, is <= 0), and
-        whether there is one among the candidates."""
-        rows = np.arange(ks.shape[0])
-        # slope lost at each breakpoint: |alpha_j| (u_j - l_j) = 2 w_j
-        passed = np.cumsum(w.ravel()[(ks & self.key_mask).view(np.intp)], axis=1)
-        hit = passed >= half_delta[:, None]
-        pos = np.argmax(hit, axis=1)
-        kq = ks[rows, pos]
-        return kq, hit[rows, pos] & (kq < _INF_KEY)
-
     # -- results -----------------------------------------------------------------------------
     def duals(self) -> np.ndarray:
         """``mu = B^-T c_B`` of the current bases."""
@@ -345,19 +342,16 @@ class _BatchLP:
         return np.einsum("kji,kj->ki", self.Binv, cB)
 
     def certified(self, mu: np.ndarray) -> np.ndarray:
-        """Problems whose dual objective at ``mu`` exceeds the objective of the primal basic
-        solution (feasible up to ``PRIMAL_TOL``) by a negligible amount."""
+        """Problems whose basis is primal feasible (up to ``PRIMAL_TOL``) and whose duality
+        gap at ``mu`` is negligible.  With ``x`` the basic solution (nonbasic at ``z``), the
+        gap ``b'mu + sum_j |d_j| - c'x`` is ``sum_j (|d_j| - d_j z_j)`` over the nonbasic
+        structurals: twice the reduced costs of the wrong sign for their bound."""
         xB = np.einsum("kij,kj->ki", self.Binv, self.b - self.z @ self.MT)
-        feasible = np.maximum(xB - self.uB, self.lB - xB).max(axis=1) <= PRIMAL_TOL
+        feasible = (np.abs(xB) - self.uB).max(axis=1) <= PRIMAL_TOL
         r = self.r
         g = self.c[:, :r]
-        x = self.z[:, :r].copy()
-        inB = self.basis < r
-        rows, cols = np.nonzero(inB)
-        x[rows, self.basis[rows, cols]] = xB[rows, cols]
-        primal = np.einsum("kj,kj->k", g, x)
-        resid = g - mu @ self.M[:, :r]
-        dual = self.b @ mu.T + np.abs(resid).sum(axis=1)
-        size = np.abs(self.b) @ np.abs(mu).T + np.abs(g).sum(axis=1) + 1e-300
-        ok = feasible & ~self.unbounded & np.isfinite(dual) & (dual - primal <= GAP_TOL * size)
-        return ok
+        d = g - mu @ self.M[:, :r]
+        dz = d * self.z[:, :r]
+        gap = 2.0 * np.where(dz < 0.0, -dz, 0.0).sum(axis=1)
+        size = np.abs(self.b) @ np.abs(mu).T + np.abs(g).sum(axis=1)
+        return feasible & ~self.unbounded & (gap <= GAP_TOL * size)
