@@ -29,16 +29,15 @@ import systems
 from observers.sets import HullLP
 
 
-def time_run(name: str, sc, options: dict, warmup: int = 5, hull_solver: str = "batched"
+def time_run(name: str, sc, options: dict, warmup: int = 5, hull_solver: str = "auto"
              ) -> dict:
     """One run of ``name`` over the scenario record; medians over steps after ``warmup``."""
-    obs = observers.create(name, sc.system, **options)
+    obs = observers.create(name, sc.system, hull_solver=hull_solver, **options)
     obs.reset()
     N = sc.y.shape[0]
     rows = np.full((N, 4), np.nan)
     iters = np.full(N, np.nan)
     fallbacks = 0
-    obs._lp = HullLP(hull_solver)
     for k in range(N):
         u_prev = sc.u[k - 1] if k > 0 else None
         w0, c0 = perf_counter(), process_time()
@@ -66,8 +65,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--max-constraints", default="auto",
                     help="'auto' (default), an integer, or 'none' (CORA: all constraints)")
-    ap.add_argument("--hull-solver", default="batched", choices=HullLP.SOLVERS,
-                    help="LP solver of the interval hulls (default: batched dual simplex)")
+    ap.add_argument("--hull-solver", default="auto", choices=HullLP.SOLVERS,
+                    help="LP solver of the interval hulls (default: auto, the batched dual "
+                         "simplex where it pays off)")
     ap.add_argument("--json", help="also write the results to this file")
     args = ap.parse_args(argv)
     sc = systems.scenario(args.scenario)

@@ -109,3 +109,22 @@ def test_empty_sets_and_sets_without_constraints():
                                   )[0] == pytest.approx(3.0)
     with pytest.raises(SetError, match="unknown LP solver"):
         HullLP("simplex")
+
+
+def test_unfinished_lps_fall_back_to_highs(monkeypatch):
+    A, b, Gd, _ = _instance("generic", 3)
+    exact = HullLP("highs").maximize_many(Gd, A, b)
+    monkeypatch.setattr(ds, "max_iterations", lambda p: 2)  # too few pivots for most LPs
+    lp = HullLP("batched")
+    ub = lp.maximize_many(Gd, A, b)
+    assert lp.fallbacks > 0
+    assert np.all(ub <= exact)  # the better of two valid bounds
+    for k, g in enumerate(Gd):
+        res = linprog(-g, A_eq=A, b_eq=b, bounds=(-1, 1), method="highs")
+        assert -res.fun - 1e-7 <= ub[k] <= -res.fun + 1e-7
+
+
+def test_solver_choice_follows_the_cost_model():
+    from observers.sets._lp import batched_is_cheaper
+    assert batched_is_cheaper(12, 8)  # interval hull of the 6-state vehicle, 2 m constraints
+    assert not batched_is_cheaper(4, 100)  # 2-state vehicle with all of CORA's constraints

@@ -56,12 +56,18 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         Bound on the number of constraints kept after each step; ``"auto"`` is ``2 m`` (the
         measurements of the last two steps), ``None`` keeps all of them (CORA: m more per
         step, with CORA's order of intersection and reduction).
+    hull_solver : {"auto", "batched", "highs"}
+        LP solver of the interval hulls and support values of the returned sets
+        (:class:`~observers.sets.HullLP`); the bounds are sound with each of them.
     """
 
-    OPTIONS = {"max_constraints": "auto"}
+    OPTIONS = {"max_constraints": "auto", "hull_solver": "auto"}
 
     def validate_options(self) -> None:
         super().validate_options()
+        if self.options["hull_solver"] not in HullLP.SOLVERS:
+            raise OptionError(f"{self.name}: hull_solver must be one of "
+                              f"{', '.join(HullLP.SOLVERS)}, got {self.options['hull_solver']!r}")
         k = self.options["max_constraints"]
         if k is None or k == "auto":
             return
@@ -78,7 +84,7 @@ class ConZonotopeStripObserver(ZonotopeObserver):
     def reset(self) -> None:
         super().reset()
         self._state: tuple[np.ndarray, ...] | None = None
-        self._lp = HullLP()
+        self._lp = HullLP(self.options["hull_solver"])
 
     @abstractmethod
     def intersect(self, c, G, A, b, y):

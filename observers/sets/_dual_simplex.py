@@ -12,20 +12,25 @@ a rounding error gives a looser bound, not a wrong one.
 Method (the dual of these LPs is the least-absolute-deviations problem
 ``min_mu b'mu + sum_j |g_j - a_j'mu|`` in only ``p`` unknowns):
 
-* one logical variable per row (``A xi + s = b``, ``s`` fixed at 0) gives the starting basis;
-  every nonbasic boxed variable sits at the bound given by the sign of its reduced cost, so
-  every basis is dual feasible and the dual simplex needs no phase 1;
+* one logical variable per row (``A xi + s = b``, ``s`` fixed at 0); every nonbasic boxed
+  variable sits at the bound given by the sign of its reduced cost, so every basis is dual
+  feasible and the dual simplex needs no phase 1.  It starts from a crash basis close to
+  diagonal (:func:`crash_basis`, e.g. the measurement-noise generators of the newest
+  constraints), the same for all problems (half the iterations of the logical basis on the
+  vehicle benchmark);
 * leaving row: largest primal infeasibility weighted by exact dual steepest-edge weights
   (the squared row norms of ``B^-1``, cheap for ``p x p`` bases);
 * ratio test with bound flipping (Fourer's long step): the dual objective is minimised
   exactly along the edge (a weighted median of the breakpoints), passing every breakpoint at
   which the slope stays negative and flipping those variables to their other bound;
   breakpoints are ordered by integer keys (the bit patterns of non-negative floats order
-  like the floats; the low bits carry the column index), one ``np.sort`` per iteration
-  (steps often pass hundreds of breakpoints, so partial orderings did not pay off);
+  like the floats; the low bits carry the flat index of the entry), one ``np.sort`` per
+  iteration (steps often pass hundreds of breakpoints, so partial orderings did not pay
+  off); an entering column with a tiny pivot element (relative ``PIVOT_TOL``) stops the
+  problem (HiGHS takes over);
 * the K problems run in lock step as batched numpy operations (the constraint matrix is
   shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
-  paid once for all of them;
+  paid once for all of them; finished problems leave the working arrays;
 * the costs are perturbed (relative 1e-11, away from zero) against stalling on the highly
   degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
   duals of the exact costs are evaluated; problems whose optimality gap (dual objective
@@ -48,7 +53,7 @@ import numpy as np
 PRIMAL_TOL = 1e-9
 #: reduced costs below this, relative to the magnitudes that cancel in them, count as zero
 DUAL_TOL = 1e-12
-#: relative pivot tolerance of the ratio test (against the largest entry of the pivot row)
+#: relative pivot tolerance (``|alpha_q| >= PIVOT_TOL ||e_r' B^-1|| ||m_q||``)
 PIVOT_TOL = 1e-9
 #: relative size of the cost perturbation
 PERTURBATION = 1e-11

@@ -146,17 +146,17 @@ class HullLP:
     weak-duality bound of its dual point (:func:`dual_bound`), so warm starts affect speed
     only, never soundness.
 
-    :meth:`maximize_many` solves many directions at once: with ``solver="batched"``
-    (default) by the batched dual simplex of :mod:`observers.sets._dual_simplex` (all 2n
-    LPs of an interval hull in lock step, about 10x faster than 2n warm HiGHS runs on the
-    vehicle benchmark), with HiGHS for the LPs it does not finish (and to report empty
-    sets); with ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`.  Either
-    way each bound is the weak-duality bound of a dual point.
+    :meth:`maximize_many` solves many directions at once: with ``solver="batched"`` by the
+    batched dual simplex of :mod:`observers.sets._dual_simplex` (all 2n LPs of an interval
+    hull in lock step), with HiGHS for the LPs it does not finish (and to report empty sets);
+    with ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`; ``"auto"``
+    (default) picks the cheaper by :func:`batched_is_cheaper`.  Either way each bound is the
+    weak-duality bound of a dual point.
     """
 
-    SOLVERS = ("batched", "highs")
+    SOLVERS = ("auto", "batched", "highs")
 
-    def __init__(self, solver: str = "batched"):
+    def __init__(self, solver: str = "auto"):
         if solver not in self.SOLVERS:
             raise SetError(f"unknown LP solver {solver!r} (known: {', '.join(self.SOLVERS)})")
         self.solver = solver
@@ -199,7 +199,9 @@ class HullLP:
         """Sound upper bounds on ``max Gd[k]'xi  s.t.  A xi = b, -1 <= xi <= 1`` for every row
         ``k`` of ``Gd`` (raises :class:`SetError` if the feasible set is empty)."""
         Gd = np.atleast_2d(np.asarray(Gd, dtype=float))
-        if self.solver == "highs" or A.shape[0] == 0:
+        K, p = Gd.shape[0], A.shape[0]
+        if p == 0 or self.solver == "highs" or (
+                self.solver == "auto" and not batched_is_cheaper(K, p)):
             return np.array([self.maximize(g, A, b) for g in Gd])
         res = _dual_simplex.solve(A, b, Gd)
         bounds = dual_bounds(Gd, A, b, res.mu)
@@ -209,6 +211,15 @@ class HullLP:
             self.fallbacks += 1
             bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
         return bounds
+
+
+def batched_is_cheaper(K: int, p: int) -> bool:
+    """Whether the batched dual simplex is expected to beat K warm HiGHS runs on LPs with
+    ``p`` rows.  Cost model from the CZN benchmarks (per LP, HiGHS: ~90 us plus ~1.2 p
+    iterations of ~30 us; batched: ~2 p lock-step iterations of ~70 us plus ~8 us per LP):
+    the batch pays off for many directions and few constraints (the 6-state vehicle: K = 12,
+    p = 8), HiGHS for few directions and many constraints (CORA's unbounded constraints)."""
+    return 2 * p * (70 + 8 * K) < K * (90 + 36 * p)
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
