@@ -121,6 +121,21 @@ def test_strip_gain_changes_the_parametrisation_not_the_set(seed):
         np.testing.assert_allclose(S.interval().hi, S0.interval().hi, atol=1e-7)
 
 
+def test_measurement_intersection_with_a_noise_zonotope_is_exact_for_any_gain():
+    g = np.random.default_rng(8)
+    Z = ConZonotope(g.normal(size=3), g.normal(size=(3, 6)))
+    C = g.normal(size=(2, 3))
+    V = Zonotope([0.1, -0.2], [[0.3, 0.1, 0.0], [0.0, 0.2, 0.4]])
+    y = C @ Z.c + g.uniform(-0.3, 0.3, 2)
+    ref = Z.intersect((-V) + y, C)  # {x in Z : C x in y - V}
+    for gain in (None, g.normal(size=(3, 2))):
+        S = Z.intersect_measurement(C, y, V, gain=gain)
+        np.testing.assert_allclose(S.interval().lo, ref.interval().lo, atol=1e-7)
+        np.testing.assert_allclose(S.interval().hi, ref.interval().hi, atol=1e-7)
+    with pytest.raises(SetError, match="noise set V"):
+        Z.intersect_measurement(C, y, Zonotope([0.0], [[1.0]]))
+
+
 @pytest.mark.parametrize("method", ["girard", "pca"])
 def test_lifted_reduction_encloses(method):
     S, xi0 = random_cz(2, 30, 3, 7)

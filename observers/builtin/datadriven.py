@@ -264,9 +264,4 @@ class DDCZA2(ImplicitIntersection, ConZonotopeDD):
     CONSTRAINTS_PER_STATE = 4
 
     def update(self, S: ConZonotope, y: np.ndarray) -> ConZonotope:
-        L = self._gain(S.G)
-        c, G = implicit_update(S.c, S.G, L, self.C, y, self.V.c, self.V.G)
-        nv = self.V.G.shape[1]
-        A = np.block([[S.A, np.zeros((S.num_constraints, nv))], [self.C @ S.G, self.V.G]])
-        b = np.concatenate([S.b, y - self.C @ S.c - self.V.c])
-        return ConZonotope(c, G, A, b)
+        return S.intersect_measurement(self.C, y, self.V, gain=self._gain(S.G))

@@ -184,8 +184,11 @@ class _BatchLP:
         self.MT = np.ascontiguousarray(M.T)
         self.b = b
         # sort keys carry the flat index (row * N + column) of a breakpoint in their low bits
+        # (at most 2^32 entries: the 20 high mantissa bits left order the ratios)
         bits = max(1, int(K * N - 1).bit_length())
-        self.flat = np.arange(K * N, dtype=np.intp).reshape(K, N)
+        if bits > 32:
+            raise ValueError(f"too many LPs or columns for one batch ({K} x {N})")
+        self.flat = np.arange(K * N, dtype=np.int64).reshape(K, N)
         self.key_mask = np.uint64((1 << bits) - 1)
         self.colnorm = np.sqrt(np.einsum("ij,ij->j", M, M))
         self.up = np.concatenate([np.ones(r), np.zeros(p)])  # bounds -up <= (xi; s) <= up
@@ -297,11 +300,11 @@ class _BatchLP:
             w = alpha * z
             key = ((D / w).view(np.uint64) & high) | flat.view(np.uint64)
             ks = np.sort(key, axis=1)
-            passed = np.cumsum(w.ravel()[(ks & key_mask).view(np.intp)], axis=1)
+            passed = np.cumsum(w.ravel()[(ks & key_mask).view(np.int64)], axis=1)
             hit = passed >= 0.5 * delta[:, None]  # slope lost per breakpoint: 2 w_j
             pos = np.argmax(hit, axis=1)
             kq = ks[ar, pos]
-            qf = (kq & key_mask).view(np.intp)
+            qf = (kq & key_mask).view(np.int64)
             q = qf - off
             wq = w.ravel()[qf]  # = |alpha_q| for a candidate
             # entering found, and not a tiny pivot element (else: leave the problem to HiGHS)

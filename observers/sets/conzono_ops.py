@@ -8,8 +8,9 @@ Operations
 ----------
 * :func:`intersect` -- generalised intersection ``{x in Z : R x in Y}`` (exact; Scott et al.,
   Prop. 1), with CORA's block layout (``conIntersect``).
-* :func:`intersect_strips` -- the same set for box-shaped ``Y`` (measurement strips), in the
-  parametrisation of a strip gain ``Lam`` (Alanwar et al.; CORA ``intersectStrip``).
+* :func:`intersect_measurement` -- ``{x in Z : y - C x in V}`` for a noise zonotope ``V``, in
+  the parametrisation of a gain ``L`` (Alanwar et al.); :func:`intersect_strips` for
+  box-shaped ``V`` (measurement strips; CORA ``intersectStrip``).
 * :func:`lifted_reduce` -- order reduction of the lifted zonotope ``([c; -b], [G; A])``
   (Scott et al., Sec. 4.3; CORA ``conZonotope/reduce``), after dropping all-zero constraints
   and generators; the order counts either per state dimension (CORA: ``order n + nc``
@@ -66,28 +67,42 @@ def intersect(
     return c, G_new, A_new, b_new
 
 
+def intersect_measurement(
+    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
+    C: np.ndarray, y: np.ndarray, cv: np.ndarray, Gv: np.ndarray, L: np.ndarray,
+) -> Arrays:
+    """Exact ``{x in Z : y - C x in V}`` for the noise zonotope ``V = <cv, Gv>`` (m x nv),
+    parametrised by a gain ``L`` (n x m).
+
+    Centre ``c + L (y - C c - cv)``, generators ``[(I - L C) G, -L Gv]`` and the new
+    constraints ``C G xi + Gv xi_v = y - C c - cv`` (old constraints padded with ``nv`` zero
+    columns): every point ``c + G xi`` of ``Z`` with ``y - C(c + G xi) = cv + Gv xi_v`` is
+    ``c + G xi + L (y - C c - cv - C G xi - Gv xi_v)``.  For any ``L`` this is the same set
+    (Alanwar et al. 2022, Prop. 3; ``L = 0`` is Scott et al.'s generalised intersection); the
+    gain only changes the parametrisation, hence later order reductions.
+    """
+    nc = A.shape[0]
+    nv = Gv.shape[1]
+    CG = C @ G
+    resid = y - C @ c - cv
+    G_new = np.hstack([G - L @ CG, -(L @ Gv)])
+    A_new = np.vstack([
+        np.hstack([A, np.zeros((nc, nv))]),
+        np.hstack([CG, Gv]),
+    ])
+    return c + L @ resid, G_new, A_new, np.concatenate([b, resid])
+
+
 def intersect_strips(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
     C: np.ndarray, y: np.ndarray, sigma: np.ndarray, Lam: np.ndarray,
 ) -> Arrays:
-    """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain.
-
-    For any ``Lam`` (n x m) the result is the same set (CORA ``conZonotope/intersectStrip``):
-    centre ``c + Lam (y - C c)``, generators ``[(I - Lam C) G, Lam diag(sigma)]`` and the new
-    constraints ``C G xi - diag(sigma) xi_new = y - C c`` (old constraints padded with m zero
-    columns).  The gain only changes the parametrisation, hence later order reductions.
-    """
-    nc = A.shape[0]
-    m = C.shape[0]
-    CG = C @ G
-    c_new = c + Lam @ (y - C @ c)
-    G_new = np.hstack([G - Lam @ CG, Lam * sigma])
-    A_new = np.vstack([
-        np.hstack([A, np.zeros((nc, m))]),
-        np.hstack([CG, -np.diag(sigma)]),
-    ])
-    b_new = np.concatenate([b, y - C @ c])
-    return c_new, G_new, A_new, b_new
+    """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain
+    (CORA ``conZonotope/intersectStrip``): :func:`intersect_measurement` with
+    ``V = <0, -diag(sigma)>``, i.e. centre ``c + Lam (y - C c)``, generators
+    ``[(I - Lam C) G, Lam diag(sigma)]``, new constraints ``C G xi - diag(sigma) xi_new =
+    y - C c``."""
+    return intersect_measurement(c, G, A, b, C, y, np.zeros(C.shape[0]), -np.diag(sigma), Lam)
 
 
 def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:

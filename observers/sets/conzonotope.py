@@ -179,6 +179,26 @@ class ConZonotope:
         return ConZonotope._trusted(*ops.intersect_strips(
             self._c, self._G, self._A, self._b, C, y, sigma, Lam))
 
+    def intersect_measurement(self, C, y, V, gain=None) -> ConZonotope:
+        """Exact ``{x in self : y - C x in V}`` for a noise zonotope ``V`` (``Zonotope`` or
+        ``Interval`` of dimension ``C.shape[0]``).
+
+        ``gain`` (n x m, default zero) only chooses the parametrisation: centre
+        ``c + L (y - C c - c_V)``, generators ``[(I - L C) G, -L G_V]`` (Alanwar et al. 2022,
+        Prop. 3); the set is the same for every gain.
+        """
+        C = matrix(C, "output matrix C", cols=self.dim)
+        m = C.shape[0]
+        y = vector(y, "measurement y", dim=m)
+        if isinstance(V, Interval):
+            V = Zonotope.from_interval(V)
+        if not isinstance(V, Zonotope) or V.dim != m:
+            raise SetError(f"noise set V must be a Zonotope or Interval of dimension {m}")
+        L = np.zeros((self.dim, m)) if gain is None else matrix(
+            gain, "measurement gain", rows=self.dim, cols=m)
+        return ConZonotope._trusted(*ops.intersect_measurement(
+            self._c, self._G, self._A, self._b, C, y, V.c, V.G, L))
+
     def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
                ) -> ConZonotope:
         """Enclosure by reducing the lifted zonotope ``([c; -b], [G; A])`` with the zonotope
