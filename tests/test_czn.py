@@ -121,6 +121,21 @@ def test_strip_gain_changes_the_parametrisation_not_the_set(seed):
         np.testing.assert_allclose(S.interval().hi, S0.interval().hi, atol=1e-7)
 
 
+def test_measurement_intersection_with_a_noise_zonotope_is_exact_for_any_gain():
+    g = np.random.default_rng(8)
+    Z = ConZonotope(g.normal(size=3), g.normal(size=(3, 6)))
+    C = g.normal(size=(2, 3))
+    V = Zonotope([0.1, -0.2], [[0.3, 0.1, 0.0], [0.0, 0.2, 0.4]])
+    y = C @ Z.c + g.uniform(-0.3, 0.3, 2)
+    ref = Z.intersect((-V) + y, C)  # {x in Z : C x in y - V}
+    for gain in (None, g.normal(size=(3, 2))):
+        S = Z.intersect_measurement(C, y, V, gain=gain)
+        np.testing.assert_allclose(S.interval().lo, ref.interval().lo, atol=1e-7)
+        np.testing.assert_allclose(S.interval().hi, ref.interval().hi, atol=1e-7)
+    with pytest.raises(SetError, match="noise set V"):
+        Z.intersect_measurement(C, y, Zonotope([0.0], [[1.0]]))
+
+
 @pytest.mark.parametrize("method", ["girard", "pca"])
 def test_lifted_reduction_encloses(method):
     S, xi0 = random_cz(2, 30, 3, 7)
@@ -169,6 +184,18 @@ def test_vehicle2d_final_hull_matches_cora(name, cora_vehicle2d_refs):
     assert res.sets[-1].num_constraints == 100  # CORA keeps every constraint
 
 
+def test_batched_hull_solver_matches_cora_with_all_constraints(cora_vehicle2d_refs):
+    # the batched dual simplex forced (auto picks HiGHS once there are many constraints)
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create("CZN-B", sc.system, max_constraints=None, hull_solver="batched",
+                           **sc.options)
+    res = observers.run(obs, sc.u, sc.y)
+    ref = cora_vehicle2d_refs["CZN-B"]
+    np.testing.assert_allclose(res.lo[-1], ref["lower"], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(res.hi[-1], ref["upper"], rtol=0, atol=1e-6)
+    assert obs._lp.fallbacks == 0
+
+
 @pytest.mark.parametrize("name", CZN)
 def test_bounded_constraints_stay_tighter_than_zonotopes_on_vehicle2d(name, cora_vehicle2d_refs):
     # the default keeps 2 m constraints: its final hull is wider than CORA's exact CZN one but
@@ -206,6 +233,8 @@ def test_czn_b_textbook_variant_and_option_errors():
         observers.create("CZN-A", sc.system, max_constraints=-2)
     with pytest.raises(OptionError, match="max_constraints"):
         observers.create("CZN-A", sc.system, max_constraints="many")
+    with pytest.raises(OptionError, match="hull_solver"):
+        observers.create("CZN-A", sc.system, hull_solver="cplex")
 
 
 def test_registry_entries():

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from observers.sets import ConZonotope, IntervalMatrix, MatrixZonotope, SetError, Zonotope
-from observers.sets import conzonotope_tools as czt
 
 
 def _random_mz(rng, shape=(2, 3), h=3) -> MatrixZonotope:
@@ -55,7 +54,8 @@ def test_product_with_zonotope_encloses_sampled_images(seed):
 def test_product_with_conzonotope_keeps_constraints_and_encloses():
     rng = np.random.default_rng(4)
     M = _random_mz(rng)
-    CZ = czt.intersect(Zonotope(np.zeros(3), np.eye(3)), Zonotope([0.5, 0.5, 0.0], np.eye(3)))
+    CZ = ConZonotope.from_set(Zonotope(np.zeros(3), np.eye(3))).intersect(
+        Zonotope([0.5, 0.5, 0.0], np.eye(3)))
     R = M @ CZ
     assert isinstance(R, ConZonotope) and R.num_constraints == CZ.num_constraints
     pts = [x for x in Zonotope(np.zeros(3), np.eye(3)).sample(200, rng)
@@ -102,8 +102,9 @@ def test_conzonotope_intersection_is_exact_and_enclosures_are_sound():
     rng = np.random.default_rng(7)
     Z1 = Zonotope([0.0, 0.0], [[1.0, 0.5, 0.0], [0.0, 0.5, 1.0]])
     Z2 = Zonotope([0.8, 0.3], [[1.0, 0.2], [-0.3, 0.6]])
-    X = czt.intersect(Z1, Z2)
-    E, R = czt.to_zonotope(X), czt.reduce(X, 1.0, 1)
+    X = ConZonotope.from_set(Z1).intersect(Z2)
+    E = X.to_zonotope("frobenius")
+    R = X.reduce_constraints(1, "frobenius").normalize_constraints().reduce(1.0, per="lifted")
     assert R.num_constraints <= 1 and R.num_generators <= 3 * 2
     pts = Z1.c + rng.uniform(-1, 1, size=(200, 3)) @ Z1.G.T  # interior points of Z1
     agree = 0

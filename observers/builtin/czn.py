@@ -22,8 +22,10 @@ it.  ``max_constraints=None`` gives CORA's behaviour (and order of operations: i
 then reduce), which the conformance tests use.
 
 Interval hulls: every returned set carries the observer's :class:`~observers.sets._lp.HullLP`,
-one HiGHS model kept alive across steps, so the runner's ``S.interval()`` (2n LPs, sound
-bounds from dual points) warm-starts each direction from the previous step's basis.
+so the runner's ``S.interval()`` solves its 2n LPs together with the batched dual simplex of
+:mod:`observers.sets._dual_simplex` (HiGHS, kept alive across steps, only for an LP it does not
+finish); every bound is the weak-duality bound of a dual point, hence sound whatever the
+solver does.
 """
 
 from __future__ import annotations
@@ -54,12 +56,18 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         Bound on the number of constraints kept after each step; ``"auto"`` is ``2 m`` (the
         measurements of the last two steps), ``None`` keeps all of them (CORA: m more per
         step, with CORA's order of intersection and reduction).
+    hull_solver : {"auto", "batched", "highs"}
+        LP solver of the interval hulls and support values of the returned sets
+        (:class:`~observers.sets.HullLP`); the bounds are sound with each of them.
     """
 
-    OPTIONS = {"max_constraints": "auto"}
+    OPTIONS = {"max_constraints": "auto", "hull_solver": "auto"}
 
     def validate_options(self) -> None:
         super().validate_options()
+        if self.options["hull_solver"] not in HullLP.SOLVERS:
+            raise OptionError(f"{self.name}: hull_solver must be one of "
+                              f"{', '.join(HullLP.SOLVERS)}, got {self.options['hull_solver']!r}")
         k = self.options["max_constraints"]
         if k is None or k == "auto":
             return
@@ -76,7 +84,7 @@ class ConZonotopeStripObserver(ZonotopeObserver):
     def reset(self) -> None:
         super().reset()
         self._state: tuple[np.ndarray, ...] | None = None
-        self._lp = HullLP()
+        self._lp = HullLP(self.options["hull_solver"])
 
     @abstractmethod
     def intersect(self, c, G, A, b, y):

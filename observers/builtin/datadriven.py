@@ -30,7 +30,6 @@ from ..errors import OptionError
 from ..families import as_zonotope
 from ..registry import register
 from ..sets import ConZonotope, SetError, Zonotope, get_reduction
-from ..sets import conzonotope_tools as czt
 from ..sets.reduction import check_order
 
 REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
@@ -171,11 +170,20 @@ class ZonotopeDD(DataDrivenObserver):
 
 class ConZonotopeDD(DataDrivenObserver):
     """Constrained-zonotope estimates; ``constraints`` caps the number of constraints kept
-    after each step (default ``CONSTRAINTS_PER_STATE`` times the state dimension); the
-    generators are reduced on the lifted zonotope to ``order`` times its dimension."""
+    after each step (default ``CONSTRAINTS_PER_STATE`` times the state dimension; the oldest
+    are eliminated with the Frobenius-optimal gain); the generators are reduced on the lifted
+    zonotope, its constraint rows normalised, to ``order`` times its dimension."""
 
     OPTIONS = {"constraints": None}
     CONSTRAINTS_PER_STATE = 1
+
+    def validate_options(self) -> None:
+        super().validate_options()
+        k = self.options["constraints"]
+        if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer))
+                              or k < 0):
+            raise OptionError(f"{self.name}: constraints must be a non-negative integer or "
+                              f"None, got {k!r}")
 
     def initial_set(self) -> ConZonotope:
         return ConZonotope(self.X0.c, self.X0.G)
@@ -188,7 +196,8 @@ class ConZonotopeDD(DataDrivenObserver):
     def reduce(self, S: ConZonotope) -> ConZonotope:
         nc = self.options["constraints"]
         nc = self.CONSTRAINTS_PER_STATE * self.n if nc is None else int(nc)
-        return czt.reduce(S, self.order, nc, self._reduction)
+        S = S.reduce_constraints(nc, "frobenius").normalize_constraints()
+        return S.reduce(self.order, self._reduction, per="lifted")
 
 
 class ReverseMapping:
@@ -203,9 +212,9 @@ class ReverseMapping:
         return out
 
     def _intersection(self, S, y) -> ConZonotope:
-        out = czt.as_conzonotope(S)
+        out = ConZonotope.from_set(S)
         for Zi in self._measurement_sets(S, y):
-            out = czt.intersect(out, Zi)
+            out = out.intersect(Zi)
         return out
 
 
@@ -215,10 +224,10 @@ class DDZA1(ReverseMapping, ZonotopeDD):
     """Data-driven, zonotopes, reverse mapping: exact intersection, closed-form enclosure."""
 
     def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
-        return czt.to_zonotope(self._intersection(S, y))
+        return self._intersection(S, y).to_zonotope("frobenius")
 
 
-@register("DD-CZ-A1", family="data-driven", set_type="conZonotope", ready_for_control=False,
+@register("DD-CZ-A1", family="data-driven", set_type="conzonotope", ready_for_control=False,
           reference=REFERENCE + ", Sec. III-C1")
 class DDCZA1(ReverseMapping, ConZonotopeDD):
     """Data-driven, constrained zonotopes, reverse mapping: exact intersection."""
@@ -245,7 +254,7 @@ class DDZA2(ImplicitIntersection, ZonotopeDD):
         return Zonotope._trusted(c, G)
 
 
-@register("DD-CZ-A2", family="data-driven", set_type="conZonotope", ready_for_control=False,
+@register("DD-CZ-A2", family="data-driven", set_type="conzonotope", ready_for_control=False,
           reference=REFERENCE + ", Prop. 3")
 class DDCZA2(ImplicitIntersection, ConZonotopeDD):
     """Data-driven, constrained zonotopes, implicit intersection (Prop. 3, exact)."""
@@ -255,9 +264,4 @@ class DDCZA2(ImplicitIntersection, ConZonotopeDD):
     CONSTRAINTS_PER_STATE = 4
 
     def update(self, S: ConZonotope, y: np.ndarray) -> ConZonotope:
-        L = self._gain(S.G)
-        c, G = implicit_update(S.c, S.G, L, self.C, y, self.V.c, self.V.G)
-        nv = self.V.G.shape[1]
-        A = np.block([[S.A, np.zeros((S.num_constraints, nv))], [self.C @ S.G, self.V.G]])
-        b = np.concatenate([S.b, y - self.C @ S.c - self.V.c])
-        return ConZonotope(c, G, A, b)
+        return S.intersect_measurement(self.C, y, self.V, gain=self._gain(S.G))

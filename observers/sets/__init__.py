@@ -15,9 +15,11 @@ Zonotopes additionally offer ``Z.reduce(order, method)`` with the strategies of
 :mod:`observers.sets.reduction`.  Matrix sets (:class:`MatrixZonotope`, :class:`IntervalMatrix`)
 map vector sets with ``M @ Z`` (a sound enclosure, see :mod:`observers.sets.matrix_zonotope`).
 Constrained zonotopes add the exact ``intersect`` and
-``intersect_strips``, CORA's lifted ``reduce``, ``rescale`` and ``reduce_constraints``
-(array kernels in :mod:`observers.sets.conzono_ops`); their LP bounds can share a warm HiGHS
-model (:class:`HullLP`, ``S.with_solver(lp)``).
+``intersect_strips``, the lifted ``reduce``, ``rescale``, ``normalize_constraints`` and
+``reduce_constraints`` / ``to_zonotope`` with the named constraint eliminations ``"fold"`` and
+``"frobenius"`` (array kernels in :mod:`observers.sets.conzono_ops`); their 2n hull LPs are
+solved together by a batched dual simplex with HiGHS as fallback, and can share one solver
+object across sets (:class:`HullLP`, ``S.with_solver(lp)``).
 """
 
 from ._lp import HullLP

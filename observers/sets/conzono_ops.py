@@ -8,17 +8,29 @@ Operations
 ----------
 * :func:`intersect` -- generalised intersection ``{x in Z : R x in Y}`` (exact; Scott et al.,
   Prop. 1), with CORA's block layout (``conIntersect``).
-* :func:`intersect_strips` -- the same set for box-shaped ``Y`` (measurement strips), in the
-  parametrisation of a strip gain ``Lam`` (Alanwar et al.; CORA ``intersectStrip``).
+* :func:`intersect_measurement` -- ``{x in Z : y - C x in V}`` for a noise zonotope ``V``, in
+  the parametrisation of a gain ``L`` (Alanwar et al.); :func:`intersect_strips` for
+  box-shaped ``V`` (measurement strips; CORA ``intersectStrip``).
 * :func:`lifted_reduce` -- order reduction of the lifted zonotope ``([c; -b], [G; A])``
   (Scott et al., Sec. 4.3; CORA ``conZonotope/reduce``), after dropping all-zero constraints
-  and generators.
+  and generators; the order counts either per state dimension (CORA: ``order n + nc``
+  generators) or per lifted dimension (``order (n + nc)``, the data-driven observers).
+* :func:`normalize_constraints` -- rows of ``A xi = b`` scaled to unit largest entry (exact;
+  puts constraint rows on one scale before a lifted reduction).
 * :func:`implied_bounds` / :func:`rescale` -- interval constraint propagation and the exact
   rescaling of the generator box to the bounds implied by the constraints (Scott et al.,
   Sec. 4.2).
-* :func:`fold_constraints` -- bounds the number of constraints: the oldest ones are folded
-  into the centre, generators and remaining constraints by a least-squares shear of the
-  lifted zonotope and dropped (an outer approximation; the newest constraints stay exact).
+* constraint elimination, bounding the number of constraints by dropping the oldest ones
+  (the first rows) into an enclosure, as named strategies (:data:`CONSTRAINT_ELIMINATIONS`):
+
+  - ``"fold"`` (:func:`fold_constraints`): rescale, then a least-squares shear of the whole
+    lifted zonotope (generators *and* kept constraints) along the dropped rows;
+  - ``"frobenius"`` (:func:`eliminate_constraints`): the enclosure ``<c + L b_S, G - L A_S>``
+    with the Frobenius-optimal gain ``L = G A_S' (A_S A_S')^+`` (Scott et al. 2016, Raghuraman
+    & Koeln 2022); kept constraints unchanged.
+
+  Both are sound for any gain (every feasible ``xi`` has ``A_S xi = b_S``); ``"fold"`` keeps
+  more of what the dropped rows implied (box rescaling, kept rows sheared consistently).
 """
 
 from __future__ import annotations
@@ -55,28 +67,42 @@ def intersect(
     return c, G_new, A_new, b_new
 
 
+def intersect_measurement(
+    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
+    C: np.ndarray, y: np.ndarray, cv: np.ndarray, Gv: np.ndarray, L: np.ndarray,
+) -> Arrays:
+    """Exact ``{x in Z : y - C x in V}`` for the noise zonotope ``V = <cv, Gv>`` (m x nv),
+    parametrised by a gain ``L`` (n x m).
+
+    Centre ``c + L (y - C c - cv)``, generators ``[(I - L C) G, -L Gv]`` and the new
+    constraints ``C G xi + Gv xi_v = y - C c - cv`` (old constraints padded with ``nv`` zero
+    columns): every point ``c + G xi`` of ``Z`` with ``y - C(c + G xi) = cv + Gv xi_v`` is
+    ``c + G xi + L (y - C c - cv - C G xi - Gv xi_v)``.  For any ``L`` this is the same set
+    (Alanwar et al. 2022, Prop. 3; ``L = 0`` is Scott et al.'s generalised intersection); the
+    gain only changes the parametrisation, hence later order reductions.
+    """
+    nc = A.shape[0]
+    nv = Gv.shape[1]
+    CG = C @ G
+    resid = y - C @ c - cv
+    G_new = np.hstack([G - L @ CG, -(L @ Gv)])
+    A_new = np.vstack([
+        np.hstack([A, np.zeros((nc, nv))]),
+        np.hstack([CG, Gv]),
+    ])
+    return c + L @ resid, G_new, A_new, np.concatenate([b, resid])
+
+
 def intersect_strips(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
     C: np.ndarray, y: np.ndarray, sigma: np.ndarray, Lam: np.ndarray,
 ) -> Arrays:
-    """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain.
-
-    For any ``Lam`` (n x m) the result is the same set (CORA ``conZonotope/intersectStrip``):
-    centre ``c + Lam (y - C c)``, generators ``[(I - Lam C) G, Lam diag(sigma)]`` and the new
-    constraints ``C G xi - diag(sigma) xi_new = y - C c`` (old constraints padded with m zero
-    columns).  The gain only changes the parametrisation, hence later order reductions.
-    """
-    nc = A.shape[0]
-    m = C.shape[0]
-    CG = C @ G
-    c_new = c + Lam @ (y - C @ c)
-    G_new = np.hstack([G - Lam @ CG, Lam * sigma])
-    A_new = np.vstack([
-        np.hstack([A, np.zeros((nc, m))]),
-        np.hstack([CG, -np.diag(sigma)]),
-    ])
-    b_new = np.concatenate([b, y - C @ c])
-    return c_new, G_new, A_new, b_new
+    """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain
+    (CORA ``conZonotope/intersectStrip``): :func:`intersect_measurement` with
+    ``V = <0, -diag(sigma)>``, i.e. centre ``c + Lam (y - C c)``, generators
+    ``[(I - Lam C) G, Lam diag(sigma)]``, new constraints ``C G xi - diag(sigma) xi_new =
+    y - C c``."""
+    return intersect_measurement(c, G, A, b, C, y, np.zeros(C.shape[0]), -np.diag(sigma), Lam)
 
 
 def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:
@@ -94,22 +120,39 @@ def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:
     return c, G, A, b
 
 
+#: meanings of the order of :func:`lifted_reduce`
+ORDER_BASES = ("state", "lifted")
+
+
 def lifted_reduce(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray, order: float,
-    reduce_generators: Callable[[np.ndarray, float], np.ndarray],
+    reduce_generators: Callable[[np.ndarray, float], np.ndarray], per: str = "state",
 ) -> Arrays:
-    """CORA's order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
+    """Order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
 
     After :func:`compact_zeros`, the lifted zonotope ``([c; -b], [G; A])`` in ``R^(n+nc)`` is
-    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) to
-    the order ``max(1, (order n + nc) / (n + nc))``, so that at most ``order * n + nc``
-    generators remain, and split back.  The constraints are kept (their number is unchanged).
+    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) and
+    split back.  ``per="state"`` (CORA's ``conZonotope/reduce``): lifted order
+    ``max(1, (order n + nc) / (n + nc))``, at most ``order * n + nc`` generators remain;
+    ``per="lifted"``: lifted order ``order``, at most ``order * (n + nc)`` generators.  The
+    constraints are kept (their number is unchanged).
     """
     c, G, A, b = compact_zeros(c, G, A, b)
     n, nc = G.shape[0], A.shape[0]
-    order_up = max(1.0, (order * n + nc) / (n + nc))
-    G_up = reduce_generators(np.vstack([G, A]), order_up)
+    if per == "state":
+        order = max(1.0, (order * n + nc) / (n + nc))
+    G_up = reduce_generators(np.vstack([G, A]), order)
     return c, G_up[:n], G_up[n:], b
+
+
+def normalize_constraints(c, G, A, b) -> Arrays:
+    """The same set with every constraint row of ``[A b]`` divided by the largest ``|A_ij|``
+    of the row (zero rows unchanged)."""
+    if A.shape[0] == 0:
+        return c, G, A, b
+    s = np.abs(A).max(axis=1)
+    s = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 1.0)
+    return c, G, A * s[:, None], b * s
 
 
 def implied_bounds(
@@ -180,6 +223,20 @@ def rescale(c, G, A, b, min_gain: float = 1e-6, sweeps: int = 3) -> Arrays:
     return c + G @ mid, G * rad, A * rad, b - A @ mid
 
 
+def eliminate_constraints(c, G, A, b, max_constraints: int) -> Arrays:
+    """Outer approximation keeping the ``max_constraints`` newest (last) constraints: the
+    older rows ``A_S xi = b_S`` are eliminated by ``<c + L b_S, G - L A_S>`` with the
+    Frobenius-optimal gain ``L = G A_S' (A_S A_S')^+`` (minimises ``||G - L A_S||_F``); the
+    kept constraints are unchanged.  Sound for any ``L``: feasible ``xi`` have
+    ``A_S xi = b_S``, so ``c + G xi = c + L b_S + (G - L A_S) xi``."""
+    k = A.shape[0] - max_constraints
+    if k <= 0:
+        return c, G, A, b
+    AS, bS = A[:k], b[:k]
+    L = _regress(G, AS)
+    return c + L @ bS, G - L @ AS, A[k:], b[k:]
+
+
 def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     """Outer approximation keeping at most ``max_constraints`` constraints (the newest ones,
     i.e. the last rows: the observers append the constraints of each new measurement).
@@ -216,15 +273,15 @@ def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     return c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS
 
 
+#: constraint-elimination strategies by name (``ConZonotope.reduce_constraints(k, method)``)
+CONSTRAINT_ELIMINATIONS: dict[str, Callable[..., Arrays]] = {
+    "fold": fold_constraints,
+    "frobenius": eliminate_constraints,
+}
+
+
 def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (normal equations on
-    the small k x k Gram matrix; any ``K`` keeps :func:`fold_constraints` sound)."""
-    gram = X @ X.T
-    cross = Y @ X.T
-    try:
-        K = np.linalg.solve(gram, cross.T).T
-        if np.all(np.isfinite(K)):
-            return K
-    except np.linalg.LinAlgError:
-        pass
-    return cross @ np.linalg.pinv(gram)
+    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (least squares on
+    the small k x k Gram matrix, minimum-norm if it is singular; any ``K`` keeps the
+    constraint eliminations sound)."""
+    return np.linalg.lstsq(X @ X.T, X @ Y.T, rcond=None)[0].T

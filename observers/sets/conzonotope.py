@@ -17,13 +17,14 @@ class ConZonotope:
     """Constrained zonotope with centre ``c`` (n), generators ``G`` (n x r) and constraints
     ``A xi = b`` (``A``: nc x r, ``b``: nc).
 
-    Interval hulls and support values are computed by linear programs (HiGHS) and are
-    guaranteed outer bounds: they are evaluated from a dual point, never from the primal
-    objective value (see :mod:`observers.sets._lp`).  Generators that appear in no constraint
-    are left out of the LPs (their contribution ``sum |G_ij|`` is added exactly).
+    Interval hulls and support values are computed by linear programs (all directions at once
+    by a batched dual simplex, HiGHS for any LP it does not finish) and are guaranteed outer
+    bounds: they are evaluated from a dual point, never from the primal objective value (see
+    :mod:`observers.sets._lp`).  Generators that appear in no constraint are left out of the
+    LPs (their contribution ``sum |G_ij|`` is added exactly).
 
-    A set may carry a shared LP model (:meth:`with_solver`, used by the observers so that the
-    interval hull of each step reuses one HiGHS model instead of building one per set).
+    A set may carry a shared LP solver (:meth:`with_solver`, used by the observers so that the
+    HiGHS fallback of each step reuses one model instead of building one per set).
     The solver is not part of the value: it changes neither equality nor results beyond
     solver tolerance, and the bounds are sound whichever basis it starts from.  The interval
     hull is computed once per set and cached.
@@ -81,7 +82,7 @@ class ConZonotope:
         raise SetError(f"cannot convert {type(S).__name__} to a constrained zonotope")
 
     def with_solver(self, solver: HullLP) -> ConZonotope:
-        """The same set, computing its LPs in the shared warm model ``solver``."""
+        """The same set, computing its LPs with the shared solver ``solver``."""
         if not isinstance(solver, HullLP):
             raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
         return ConZonotope._trusted(self._c, self._G, self._A, self._b, solver)
@@ -152,6 +153,8 @@ class ConZonotope:
         """Exact generalised intersection ``{x in self : R x in Y}`` (``R`` defaults to the
         identity; ``Y`` a ConZonotope, Zonotope or Interval of dimension ``R.shape[0]``)."""
         Y = ConZonotope.from_set(Y)
+        if R is None and Y.dim != self.dim:
+            raise SetError(f"cannot intersect sets of dimensions {self.dim} and {Y.dim}")
         R = np.eye(self.dim) if R is None else matrix(R, "intersection map R", cols=self.dim)
         if R.shape[0] != Y.dim:
             raise SetError(f"intersection map R has {R.shape[0]} rows but the set has "
@@ -176,24 +179,63 @@ class ConZonotope:
         return ConZonotope._trusted(*ops.intersect_strips(
             self._c, self._G, self._A, self._b, C, y, sigma, Lam))
 
-    def reduce(self, order: float, method: str | Reduction = "girard") -> ConZonotope:
-        """Enclosure with at most ``order * n + nc`` generators by reducing the lifted zonotope
-        ``([c; -b], [G; A])`` (Scott et al. 2016, Sec. 4.3; CORA's ``reduce``).  The number of
-        constraints does not change; see :meth:`reduce_constraints`."""
+    def intersect_measurement(self, C, y, V, gain=None) -> ConZonotope:
+        """Exact ``{x in self : y - C x in V}`` for a noise zonotope ``V`` (``Zonotope`` or
+        ``Interval`` of dimension ``C.shape[0]``).
+
+        ``gain`` (n x m, default zero) only chooses the parametrisation: centre
+        ``c + L (y - C c - c_V)``, generators ``[(I - L C) G, -L G_V]`` (Alanwar et al. 2022,
+        Prop. 3); the set is the same for every gain.
+        """
+        C = matrix(C, "output matrix C", cols=self.dim)
+        m = C.shape[0]
+        y = vector(y, "measurement y", dim=m)
+        if isinstance(V, Interval):
+            V = Zonotope.from_interval(V)
+        if not isinstance(V, Zonotope) or V.dim != m:
+            raise SetError(f"noise set V must be a Zonotope or Interval of dimension {m}")
+        L = np.zeros((self.dim, m)) if gain is None else matrix(
+            gain, "measurement gain", rows=self.dim, cols=m)
+        return ConZonotope._trusted(*ops.intersect_measurement(
+            self._c, self._G, self._A, self._b, C, y, V.c, V.G, L))
+
+    def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
+               ) -> ConZonotope:
+        """Enclosure by reducing the lifted zonotope ``([c; -b], [G; A])`` with the zonotope
+        strategy ``method`` (Scott et al. 2016, Sec. 4.3).  ``per="state"`` (CORA's
+        ``reduce``): at most ``order * n + nc`` generators; ``per="lifted"``: at most
+        ``order * (n + nc)``.  The number of constraints does not change; see
+        :meth:`reduce_constraints`."""
         check_order(order)
+        if per not in ops.ORDER_BASES:
+            raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
+                           f"got {per!r}")
         strategy = get_reduction(method)
         return ConZonotope._trusted(*ops.lifted_reduce(
-            self._c, self._G, self._A, self._b, float(order), strategy.reduce))
+            self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
 
-    def reduce_constraints(self, max_constraints: int) -> ConZonotope:
+    def reduce_constraints(self, max_constraints: int, method: str = "fold") -> ConZonotope:
         """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
-        are folded into the generators and the kept constraints by a least-squares shear of
-        the lifted zonotope (see :func:`observers.sets.conzono_ops.fold_constraints`)."""
-        if not isinstance(max_constraints, (int, np.integer)) or max_constraints < 0:
+        are eliminated by the named strategy: ``"fold"`` (rescaling, then a least-squares
+        shear of generators and kept constraints) or ``"frobenius"`` (Frobenius-optimal gain
+        on the generators); see :mod:`observers.sets.conzono_ops`."""
+        if isinstance(max_constraints, bool) or not isinstance(
+                max_constraints, (int, np.integer)) or max_constraints < 0:
             raise SetError(f"max_constraints must be a non-negative integer, "
                            f"got {max_constraints!r}")
-        return ConZonotope._trusted(*ops.fold_constraints(
+        try:
+            eliminate = ops.CONSTRAINT_ELIMINATIONS[method]
+        except (KeyError, TypeError):
+            known = ", ".join(sorted(ops.CONSTRAINT_ELIMINATIONS))
+            raise SetError(f"unknown constraint elimination {method!r} (known: {known})"
+                           ) from None
+        return ConZonotope._trusted(*eliminate(
             self._c, self._G, self._A, self._b, int(max_constraints)))
+
+    def normalize_constraints(self) -> ConZonotope:
+        """The same set with every constraint row scaled to unit largest entry (exact)."""
+        return ConZonotope._trusted(*ops.normalize_constraints(self._c, self._G, self._A,
+                                                               self._b))
 
     def rescale(self) -> ConZonotope:
         """The same set with the generator box shrunk to the bounds implied by the constraints
@@ -223,10 +265,9 @@ class ConZonotope:
             return self._hull
         Gc, Ac, Gf = self._split_free()
         rad_free = np.abs(Gf).sum(axis=1)
-        lp = self._lp()
         n = self.dim
-        hi = np.array([lp.maximize(Gc[i], Ac, self._b) for i in range(n)])
-        lo = np.array([lp.maximize(-Gc[i], Ac, self._b) for i in range(n)])
+        hilo = self._lp().maximize_many(np.vstack([Gc, -Gc]), Ac, self._b)
+        hi, lo = hilo[:n], hilo[n:]
         # outward rounding of the free generators' sums and of the final sums
         c = self._c
         slack = (Gf.shape[1] + 4) * np.finfo(float).eps * (
@@ -244,13 +285,12 @@ class ConZonotope:
             vals = D.T @ self._c + np.abs(self._G.T @ D).sum(axis=0)
         else:
             Gc, Ac, Gf = self._split_free()
-            lp = self._lp()
-            vals = np.empty(D.shape[1])
-            for k, di in enumerate(D.T):
-                t = (di @ self._c, np.abs(Gf.T @ di).sum(), lp.maximize(Gc.T @ di, Ac, self._b))
-                slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
-                    np.abs(di) @ np.abs(self._c) + abs(t[1]) + abs(t[2]))
-                vals[k] = sum(t) + slack
+            lp_vals = self._lp().maximize_many((Gc.T @ D).T, Ac, self._b)
+            t0 = D.T @ self._c
+            t1 = np.abs(Gf.T @ D).sum(axis=0)
+            slack = (self.dim + Gf.shape[1] + 4) * np.finfo(float).eps * (
+                np.abs(D.T) @ np.abs(self._c) + t1 + np.abs(lp_vals))
+            vals = t0 + t1 + lp_vals + slack
         return float(vals[0]) if d.ndim == 1 else vals
 
     def contains(self, x, tol: float = 0.0) -> bool:
@@ -261,9 +301,11 @@ class ConZonotope:
         tols = np.concatenate([np.full(self.dim, tol), np.zeros(self.num_constraints)])
         return box_feasible(M, t, tols)
 
-    def to_zonotope(self) -> Zonotope:
-        """Outer approximation obtained by dropping the constraints."""
-        return Zonotope(self._c, self._G)
+    def to_zonotope(self, method: str = "frobenius") -> Zonotope:
+        """Enclosing zonotope: all constraints eliminated with the named strategy (see
+        :meth:`reduce_constraints`; ``"frobenius"`` by default)."""
+        E = self.reduce_constraints(0, method)
+        return Zonotope(E._c, E._G)
 
     # -- value semantics --------------------------------------------------------------------
     def __eq__(self, other) -> bool:

@@ -1,0 +1,130 @@
+"""The batched dual simplex of the constrained-zonotope hulls (observers.sets._dual_simplex):
+its bounds are never below the true maximum (sampled feasible points) and never looser than
+HiGHS's dual bounds, on random and degenerate sets; empty sets and sets without constraints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from observers.sets import ConZonotope, HullLP, SetError
+from observers.sets import _dual_simplex as ds
+
+
+def _feasible(A: np.ndarray, xi0: np.ndarray, k: int, g: np.random.Generator) -> np.ndarray:
+    """``k`` feasible points: ``xi0`` moved along null-space directions of ``A`` up to the box
+    (and ``xi0`` itself)."""
+    N = np.linalg.svd(A)[2][np.linalg.matrix_rank(A):].T
+    pts = [xi0]
+    for _ in range(k):
+        step = N @ g.normal(size=N.shape[1])
+        with np.errstate(divide="ignore"):
+            t = np.max(np.where(step > 0, step / (1 - xi0), -step / (1 + xi0)))
+        pts.append(xi0 + step / t * g.choice([1.0, g.uniform(0, 1)]) if t > 0 else xi0)
+    return np.array(pts)
+
+
+def _instance(kind: str, seed: int):
+    """``(A, b, Gd, xi0)``: constraints, 2n cost rows, a feasible point."""
+    g = np.random.default_rng(seed)
+    n, r, nc = 3, 24, 5
+    A = g.normal(size=(nc, r))
+    G = g.normal(size=(n, r)) * np.exp(g.uniform(-8, 0, r))  # magnitudes over 3 decades
+    xi0 = g.uniform(-0.7, 0.7, r)
+    if kind == "rank-deficient":  # redundant rows: copies and combinations of others
+        A[3] = A[0]
+        A[4] = 2.0 * A[1] - A[2]
+    elif kind == "degenerate":  # costs in the row space of A, zero and repeated columns
+        G[0] = 0.5 * A[0] - A[2]
+        G[:, :4] = 0.0
+        A[:, 4:8] = A[:, 8:12]
+        G[:, 4:8] = G[:, 8:12]
+    elif kind == "boundary":  # the feasible set touches the box (xi0 at vertices)
+        xi0[: r // 2] = np.sign(g.normal(size=r // 2))
+    elif kind == "unit-columns":  # measurement-like rows with their own noise generators
+        A[:, r - nc:] = 0.1 * np.eye(nc)
+        G[:, r - nc:] = 0.0
+    b = A @ xi0
+    return A, b, np.vstack([G, -G]), xi0
+
+
+KINDS = ["generic", "rank-deficient", "degenerate", "boundary", "unit-columns"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("seed", range(4))
+def test_batched_bounds_are_sound_and_as_tight_as_highs(kind, seed):
+    A, b, Gd, xi0 = _instance(kind, seed)
+    batched, highs = HullLP("batched"), HullLP("highs")
+    ub = batched.maximize_many(Gd, A, b)
+    ub_highs = highs.maximize_many(Gd, A, b)
+    pts = _feasible(A, xi0, 300, np.random.default_rng(seed))
+    assert np.all(np.abs(pts @ A.T - b) < 1e-9) and np.all(np.abs(pts) <= 1 + 1e-12)
+    assert np.all(ub >= (pts @ Gd.T).max(axis=0))  # no feasible point beyond the bound
+    for k, g in enumerate(Gd):  # tight: the exact maximum (independent LP, primal value)
+        res = linprog(-g, A_eq=A, b_eq=b, bounds=(-1, 1), method="highs")
+        assert res.status == 0
+        assert ub[k] - (-res.fun) <= 1e-7 * (1 + abs(res.fun))
+    # never looser than HiGHS's dual points (relative 1e-9)
+    assert np.all(ub <= ub_highs + 1e-9 * (1 + np.abs(ub_highs)))
+    if kind in ("generic", "boundary", "unit-columns"):
+        assert batched.fallbacks == 0  # solved by the batched dual simplex itself
+
+
+def test_solver_result_reports_optimality_and_work():
+    A, b, Gd, _ = _instance("generic", 11)
+    res = ds.solve(A, b, Gd)
+    assert res.converged.all() and res.mu.shape == (Gd.shape[0], A.shape[0])
+    assert res.problem_iterations >= Gd.shape[0]  # every LP needed at least one pivot
+    assert ds.solve(A, b, Gd, max_iter=1).converged.sum() < Gd.shape[0]  # budget respected
+
+
+def test_hulls_of_random_sets_match_highs():
+    g = np.random.default_rng(5)
+    for _ in range(4):
+        A = g.normal(size=(4, 15))
+        S = ConZonotope(g.normal(size=2), g.normal(size=(2, 15)), A, A @ g.uniform(-.5, .5, 15))
+        fast, slow = S.with_solver(HullLP("batched")).interval(), S.with_solver(
+            HullLP("highs")).interval()
+        np.testing.assert_allclose(fast.lo, slow.lo, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(fast.hi, slow.hi, rtol=0, atol=1e-8)
+        d = g.normal(size=(2, 3))
+        np.testing.assert_allclose(S.support(d), S.with_solver(HullLP("highs")).support(d),
+                                   atol=1e-8)
+
+
+def test_empty_sets_and_sets_without_constraints():
+    A = np.array([[1.0, 1.0, 0.0], [1.0, -1.0, 0.0]])
+    with pytest.raises(SetError, match="empty"):  # xi1 + xi2 = 2.5 is outside the box
+        HullLP().maximize_many(np.eye(3), A, np.array([2.5, 0.0]))
+    with pytest.raises(SetError, match="empty"):  # constraints on no generator: 0 = 1
+        ConZonotope([0.0], [[1.0, 2.0]], np.zeros((1, 2)), [1.0]).interval()
+    # 0 = 0 on no generator: the zonotope itself
+    S = ConZonotope([0.0], [[1.0, 2.0]], np.zeros((1, 2)), [0.0])
+    np.testing.assert_allclose(S.interval().hi, [3.0])
+    Z = ConZonotope([1.0, 0.0], [[1.0, 0.5], [0.0, 2.0]])  # no constraints at all
+    np.testing.assert_allclose(Z.interval().lo, [-0.5, -2.0])
+    assert HullLP().maximize_many(np.array([[1.0, -2.0]]), np.zeros((0, 2)), np.zeros(0)
+                                  )[0] == pytest.approx(3.0)
+    with pytest.raises(SetError, match="unknown LP solver"):
+        HullLP("simplex")
+
+
+def test_unfinished_lps_fall_back_to_highs(monkeypatch):
+    A, b, Gd, _ = _instance("generic", 3)
+    exact = HullLP("highs").maximize_many(Gd, A, b)
+    monkeypatch.setattr(ds, "max_iterations", lambda p: 2)  # too few pivots for most LPs
+    lp = HullLP("batched")
+    ub = lp.maximize_many(Gd, A, b)
+    assert lp.fallbacks > 0
+    assert np.all(ub <= exact)  # the better of two valid bounds
+    for k, g in enumerate(Gd):
+        res = linprog(-g, A_eq=A, b_eq=b, bounds=(-1, 1), method="highs")
+        assert -res.fun - 1e-7 <= ub[k] <= -res.fun + 1e-7
+
+
+def test_solver_choice_follows_the_cost_model():
+    from observers.sets._lp import batched_is_cheaper
+    assert batched_is_cheaper(12, 8)  # interval hull of the 6-state vehicle, 2 m constraints
+    assert not batched_is_cheaper(4, 100)  # 2-state vehicle with all of CORA's constraints
