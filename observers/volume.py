@@ -17,16 +17,18 @@ Scoring all Bravo candidates at once
 ------------------------------------
 Because ``(I - lambda_j c) g_j = 0``, ``T_j T_j' = P_j M P_j' + sigma^2 lambda_j lambda_j'``
 with ``M = G G'`` and the oblique projector ``P_j = I - lambda_j c``.  Let ``B`` (n x n-1) be an
-orthonormal basis of the null space of ``c``.  The change of coordinates
-``R_j = [c; B' P_j] = [lambda_j, B]^{-1}`` (with ``det(R_j)^2 = ||c||^2``) block-diagonalises
-``T_j T_j'`` into ``sigma^2`` and ``B' P_j M P_j' B``, and ``B' P_j G = Gt - t_j a' / a_j`` up to
-a rank-one term absorbed below, where ``Gt = B' G (I - a a' / a'a)``.  This gives, for every j
-at once (matrix determinant lemma with the adjugate, valid for singular ``S0`` too),
+orthonormal basis of the null space of ``c``.  In the coordinates ``R_j = [c; B' P_j]``
+(``R_j = [lambda_j, B]^-1``, ``det(R_j)^2 = ||c||^2``) the matrix ``T_j T_j'`` is
+block-diagonal with blocks ``sigma^2`` and ``B' P_j M P_j' B``.  Since
+``B' P_j G = B'G - (B' g_j / a_j) a'``, and writing ``Gt = B' G (I - a a' / a'a)``
+((n-1) x r, independent of j) with columns ``t_j``, the second block is
+``S0 + (a'a / a_j^2) t_j t_j'`` with ``S0 = Gt Gt'``.  The matrix determinant lemma in its
+adjugate form (valid for singular ``S0`` too) then gives all scores at once:
 
     det(T_j T_j') = sigma^2 / ||c||^2 * (det S0 + (a'a / a_j^2) * t_j' adj(S0) t_j),
 
-with ``S0 = Gt Gt'`` ((n-1) x (n-1)) and ``t_j`` the j-th column of ``Gt``.  The cost is
-O(n^2 r) per strip instead of r determinants of n x r products.
+at a cost of O(n^2 r) per strip instead of r determinants of n x r products.  It is also
+more accurate than forming ``T_j T_j'``, which cancels badly when ``|a_j|`` is small.
 """
 
 from __future__ import annotations
@@ -51,10 +53,23 @@ def null_basis(c_row: np.ndarray) -> np.ndarray:
 
 
 def _adjugate_psd(S: np.ndarray) -> tuple[float, np.ndarray]:
-    """``(det S, adj S)`` of a symmetric matrix via its eigendecomposition (S may be singular)."""
+    """``(det S, adj S)`` of a symmetric positive semidefinite matrix (S may be singular).
+
+    Well-conditioned S (the usual case) goes through Cholesky and ``adj = det * inv``; a
+    singular or badly conditioned one through the eigendecomposition, where the adjugate is
+    ``U diag(prod_{k != i} mu_k) U'`` without any division.  (LAPACK's threaded symmetric
+    eigensolver is also far slower than Cholesky on a loaded machine.)
+    """
     k = S.shape[0]
     if k == 0:
         return 1.0, np.zeros((0, 0))
+    try:
+        d = np.diag(np.linalg.cholesky(S))
+        if d.min() > 1e-6 * d.max():
+            det = float(np.prod(d)) ** 2
+            return det, det * np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        pass
     mu, U = np.linalg.eigh(S)
     # product of all eigenvalues except the i-th, without dividing by (possibly zero) mu_i
     others = np.where(np.eye(k, dtype=bool), 1.0, mu[None, :])
