@@ -14,7 +14,8 @@ this bounds the P-radius ``R_k = max_{z in Z_k} ||z - c_k||_P^2`` by
 ``R_k <= beta R_{k-1} + tr(Ww) + tr(Wv)``, hence ``limsup R_k <= (tr Ww + tr Wv)/(1 - beta)``.
 The designs differ in the weights, the normalisation and the objective; see the functions.
 Every returned gain is checked in numpy: ``P > 0`` and (*) evaluated at ``Y = P Lam`` for the
-returned ``Lam`` (smallest eigenvalue >= -1e-6 relative, :data:`VERIFY_TOL`), else :class:`DesignFailed`.
+returned ``Lam`` (smallest eigenvalue >= -1e-6 relative, :data:`VERIFY_TOL`), else
+:class:`DesignFailed`.
 """
 
 from __future__ import annotations
