@@ -83,14 +83,19 @@ def verify_decay(
     return require_psd(D, f"{what}: P-radius inequality", tol=VERIFY_TOL)
 
 
-def _solve(problem) -> bool:
+#: Clarabel tolerances of the line-search evaluations (the chosen point is solved again with
+#: the defaults, 1e-8): they only rank decay rates, and save about a third of the iterations
+ROUGH = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-7}
+
+
+def _solve(problem, rough: bool = False) -> bool:
     """Solve with Clarabel; True if the problem was solved to (inaccurate) optimality."""
     import cvxpy as cp
 
     try:
         with warnings.catch_warnings():  # "solution may be inaccurate": judged by the status
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL)
+            problem.solve(solver=cp.CLARABEL, **(ROUGH if rough else {}))
     except (cp.error.SolverError, ArithmeticError, ValueError):
         return False
     return problem.status in FEASIBLE
@@ -116,6 +121,7 @@ def line_search(
     s_range: tuple[float, float] = (0.1, 4.0),
     grid: int = 12,
     tol: float = 0.02,
+    monotone: bool = False,
 ) -> tuple[float, float, Any] | None:
     """Minimise a design bound over the decay rate ``beta = 1 - 10^-s``.
 
@@ -123,7 +129,9 @@ def line_search(
     ``grid`` values of ``s`` in ``s_range`` (beta from ~0.2 to 0.9999, dense near 1 where slow
     modes put the feasible rates) brackets the minimum, then a golden-section search refines
     ``s`` to ``tol``.  Returns ``(beta, bound, solution)`` of the best evaluated point, or
-    ``None`` if no grid point is feasible.
+    ``None`` if no grid point is feasible.  ``monotone=True`` declares that feasibility at
+    ``beta`` implies feasibility at every larger ``beta``: the grid is then walked downwards
+    and stops at the first infeasible value (infeasible solves are the expensive ones).
     """
     cache: dict[float, tuple[float, Any]] = {}
 
@@ -134,7 +142,11 @@ def line_search(
         return cache[s][0]
 
     ss = np.linspace(*s_range, grid)
-    vals = [f(s) for s in ss]
+    vals = [np.inf] * grid
+    for k in (reversed(range(grid)) if monotone else range(grid)):
+        vals[k] = f(ss[k])
+        if monotone and not np.isfinite(vals[k]):
+            break
     i = int(np.argmin(vals))
     if not np.isfinite(vals[i]):
         return None
@@ -202,13 +214,17 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
 
 
 # -- PRad-C-I, PRad-C-II (Wang et al. 2018), PRad-D (Wang et al. 2019) -----------------------------
-def _line_searched(evaluate, what: str, search: dict | None):
-    found = line_search(evaluate, **(search or {}))
+def _line_searched(evaluate, what: str, search: dict | None, monotone: bool = False):
+    """Line search with rough solves (``evaluate(beta, rough)``), then an accurate solve at the
+    chosen rate; returns ``(beta, solution)``."""
+    found = line_search(lambda b: evaluate(b, True), monotone=monotone, **(search or {}))
     if found is None:
         raise DesignFailed(f"{what}: the P-radius LMI has no solution with P > 0 for any decay "
                            "rate in the search range (is a mode that cannot be corrected too "
                            "slow or unstable?)")
-    return found
+    beta, _, rough_solution = found
+    final = evaluate(beta, False)
+    return beta, rough_solution if final is None else final[1]
 
 
 def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None) -> GainDesign:
@@ -230,13 +246,13 @@ def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None)
     prob = cp.Problem(cp.Minimize(cp.sum(gw) + cp.sum(gv)), [
         P >> np.eye(n), decay_lmi(P, Y, A, C, E, F, beta * P, cp.diag(gw), cp.diag(gv))])
 
-    def evaluate(b: float):
+    def evaluate(b: float, rough: bool):
         beta.value = b
-        if not _solve(prob):
+        if not _solve(prob, rough):
             return None
         return prob.value / (1 - b), (P.value, Y.value, gw.value, gv.value)
 
-    b, _, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search)
+    b, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search, monotone=True)
     return _verified_weighted(Pv, Yv, np.maximum(gwv, 0), np.maximum(gvv, 0), b, A, C, E, F, what)
 
 
@@ -262,13 +278,13 @@ def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None
         (inv + inv.T) / 2 >> 0, cp.sum(gw) + cp.sum(gv) <= 1,
         decay_lmi(P, Y, A, C, E, F, beta * P, cp.diag(gw), cp.diag(gv))])
 
-    def evaluate(b: float):
+    def evaluate(b: float, rough: bool):
         beta.value = b
-        if not _solve(prob):
+        if not _solve(prob, rough):
             return None
         return prob.value / (1 - b), (P.value, Y.value, gw.value, gv.value)
 
-    b, _, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search)
+    b, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search, monotone=True)
     return _verified_weighted(Pv, Yv, np.maximum(gwv, 0), np.maximum(gvv, 0), b, A, C, E, F, what)
 
 
@@ -308,14 +324,14 @@ def wang_d_gain(
     r_inf = beta * nw + (1 - beta) * nv
     scale = 1e-9 * r_inf  # t below this counts as "no P > 0"
 
-    def evaluate(al: float):
+    def evaluate(al: float, rough: bool = False):
         a.value, ca.value = al, 1 - al
-        if not _solve(prob) or t.value <= scale * max(1.0, float(np.abs(P.value).max())):
+        if not _solve(prob, rough) or t.value <= scale * max(1.0, float(np.abs(P.value).max())):
             return None
         return r_inf / t.value, (P.value, Y.value)
 
     if alpha is None:
-        al, _, (Pv, Yv) = _line_searched(evaluate, what, search)
+        al, (Pv, Yv) = _line_searched(evaluate, what, search)
     else:
         out = evaluate(alpha)
         if out is None:
