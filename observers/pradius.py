@@ -263,7 +263,9 @@ def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None
     ``tr(Ww) + tr(Wv) <= 1``, so that the estimates end up in the ellipsoid
     ``{z : z' P z <= 1/(1 - beta)}``; minimise the sum of its squared semi-axes,
     ``tr(P^-1)/(1 - beta)`` (as ``tr X`` with ``[[X, I], [I, P]] >= 0``), over ``P, Y`` and
-    the weights for fixed ``beta``, and over ``beta`` by :func:`line_search`.
+    the weights for fixed ``beta``, and over ``beta`` by :func:`line_search`.  Since the
+    interval radius of state i over that ellipsoid is ``sqrt((P^-1)_ii / (1 - beta))``, the
+    objective is the sum over the states of the squared bounds of their interval radii.
     """
     import cvxpy as cp
 
@@ -322,11 +324,11 @@ def wang_d_gain(
         P >> t * np.eye(n),
         decay_lmi(P, Y, A, C, E, F, a * P, ca * beta * np.eye(nw), ca * (1 - beta) * np.eye(nv))])
     r_inf = beta * nw + (1 - beta) * nv
-    scale = 1e-9 * r_inf  # t below this counts as "no P > 0"
 
     def evaluate(al: float, rough: bool = False):
         a.value, ca.value = al, 1 - al
-        if not _solve(prob, rough) or t.value <= scale * max(1.0, float(np.abs(P.value).max())):
+        # t at the level of rounding relative to P means "no P > 0" (P singular)
+        if not _solve(prob, rough) or t.value <= 1e-9 * float(np.abs(P.value).max()):
             return None
         return r_inf / t.value, (P.value, Y.value)
 

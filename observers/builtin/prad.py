@@ -38,7 +38,8 @@ Relation to CORA and to the papers
     bounded one: ``min tr(P^-1)``, the sum of the squared semi-axes of that ellipsoid (``max
     tr P`` rewards a P that is huge in one direction and singular in others: it is unbounded
     without normalisation and numerically singular with it); ``beta`` minimises
-    ``tr(P^-1)/(1 - beta)`` (line search).  C-I bounds the largest semi-axis, C-II their
+    ``tr(P^-1)/(1 - beta)`` (line search), which is also the sum over the states of the
+    squared bounds of their interval radii.  C-I bounds the largest semi-axis, C-II the
     squared sum.
   - **PRad-D** (Wang, Wang, Puig, Cembrano, IEEE TAC 64(5), 2019): CORA's fixed weights
     ``alpha P``, ``(1 - alpha) beta I``, ``(1 - alpha)(1 - beta) I`` (its ``E_new``/``F_new``
