@@ -227,6 +227,44 @@ def _line_searched(evaluate, what: str, search: dict | None, monotone: bool = Fa
     return beta, rough_solution if final is None else final[1]
 
 
+class _WeightedLMI:
+    """(*) with ``Wx = beta P`` and free diagonal weights (CORA's PRad-C inequality): the
+    variables, the parameter ``beta`` and the constraint, shared by PRad-C-I and PRad-C-II."""
+
+    def __init__(self, A, C, E, F):
+        import cvxpy as cp
+
+        self.data = _as_arrays(A, C, E, F)
+        A, C, E, F = self.data
+        n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
+        self.P, self.Y = _variables(n, m)
+        self.gw, self.gv = cp.Variable(nw, nonneg=True), cp.Variable(nv, nonneg=True)
+        self.beta = cp.Parameter(nonneg=True)
+        self.lmi = decay_lmi(self.P, self.Y, A, C, E, F, self.beta * self.P,
+                             cp.diag(self.gw), cp.diag(self.gv))
+
+    def design(self, objective, constraints: list, what: str, search: dict | None):
+        """Line search on ``beta`` minimising ``objective/(1 - beta)``, then verification."""
+        import cvxpy as cp
+
+        prob = cp.Problem(objective, [self.lmi, *constraints])
+
+        def evaluate(b: float, rough: bool):
+            self.beta.value = b
+            if not _solve(prob, rough):
+                return None
+            return prob.value / (1 - b), tuple(v.value for v in (self.P, self.Y, self.gw, self.gv))
+
+        b, (Pv, Yv, gw, gv) = _line_searched(evaluate, what, search, monotone=True)
+        gw, gv = np.maximum(gw, 0), np.maximum(gv, 0)
+        Pv = 0.5 * (Pv + Pv.T)
+        L = _gain(Pv, Yv, what)
+        A, C, E, F = self.data
+        verify_decay(Pv, L, A, C, E, F, b * Pv, np.diag(gw), np.diag(gv), what)
+        bound = (gw.sum() + gv.sum()) / ((1 - b) * np.linalg.eigvalsh(Pv)[0])
+        return GainDesign(L, Pv, b, {"radius_bound": float(np.sqrt(bound))})
+
+
 def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None) -> GainDesign:
     """PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
 
@@ -238,22 +276,10 @@ def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None)
     """
     import cvxpy as cp
 
-    A, C, E, F = _as_arrays(A, C, E, F)
-    n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
-    P, Y = _variables(n, m)
-    gw, gv = cp.Variable(nw, nonneg=True), cp.Variable(nv, nonneg=True)
-    beta = cp.Parameter(nonneg=True)
-    prob = cp.Problem(cp.Minimize(cp.sum(gw) + cp.sum(gv)), [
-        P >> np.eye(n), decay_lmi(P, Y, A, C, E, F, beta * P, cp.diag(gw), cp.diag(gv))])
-
-    def evaluate(b: float, rough: bool):
-        beta.value = b
-        if not _solve(prob, rough):
-            return None
-        return prob.value / (1 - b), (P.value, Y.value, gw.value, gv.value)
-
-    b, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search, monotone=True)
-    return _verified_weighted(Pv, Yv, np.maximum(gwv, 0), np.maximum(gvv, 0), b, A, C, E, F, what)
+    lmi = _WeightedLMI(A, C, E, F)
+    n = lmi.P.shape[0]
+    return lmi.design(cp.Minimize(cp.sum(lmi.gw) + cp.sum(lmi.gv)), [lmi.P >> np.eye(n)],
+                      what, search)
 
 
 def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None) -> GainDesign:
@@ -269,33 +295,13 @@ def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None
     """
     import cvxpy as cp
 
-    A, C, E, F = _as_arrays(A, C, E, F)
-    n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
-    P, Y = _variables(n, m)
+    lmi = _WeightedLMI(A, C, E, F)
+    n = lmi.P.shape[0]
     X = cp.Variable((n, n), symmetric=True)
-    gw, gv = cp.Variable(nw, nonneg=True), cp.Variable(nv, nonneg=True)
-    beta = cp.Parameter(nonneg=True)
-    inv = cp.bmat([[X, np.eye(n)], [np.eye(n), P]])
-    prob = cp.Problem(cp.Minimize(cp.trace(X)), [
-        (inv + inv.T) / 2 >> 0, cp.sum(gw) + cp.sum(gv) <= 1,
-        decay_lmi(P, Y, A, C, E, F, beta * P, cp.diag(gw), cp.diag(gv))])
-
-    def evaluate(b: float, rough: bool):
-        beta.value = b
-        if not _solve(prob, rough):
-            return None
-        return prob.value / (1 - b), (P.value, Y.value, gw.value, gv.value)
-
-    b, (Pv, Yv, gwv, gvv) = _line_searched(evaluate, what, search, monotone=True)
-    return _verified_weighted(Pv, Yv, np.maximum(gwv, 0), np.maximum(gvv, 0), b, A, C, E, F, what)
-
-
-def _verified_weighted(Pv, Yv, gw, gv, beta, A, C, E, F, what) -> GainDesign:
-    Pv = 0.5 * (Pv + Pv.T)
-    L = _gain(Pv, Yv, what)
-    verify_decay(Pv, L, A, C, E, F, beta * Pv, np.diag(gw), np.diag(gv), what)
-    bound = (gw.sum() + gv.sum()) / ((1 - beta) * np.linalg.eigvalsh(Pv)[0])
-    return GainDesign(L, Pv, beta, {"radius_bound": float(np.sqrt(bound))})
+    inv = cp.bmat([[X, np.eye(n)], [np.eye(n), lmi.P]])
+    return lmi.design(cp.Minimize(cp.trace(X)),
+                      [(inv + inv.T) / 2 >> 0, cp.sum(lmi.gw) + cp.sum(lmi.gv) <= 1],
+                      what, search)
 
 
 def wang_d_gain(
