@@ -56,6 +56,19 @@ Relation to CORA and to the papers
   for the returned ``Lambda``); an infeasible or unverifiable design raises
   :class:`~observers.errors.DesignFailed` (table status ``noGain``).  The estimates are sound
   for any gain; the design only shapes their size.
+
+Known behaviour
+---------------
+* PRad-B's objective pins only the smallest eigenvalue of P.  Where the optimal set is not a
+  single point (the 6-tank system), gains optimal to 1e-6 give RMS radii from 0.6x to 1.1x
+  those of ARCH 2021 Table 3; Clarabel returns the limit of its central path, another solver
+  (the table's) another optimal point.  On the 2-D vehicle the optimum is unique.
+* A mode the outputs cannot correct bounds every decay rate from below (the unmeasured last
+  tank, eigenvalue 0.996, forces ``beta >= 0.992``).  The single P-radius bound is then
+  governed by that mode, and PRad-C-I/C-II/D trade the measured states for it: on the 6-tank
+  their radii of the measured tanks are about ten times those of PRad-B (ARCH's PRad-C/D rows
+  are SDPT3 iterates of the ill-posed problems, with radii near the best observers').  On the
+  vehicle models they are on a par with PRad-B.
 """
 
 from __future__ import annotations
