@@ -147,6 +147,38 @@ def test_prad_b_tank6_rms_radii_vs_arch2021_table3():
     np.testing.assert_allclose(got, expected, rtol=0.15)
 
 
+def test_arch2021_prad_b_radii_lie_among_optimal_gains_of_the_sdp():
+    # Evidence for the non-uniqueness above: the gains of three optimal points of PRad-B's SDP
+    # (tau within 1e-6 of its optimum; Clarabel's central point, least and largest tr P)
+    # span per state a range of RMS radii that contains ARCH's published value.
+    import cvxpy as cp
+
+    from observers.pradius import decay_lmi
+
+    sc = systems.scenario("tank6-linear")
+    s = sc.system
+    A, C, E, F = _arrays(s)
+    eps = cora_epsilon(s.W, np.full(3, 0.2))
+    beta = cora_bisection_end(0.0, 1.0, 0.01)
+    P, Y, tau = cp.Variable((6, 6), symmetric=True), cp.Variable((6, 3)), cp.Variable()
+    cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, E.T @ E, F.T @ F),
+            (1 - beta) * P / eps >> tau * np.eye(6), tau >= 0]
+    cp.Problem(cp.Maximize(tau), cons).solve(solver=cp.CLARABEL)
+    gains = [np.linalg.solve(P.value, Y.value)]
+    face = [*cons, tau >= (1 - 1e-6) * tau.value]
+    for objective in (cp.Minimize(cp.trace(P)), cp.Maximize(cp.trace(P))):
+        cp.Problem(objective, face).solve(solver=cp.CLARABEL)
+        gains.append(np.linalg.solve(P.value, Y.value))
+    radii = np.array([rms_radius(observers.run(
+        observers.create("PRad-B", s, gain=L, **sc.options), sc.u, sc.y).radius) for L in gains])
+    tab = paper_table("arch2021_table3_tank6_linear")
+    expected = np.array(tab["rows"]["PRad-B"]["v"]) * np.array(tab["smallest_absolute_radii"])
+    assert np.all(radii.min(axis=0) <= expected * 1.005)
+    assert np.all(radii.max(axis=0) >= expected * 0.995)
+    spread = radii.max(axis=0) / radii.min(axis=0)
+    assert np.all(spread[:5] > 1.05)  # not a single point (tank 6 is unobservable: ~1)
+
+
 def _contained(sc, name):
     res = observers.run(observers.create(name, sc.system, **sc.options), sc.u, sc.y)
     assert res.status == "ok", res.message
