@@ -1,0 +1,353 @@
+"""Offline P-radius gain designs (SDPs solved with cvxpy + Clarabel, verified in numpy).
+
+All designs share one matrix inequality.  For the strip-based update with a constant gain
+``Lam`` (intersection method II; method I is the same per output), the generators of the
+estimate evolve as ``H_k = [(I - Lam C) A H_{k-1}, (I - Lam C) E, Lam F]`` (``E``, ``F``: the
+generator matrices of ``W`` and ``V``).  With ``Y = P Lam`` and ``M = [(P - Y C) A,
+(P - Y C) E, Y F]`` the inequality
+
+    D(P, Y) = [[diag(Wx, Ww, Wv), M'], [M, P]]  >=  0                                    (*)
+
+says (Schur complement) that ``||H_k xi||_P^2 <= xi_x' Wx xi_x + xi_w' Ww xi_w +
+xi_v' Wv xi_v`` for every stacked ``xi``.  With ``Wx = beta P`` and diagonal ``Ww``, ``Wv``
+this bounds the P-radius ``R_k = max_{z in Z_k} ||z - c_k||_P^2`` by
+``R_k <= beta R_{k-1} + tr(Ww) + tr(Wv)``, hence ``limsup R_k <= (tr Ww + tr Wv)/(1 - beta)``.
+The designs differ in the weights, the normalisation and the objective; see the functions.
+Every returned gain is checked in numpy: ``P > 0`` and (*) evaluated at ``Y = P Lam`` for the
+returned ``Lam`` (smallest eigenvalue >= -1e-6 relative, :data:`VERIFY_TOL`), else
+:class:`DesignFailed`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import DesignFailed
+from .lmi import require_pd, require_psd
+
+FEASIBLE = ("optimal", "optimal_inaccurate")
+#: relative tolerance of the numpy check of (*): the optimum of every design lies on the
+#: boundary of the LMI, where the solver's feasibility tolerance (1e-8 on its scaled problem)
+#: shows up as eigenvalues of order -1e-7 relative to the largest entry of D
+VERIFY_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class GainDesign:
+    """A verified constant gain with the design data that certify it."""
+
+    gain: np.ndarray
+    P: np.ndarray
+    beta: float
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv) -> list[list]:
+    """Blocks of ``D(P, Y)`` in (*), for numpy arrays or cvxpy expressions alike."""
+    n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
+    Z = np.zeros
+    M1 = (P - Y @ C) @ A
+    M2 = (P - Y @ C) @ E
+    M3 = Y @ F
+    return [
+        [Wx, Z((n, nw)), Z((n, nv)), M1.T],
+        [Z((nw, n)), Ww, Z((nw, nv)), M2.T],
+        [Z((nv, n)), Z((nv, nw)), Wv, M3.T],
+        [M1, M2, M3, P],
+    ]
+
+
+def decay_lmi(P, Y, A, C, E, F, Wx, Ww, Wv):
+    """cvxpy constraint ``D(P, Y) >= 0`` (symmetrised, as cvxpy requires)."""
+    import cvxpy as cp
+
+    S = cp.bmat(decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv))
+    return (S + S.T) / 2 >> 0
+
+
+def verify_decay(
+    P: np.ndarray, L: np.ndarray, A, C, E, F, Wx, Ww, Wv, what: str
+) -> float:
+    """Check ``P > 0`` (not numerically singular: smallest eigenvalue above ``1e-9`` times the
+    largest) and ``D(P, P L) >= 0`` in numpy; returns the smallest eigenvalue of D."""
+    top = float(np.linalg.eigvalsh(0.5 * (P + P.T))[-1])
+    require_pd(P, f"{what}: P > 0", margin=1e-9 * max(top, 0.0))
+    if not np.all(np.isfinite(L)):
+        raise DesignFailed(f"{what}: the gain is not finite")
+    D = np.block(decay_blocks(P, P @ L, A, C, E, F, Wx, Ww, Wv))
+    return require_psd(D, f"{what}: P-radius inequality", tol=VERIFY_TOL)
+
+
+#: Clarabel tolerances of the line-search evaluations (the chosen point is solved again with
+#: the defaults, 1e-8): they only rank decay rates, and save about a third of the iterations
+ROUGH = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-7}
+
+
+def _solve(problem, rough: bool = False) -> bool:
+    """Solve with Clarabel; True if the problem was solved to (inaccurate) optimality."""
+    import cvxpy as cp
+
+    try:
+        with warnings.catch_warnings():  # "solution may be inaccurate": judged by the status
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL, **(ROUGH if rough else {}))
+    except (cp.error.SolverError, ArithmeticError, ValueError):
+        return False
+    return problem.status in FEASIBLE
+
+
+def cora_bisection_end(lo: float, hi: float, tol: float) -> float:
+    """Where CORA's bisection ends when every tested value is feasible.
+
+    CORA halves ``[lo, hi]`` until ``hi - lo <= tol``, moving *up* after a feasible solve and
+    keeping the values of the last solve.  Its PRad-A/B SDP is feasible for every ``beta``
+    (``P = Y = 0``, ``tau = 0``), so the loop always moves up and ends at ``hi - (hi - lo)
+    2^-k`` (0.9921875 for [0, 1] and tol 0.01), where the gain is that of one solve.
+    """
+    if not hi > lo or not tol > 0:
+        raise ValueError("bisection needs lo < hi and tol > 0")
+    while hi - lo > tol:
+        lo = 0.5 * (lo + hi)
+    return lo
+
+
+def line_search(
+    evaluate: Callable[[float], tuple[float, Any] | None],
+    s_range: tuple[float, float] = (0.1, 4.0),
+    grid: int = 12,
+    tol: float = 0.02,
+    monotone: bool = False,
+) -> tuple[float, float, Any] | None:
+    """Minimise a design bound over the decay rate ``beta = 1 - 10^-s``.
+
+    ``evaluate(beta)`` returns ``(bound, solution)`` or ``None`` (infeasible: +inf).  A grid of
+    ``grid`` values of ``s`` in ``s_range`` (beta from ~0.2 to 0.9999, dense near 1 where slow
+    modes put the feasible rates) brackets the minimum, then a golden-section search refines
+    ``s`` to ``tol``.  Returns ``(beta, bound, solution)`` of the best evaluated point, or
+    ``None`` if no grid point is feasible.  ``monotone=True`` declares that feasibility at
+    ``beta`` implies feasibility at every larger ``beta``: the grid is then walked downwards
+    and stops at the first infeasible value (infeasible solves are the expensive ones).
+    """
+    cache: dict[float, tuple[float, Any]] = {}
+
+    def f(s: float) -> float:
+        if s not in cache:
+            out = evaluate(1.0 - 10.0 ** (-s))
+            cache[s] = (np.inf, None) if out is None else out
+        return cache[s][0]
+
+    ss = np.linspace(*s_range, grid)
+    vals = [np.inf] * grid
+    for k in (reversed(range(grid)) if monotone else range(grid)):
+        vals[k] = f(ss[k])
+        if monotone and not np.isfinite(vals[k]):
+            break
+    i = int(np.argmin(vals))
+    if not np.isfinite(vals[i]):
+        return None
+    a, b = ss[max(i - 1, 0)], ss[min(i + 1, grid - 1)]
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = b - g * (b - a), a + g * (b - a)
+    while b - a > tol:
+        if f(x1) <= f(x2):
+            b, x2 = x2, x1
+            x1 = b - g * (b - a)
+        else:
+            a, x1 = x1, x2
+            x2 = a + g * (b - a)
+    s_best = min(cache, key=lambda s: cache[s][0])
+    bound, sol = cache[s_best]
+    return 1.0 - 10.0 ** (-s_best), bound, sol
+
+
+def _as_arrays(A, C, E, F):
+    return tuple(np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, C, E, F))
+
+
+def _gain(P: np.ndarray, Y: np.ndarray, what: str) -> np.ndarray:
+    P = 0.5 * (P + P.T)
+    try:
+        return np.linalg.solve(P, Y)
+    except np.linalg.LinAlgError:
+        raise DesignFailed(f"{what}: P is singular") from None
+
+
+def _variables(n: int, m: int):
+    import cvxpy as cp
+
+    return cp.Variable((n, n), symmetric=True), cp.Variable((n, m))
+
+
+# -- PRad-B (and PRad-A per output): Le et al., ISIC 2013 ----------------------------------------
+def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B") -> GainDesign:
+    """P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
+
+    Weights ``Wx = beta P``, ``Ww = E'E``, ``Wv = F'F`` (fixed, which pins the scale of P);
+    maximise ``tau`` subject to (*), ``P >= 0``, ``(1 - beta) P / epsilon >= tau I`` and
+    ``tau >= 0``, i.e. the smallest eigenvalue of ``(1 - beta) P / epsilon``.  ``beta`` is
+    where CORA's bisection on [0, 1] with tolerance ``beta_tol`` ends
+    (:func:`cora_bisection_end`: 0.9921875).  ``epsilon`` only scales ``tau``; it is kept for
+    fidelity (CORA: ``norm(W) + phi'phi``).  A solution with singular P (``tau = 0``, no
+    P-radius contraction possible) fails the verification.
+    """
+    import cvxpy as cp
+
+    A, C, E, F = _as_arrays(A, C, E, F)
+    n, m = C.shape[1], C.shape[0]
+    beta = cora_bisection_end(0.0, 1.0, beta_tol)
+    P, Y = _variables(n, m)
+    tau = cp.Variable()
+    Ww, Wv = E.T @ E, F.T @ F
+    cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
+            (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
+    if not _solve(cp.Problem(cp.Maximize(tau), cons)):
+        raise DesignFailed(f"{what}: the P-radius SDP could not be solved at beta={beta}")
+    Pv = 0.5 * (P.value + P.value.T)
+    L = _gain(Pv, Y.value, what)
+    verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
+    return GainDesign(L, Pv, beta, {"tau": float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)})
+
+
+# -- PRad-C-I, PRad-C-II (Wang et al. 2018), PRad-D (Wang et al. 2019) -----------------------------
+def _line_searched(evaluate, what: str, search: dict | None, monotone: bool = False):
+    """Line search with rough solves (``evaluate(beta, rough)``), then an accurate solve at the
+    chosen rate; returns ``(beta, solution)``."""
+    found = line_search(lambda b: evaluate(b, True), monotone=monotone, **(search or {}))
+    if found is None:
+        raise DesignFailed(f"{what}: the P-radius LMI has no solution with P > 0 for any decay "
+                           "rate in the search range (is a mode that cannot be corrected too "
+                           "slow or unstable?)")
+    beta, _, rough_solution = found
+    final = evaluate(beta, False)
+    return beta, rough_solution if final is None else final[1]
+
+
+class _WeightedLMI:
+    """(*) with ``Wx = beta P`` and free diagonal weights (CORA's PRad-C inequality): the
+    variables, the parameter ``beta`` and the constraint, shared by PRad-C-I and PRad-C-II."""
+
+    def __init__(self, A, C, E, F):
+        import cvxpy as cp
+
+        self.data = _as_arrays(A, C, E, F)
+        A, C, E, F = self.data
+        n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
+        self.P, self.Y = _variables(n, m)
+        self.gw, self.gv = cp.Variable(nw, nonneg=True), cp.Variable(nv, nonneg=True)
+        self.beta = cp.Parameter(nonneg=True)
+        self.lmi = decay_lmi(self.P, self.Y, A, C, E, F, self.beta * self.P,
+                             cp.diag(self.gw), cp.diag(self.gv))
+
+    def design(self, objective, constraints: list, what: str, search: dict | None):
+        """Line search on ``beta`` minimising ``objective/(1 - beta)``, then verification."""
+        import cvxpy as cp
+
+        prob = cp.Problem(objective, [self.lmi, *constraints])
+
+        def evaluate(b: float, rough: bool):
+            self.beta.value = b
+            if not _solve(prob, rough):
+                return None
+            return prob.value / (1 - b), tuple(v.value for v in (self.P, self.Y, self.gw, self.gv))
+
+        b, (Pv, Yv, gw, gv) = _line_searched(evaluate, what, search, monotone=True)
+        gw, gv = np.maximum(gw, 0), np.maximum(gv, 0)
+        Pv = 0.5 * (Pv + Pv.T)
+        L = _gain(Pv, Yv, what)
+        A, C, E, F = self.data
+        verify_decay(Pv, L, A, C, E, F, b * Pv, np.diag(gw), np.diag(gv), what)
+        bound = (gw.sum() + gv.sum()) / ((1 - b) * np.linalg.eigvalsh(Pv)[0])
+        return GainDesign(L, Pv, b, {"radius_bound": float(np.sqrt(bound))})
+
+
+def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None) -> GainDesign:
+    """PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
+
+    Weights ``Wx = beta P`` and free diagonal ``Ww = diag(gw) >= 0``, ``Wv = diag(gv) >= 0``
+    (CORA's ``G``, ``O``); normalisation ``P >= I``.  For fixed ``beta`` minimise
+    ``tr(Ww) + tr(Wv)``, so that ``limsup R_k <= (tr Ww + tr Wv)/(1 - beta)`` and, since
+    ``P >= I``, the same number bounds the squared Euclidean radius of the estimates; ``beta``
+    minimises that bound (:func:`line_search`).
+    """
+    import cvxpy as cp
+
+    lmi = _WeightedLMI(A, C, E, F)
+    n = lmi.P.shape[0]
+    return lmi.design(cp.Minimize(cp.sum(lmi.gw) + cp.sum(lmi.gv)), [lmi.P >> np.eye(n)],
+                      what, search)
+
+
+def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None) -> GainDesign:
+    """PRad-C-II: smallest bounding ellipsoid in the trace sense (Wang, Alamo et al. 2018).
+
+    The LMI of :func:`wang_c1_gain` (CORA's PRad-C inequality) with the normalisation
+    ``tr(Ww) + tr(Wv) <= 1``, so that the estimates end up in the ellipsoid
+    ``{z : z' P z <= 1/(1 - beta)}``; minimise the sum of its squared semi-axes,
+    ``tr(P^-1)/(1 - beta)`` (as ``tr X`` with ``[[X, I], [I, P]] >= 0``), over ``P, Y`` and
+    the weights for fixed ``beta``, and over ``beta`` by :func:`line_search`.  Since the
+    interval radius of state i over that ellipsoid is ``sqrt((P^-1)_ii / (1 - beta))``, the
+    objective is the sum over the states of the squared bounds of their interval radii.
+    """
+    import cvxpy as cp
+
+    lmi = _WeightedLMI(A, C, E, F)
+    n = lmi.P.shape[0]
+    X = cp.Variable((n, n), symmetric=True)
+    inv = cp.bmat([[X, np.eye(n)], [np.eye(n), lmi.P]])
+    return lmi.design(cp.Minimize(cp.trace(X)),
+                      [(inv + inv.T) / 2 >> 0, cp.sum(lmi.gw) + cp.sum(lmi.gv) <= 1],
+                      what, search)
+
+
+def wang_d_gain(
+    A, C, E, F, alpha: float | None = None, beta: float = 0.5, what: str = "PRad-D",
+    search: dict | None = None,
+) -> GainDesign:
+    """PRad-D: largest P for fixed noise weights (Wang, Wang, Puig, Cembrano, TAC 2019).
+
+    Weights ``Wx = alpha P``, ``Ww = (1 - alpha) beta I``, ``Wv = (1 - alpha)(1 - beta) I``
+    (CORA's ``E_new``/``F_new`` blocks reduce to these), so that ``limsup R_k <= r_inf =
+    beta n_w + (1 - beta) n_v`` whatever P; the squared Euclidean radius is then bounded by
+    ``r_inf / gamma^2`` if ``P >= gamma^2 I``.  For fixed ``alpha`` maximise ``t = gamma^2``
+    subject to (*) and ``P >= t I`` (one SDP; it replaces the bisection on ``gamma``, since
+    ``t`` enters linearly).  ``alpha=None`` chooses the decay rate ``alpha`` that minimises the
+    bound by :func:`line_search`; a number fixes it (CORA and the paper use 0.5).
+    """
+    import cvxpy as cp
+
+    A, C, E, F = _as_arrays(A, C, E, F)
+    n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
+    P, Y = _variables(n, m)
+    t = cp.Variable()
+    a = cp.Parameter(nonneg=True)
+    ca = cp.Parameter(nonneg=True)  # 1 - alpha (kept a parameter so that the problem is DPP)
+    prob = cp.Problem(cp.Maximize(t), [
+        P >> t * np.eye(n),
+        decay_lmi(P, Y, A, C, E, F, a * P, ca * beta * np.eye(nw), ca * (1 - beta) * np.eye(nv))])
+    r_inf = beta * nw + (1 - beta) * nv
+
+    def evaluate(al: float, rough: bool = False):
+        a.value, ca.value = al, 1 - al
+        # t at the level of rounding relative to P means "no P > 0" (P singular)
+        if not _solve(prob, rough) or t.value <= 1e-9 * float(np.abs(P.value).max()):
+            return None
+        return r_inf / t.value, (P.value, Y.value)
+
+    if alpha is None:
+        al, (Pv, Yv) = _line_searched(evaluate, what, search)
+    else:
+        out = evaluate(alpha)
+        if out is None:
+            raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius LMI with alpha={alpha}")
+        al, (Pv, Yv) = alpha, out[1]
+    Pv = 0.5 * (Pv + Pv.T)
+    L = _gain(Pv, Yv, what)
+    verify_decay(Pv, L, A, C, E, F, al * Pv, (1 - al) * beta * np.eye(nw),
+                 (1 - al) * (1 - beta) * np.eye(nv), what)
+    bound = r_inf / np.linalg.eigvalsh(Pv)[0]
+    return GainDesign(L, Pv, al, {"radius_bound": float(np.sqrt(bound))})

@@ -1,0 +1,241 @@
+"""Numeric kernels of the volume-minimising strip intersections (VolMin-A, VolMin-B).
+
+Both act on one measurement strip ``|c x - y| <= sigma`` (``c`` a row of ``C``) and a zonotope
+``(c0, G)`` with ``G`` of shape n x r.
+
+* :func:`bravo_choice` / :func:`bravo_update` (Bravo, Alamo, Camacho, IEEE TAC 51(7), 2006,
+  Sec. III.B; intersection method III of Althoff & Rath 2021): choose, among the r + 1
+  candidate zonotopes, the one of least ``det(T T')``.  Candidate ``j >= 1`` eliminates
+  generator ``g_j``: with ``a = c G`` and ``lambda_j = g_j / a_j``,
+  ``T_j = [(I - lambda_j c) G  with column j replaced by  sigma lambda_j]``; candidate 0 (and
+  every ``j`` with ``|a_j| <= 1e10 eps``, CORA's rule) is the unchanged zonotope.
+* :func:`volume_lp_gain` (Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6.2): the gain
+  ``lambda`` minimising the exact volume of the enclosure ``strip_update(c0, G, lambda)``, a
+  linear program over the volume expression (exponential in the generator count).
+
+Scoring all Bravo candidates at once
+------------------------------------
+Because ``(I - lambda_j c) g_j = 0``, ``T_j T_j' = P_j M P_j' + sigma^2 lambda_j lambda_j'``
+with ``M = G G'`` and the oblique projector ``P_j = I - lambda_j c``.  Let ``B`` (n x n-1) be an
+orthonormal basis of the null space of ``c``.  In the coordinates ``R_j = [c; B' P_j]``
+(``R_j = [lambda_j, B]^-1``, ``det(R_j)^2 = ||c||^2``) the matrix ``T_j T_j'`` is
+block-diagonal with blocks ``sigma^2`` and ``B' P_j M P_j' B``.  Since
+``B' P_j G = B'G - (B' g_j / a_j) a'``, and writing ``Gt = B' G (I - a a' / a'a)``
+((n-1) x r, independent of j) with columns ``t_j``, the second block is
+``S0 + (a'a / a_j^2) t_j t_j'`` with ``S0 = Gt Gt'``.  The matrix determinant lemma in its
+adjugate form (valid for singular ``S0`` too) then gives all scores at once:
+
+    det(T_j T_j') = sigma^2 / ||c||^2 * (det S0 + (a'a / a_j^2) * t_j' adj(S0) t_j),
+
+at a cost of O(n^2 r) per strip instead of r determinants of n x r products.  It is also
+more accurate than forming ``T_j T_j'``, which cancels badly when ``|a_j|`` is small.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from itertools import combinations
+
+import highspy
+import numpy as np
+import scipy.sparse as sp
+
+#: CORA's threshold below which ``c g_j`` counts as zero (candidate j = unchanged zonotope)
+ZERO_PROJECTION = 1e10 * np.finfo(float).eps
+
+
+def null_basis(c_row: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (n x n-1) of the null space of the row vector ``c_row``."""
+    c_row = np.asarray(c_row, dtype=float).reshape(1, -1)
+    _, _, Vt = np.linalg.svd(c_row)
+    return Vt[1:].T
+
+
+def _adjugate_psd(S: np.ndarray) -> tuple[float, np.ndarray]:
+    """``(det S, adj S)`` of a symmetric positive semidefinite matrix (S may be singular).
+
+    Well-conditioned S (the usual case) goes through Cholesky and ``adj = det * inv``; a
+    singular or badly conditioned one through the eigendecomposition, where the adjugate is
+    ``U diag(prod_{k != i} mu_k) U'`` without any division.  (LAPACK's threaded symmetric
+    eigensolver is also far slower than Cholesky on a loaded machine.)
+    """
+    k = S.shape[0]
+    if k == 0:
+        return 1.0, np.zeros((0, 0))
+    try:
+        d = np.diag(np.linalg.cholesky(S))
+        if d.min() > 1e-6 * d.max():
+            det = float(np.prod(d)) ** 2
+            return det, det * np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        pass
+    mu, U = np.linalg.eigh(S)
+    # product of all eigenvalues except the i-th, without dividing by (possibly zero) mu_i
+    others = np.where(np.eye(k, dtype=bool), 1.0, mu[None, :])
+    cof = np.prod(others, axis=1)
+    return float(np.prod(mu)), (U * cof) @ U.T
+
+
+def bravo_scores(
+    G: np.ndarray, c_row: np.ndarray, sigma: float, basis: np.ndarray | None = None
+) -> np.ndarray:
+    """``det(T_j T_j')`` of Bravo's candidates ``j = 0..r`` (index 0: unchanged zonotope).
+
+    Parameters
+    ----------
+    G : (n, r) array
+        Generators of the zonotope to intersect.
+    c_row : (n,) array
+        Row of the output matrix defining the strip.
+    sigma : float
+        Half-width of the strip.
+    basis : (n, n-1) array, optional
+        :func:`null_basis` of ``c_row`` (precomputed by callers that reuse it).
+    """
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    n, r = G.shape
+    B = null_basis(c_row) if basis is None else basis
+    scores = np.empty(r + 1)
+    scores[0] = np.linalg.det(G @ G.T)
+    a = c_row @ G
+    q = float(a @ a)
+    valid = np.abs(a) > ZERO_PROJECTION
+    scores[1:] = scores[0]
+    if q == 0.0 or not np.any(valid):
+        return scores
+    BG = B.T @ G
+    Gt = BG - np.outer(BG @ a, a / q)
+    det_S0, adj_S0 = _adjugate_psd(Gt @ Gt.T)
+    quad = np.einsum("ij,ij->j", Gt, adj_S0 @ Gt)
+    scale = sigma**2 / float(c_row @ c_row)
+    av = a[valid]
+    scores[1:][valid] = scale * (det_S0 + (q / av**2) * quad[valid])
+    return scores
+
+
+def bravo_choice(
+    G: np.ndarray, c_row: np.ndarray, sigma: float, basis: np.ndarray | None = None
+) -> int:
+    """Index of Bravo's best candidate (0 = unchanged; ties: the first index, as CORA)."""
+    return int(np.argmin(bravo_scores(G, c_row, sigma, basis)))
+
+
+def bravo_update(
+    c: np.ndarray, G: np.ndarray, c_row: np.ndarray, y: float, sigma: float, j: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bravo's candidate ``j`` (1-based generator index; 0 returns ``(c, G)`` unchanged)."""
+    if j == 0:
+        return c, G
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    a = c_row @ G
+    lam = G[:, j - 1] / a[j - 1]
+    c_new = c + lam * (y - c_row @ c)
+    G_new = G - np.outer(lam, a)
+    G_new[:, j - 1] = sigma * lam
+    return c_new, G_new
+
+
+# -- Alamo's volume LP ---------------------------------------------------------------------------
+def subset_count(r: int, n: int) -> int:
+    """Number of generator subsets the volume LP enumerates: ``C(r, n) + C(r, n-1)``."""
+    return math.comb(r, n) + math.comb(r, n - 1)
+
+
+@lru_cache(maxsize=64)
+def _subsets(r: int, k: int) -> np.ndarray:
+    """All k-subsets of ``range(r)`` as an array of shape (C(r, k), k) (cached, read-only)."""
+    idx = np.fromiter(
+        (i for comb in combinations(range(r), k) for i in comb), dtype=np.intp,
+        count=math.comb(r, k) * k,
+    ).reshape(-1, k)
+    idx.setflags(write=False)
+    return idx
+
+
+def _abs_dets(G: np.ndarray, idx: np.ndarray, chunk: int = 50_000) -> float:
+    """Sum of ``|det G[:, J]|`` over the rows J of ``idx``."""
+    total = 0.0
+    for s in range(0, idx.shape[0], chunk):
+        blocks = np.moveaxis(G[:, idx[s:s + chunk]], 1, 0)  # (m, n, n)
+        total += float(np.abs(np.linalg.det(blocks)).sum())
+    return total
+
+
+def _cofactor_normals(G: np.ndarray, idx: np.ndarray, chunk: int = 50_000) -> np.ndarray:
+    """For every (n-1)-subset B (rows of ``idx``) the vector ``nu_B`` with
+    ``det([G_B, x]) = nu_B' x`` for all x (generalised cross product); shape (m, n)."""
+    n = G.shape[0]
+    out = np.empty((idx.shape[0], n))
+    rows = [np.delete(np.arange(n), k) for k in range(n)]
+    signs = np.array([(-1.0) ** (k + n - 1) for k in range(n)])
+    for s in range(0, idx.shape[0], chunk):
+        blocks = G[:, idx[s:s + chunk]]  # (n, m, n-1)
+        for k in range(n):
+            minor = np.moveaxis(blocks[rows[k]], 1, 0)  # (m, n-1, n-1)
+            out[s:s + chunk, k] = signs[k] * np.linalg.det(minor)
+    return out
+
+
+def volume_lp_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray:
+    """Gain ``lambda`` of least volume of ``strip_update(c0, G, lambda)`` (Alamo et al. 2005).
+
+    The enclosure has generators ``[(I - lambda c) G, sigma lambda]`` and, up to the factor
+    ``2^n``, volume ``a |1 - c lambda| + sigma * sum_B |nu_B' lambda|`` with
+    ``a = sum_J |det G_J|`` over the n-subsets J of the generators and ``nu_B`` the generalised
+    cross product of every (n-1)-subset B.  Minimising it is the LP
+
+        min a t + sigma sum_B ||nu_B|| z_B   s.t.  t >= |1 - c lambda|,  z_B >= |v_B' lambda|
+
+    with unit normals ``v_B = nu_B / ||nu_B||`` (subsets of rank < n-1 drop out), solved by
+    HiGHS.  Any gain yields a sound enclosure (``strip_update`` is exact for the family), so
+    the LP optimum needs no certificate: an inaccurate optimum only costs volume.
+    """
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    n, r = G.shape
+    G = G[:, np.any(G != 0.0, axis=0)]
+    r = G.shape[1]
+    a_vol = _abs_dets(G, _subsets(r, n)) if r >= n else 0.0
+    if n == 1:
+        normals = np.ones((1, 1))
+    else:
+        normals = _cofactor_normals(G, _subsets(r, n - 1)) if r >= n - 1 else np.zeros((0, n))
+    norms = np.linalg.norm(normals, axis=1)
+    keep = norms > 1e-12 * max(1.0, float(norms.max(initial=0.0)))
+    v, b = normals[keep] / norms[keep, None], sigma * norms[keep]
+    scale = max(a_vol, float(b.max(initial=0.0)))
+    if scale == 0.0:
+        return np.zeros(n)
+    return _solve_volume_lp(c_row, v, a_vol / scale, b / scale)
+
+
+def _solve_volume_lp(c_row: np.ndarray, v: np.ndarray, a: float, b: np.ndarray) -> np.ndarray:
+    """HiGHS solve of ``min a t + b'z`` s.t. ``|1 - c lam| <= t``, ``|v_i' lam| <= z_i``."""
+    n, m = c_row.shape[0], v.shape[0]
+    nvar = n + 1 + m
+    # rows: [c, -1, 0] x <= 1 ; [-c, -1, 0] x <= -1 ; [v_i, 0, -e_i] x <= 0 ; [-v_i, 0, -e_i] x <= 0
+    top = sp.csr_matrix(np.hstack([np.vstack([c_row, -c_row]), -np.ones((2, 1)),
+                                   np.zeros((2, m))]))
+    eye = sp.identity(m, format="csr")
+    lower = sp.vstack([sp.hstack([sp.csr_matrix(v), sp.csr_matrix((m, 1)), -eye]),
+                       sp.hstack([sp.csr_matrix(-v), sp.csr_matrix((m, 1)), -eye])])
+    A = sp.vstack([top, lower]).tocsc()
+    rhs = np.concatenate([[1.0, -1.0], np.zeros(2 * m)])
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = nvar, A.shape[0]
+    lp.col_cost_ = np.concatenate([np.zeros(n), [a], b])
+    lp.col_lower_ = np.concatenate([np.full(n, -highspy.kHighsInf), np.zeros(1 + m)])
+    lp.col_upper_ = np.full(nvar, highspy.kHighsInf)
+    lp.row_lower_ = np.full(A.shape[0], -highspy.kHighsInf)
+    lp.row_upper_ = rhs
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = A.indptr
+    lp.a_matrix_.index_ = A.indices
+    lp.a_matrix_.value_ = A.data
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.passModel(lp)
+    h.run()
+    if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+        return np.zeros(n)  # lambda = 0 is always a valid (if poor) choice
+    return np.asarray(h.getSolution().col_value[:n], dtype=float)

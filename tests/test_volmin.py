@@ -1,0 +1,159 @@
+"""VolMin-A/B: the vectorised Bravo scoring against direct determinants, the volume LP against
+brute-force volumes, CORA's stored VolMin-B hull, ARCH 2021 Table 3, the generator budget of
+VolMin-A, and containment of the true state."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import observers
+import systems
+from benchmarks.metrics import rms_radius
+from benchmarks.runner import run_observer
+from observers.strip import strip_update
+from observers.volume import ZERO_PROJECTION, bravo_scores, bravo_update, volume_lp_gain
+
+from .conftest import paper_table
+
+
+def _direct_scores(G, c, sigma):
+    """det(T_j T_j') with T_j built column by column (CORA's definition)."""
+    a = c @ G
+    out = [np.linalg.det(G @ G.T)]
+    for j in range(G.shape[1]):
+        if abs(a[j]) <= ZERO_PROJECTION:
+            out.append(out[0])
+            continue
+        T = np.array([G[:, i] - a[i] / a[j] * G[:, j] for i in range(G.shape[1])]).T
+        T[:, j] = sigma / a[j] * G[:, j]
+        out.append(np.linalg.det(T @ T.T))
+    return np.array(out)
+
+
+def _volume(G):
+    """Exact zonotope volume / 2^n: sum of |det| over all n-subsets of the generators."""
+    from itertools import combinations
+
+    n = G.shape[0]
+    return sum(abs(np.linalg.det(G[:, list(J)])) for J in combinations(range(G.shape[1]), n))
+
+
+@pytest.mark.parametrize(("n", "r"), [(1, 3), (2, 5), (3, 8), (4, 12)])
+def test_bravo_scores_match_direct_determinants(n, r):
+    rng = np.random.default_rng(n * 10 + r)
+    G = rng.normal(size=(n, r))
+    G[:, 1] = 0.0  # a zero generator: c g = 0, candidate = unchanged zonotope
+    c = rng.normal(size=n)
+    got, want = bravo_scores(G, c, 0.3), _direct_scores(G, c, 0.3)
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-12 * abs(want).max())
+    assert got[2] == got[0]
+
+
+def test_bravo_scores_with_collinear_generators():
+    # rank-deficient case (the 2-D vehicle has collinear generators after every update)
+    rng = np.random.default_rng(3)
+    g = rng.normal(size=(3, 2))
+    G = np.hstack([g, 2 * g[:, :1], -g[:, 1:]])
+    c = rng.normal(size=3)
+    np.testing.assert_allclose(bravo_scores(G, c, 0.2), _direct_scores(G, c, 0.2), atol=1e-12)
+
+
+def test_bravo_update_is_the_candidate_and_encloses_the_intersection():
+    rng = np.random.default_rng(7)
+    c0, G = rng.normal(size=3), rng.normal(size=(3, 6))
+    row, y, sigma = rng.normal(size=3), 0.4, 0.25
+    j = int(np.argmin(bravo_scores(G, row, sigma)))
+    c1, G1 = bravo_update(c0, G, row, y, sigma, j)
+    a = row @ G
+    assert j > 0
+    np.testing.assert_allclose(np.linalg.det(G1 @ G1.T), _direct_scores(G, row, sigma)[j])
+    np.testing.assert_allclose(c1, c0 + (y - row @ c0) / a[j - 1] * G[:, j - 1])
+    # property: points of the zonotope inside the strip lie in the new zonotope
+    Z1 = observers.sets.Zonotope(c1, G1)
+    pts = c0 + rng.uniform(-1, 1, size=(4000, G.shape[1])) @ G.T
+    inside = pts[np.abs(pts @ row - y) <= sigma]
+    assert len(inside) > 20
+    assert all(Z1.contains(p, tol=1e-9) for p in inside[:200])
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_volume_lp_gain_minimises_the_exact_volume(n):
+    rng = np.random.default_rng(n)
+    G, row, sigma = rng.normal(size=(n, n + 3)), rng.normal(size=n), 0.3
+    c0 = np.zeros(n)
+
+    def vol(lam):
+        return _volume(strip_update(c0, G, lam.reshape(-1, 1), row.reshape(1, -1),
+                                    np.zeros(1), np.array([sigma]))[1])
+
+    best = vol(volume_lp_gain(G, row, sigma))
+    a = row @ G
+    candidates = [np.zeros(n)] + [G[:, j] / a[j] for j in range(G.shape[1])]
+    candidates += list(rng.normal(scale=0.5, size=(200, n)))
+    assert best <= min(vol(lam) for lam in candidates) * (1 + 1e-9)
+
+
+def test_volmin_b_vehicle2d_final_hull_matches_cora(cora_vehicle2d_refs):
+    sc = systems.scenario("vehicle2d-cora")
+    res = observers.run(observers.create("VolMin-B", sc.system, **sc.options), sc.u, sc.y)
+    ref = cora_vehicle2d_refs["VolMin-B"]
+    np.testing.assert_allclose(res.lo[-1], ref["lower"], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(res.hi[-1], ref["upper"], rtol=0, atol=1e-6)
+
+
+def test_volmin_b_tank6_rms_radii_match_arch2021_table3():
+    # Bravo's choice depends on the generators only, so the radii do not depend on the noise
+    # realisation and ARCH Table 3 (relative value x smallest absolute radius) is reproducible.
+    tab = paper_table("arch2021_table3_tank6_linear")
+    expected = np.array(tab["rows"]["VolMin-B"]["v"]) * np.array(tab["smallest_absolute_radii"])
+    radii = []
+    for seed in (0, 1):
+        sc = systems.scenario("tank6-linear", seed=seed)
+        res = observers.run(observers.create("VolMin-B", sc.system, **sc.options), sc.u, sc.y)
+        radii.append(rms_radius(res.radius))
+        np.testing.assert_allclose(radii[-1], expected, rtol=0.02)
+    np.testing.assert_allclose(radii[0], radii[1], rtol=1e-12)
+
+
+def test_volmin_a_refuses_beyond_its_generator_budget():
+    sc = systems.scenario("vehicle6d-cora")
+    with pytest.raises(observers.DesignFailed, match=r"VolMin-A refused: up to 609 generators"):
+        observers.create("VolMin-A", sc.system, **sc.options)
+    run = run_observer("VolMin-A", sc, dict(sc.options), "hull")
+    assert run.status == "noGain" and "max_subsets" in run.message
+    with pytest.raises(observers.OptionError, match="max_subsets must be a positive integer"):
+        observers.create("VolMin-A", sc.system, max_subsets=0)
+    observers.create("VolMin-A", sc.system, order=1.5)  # small enough: accepted
+
+
+def _contained(sc, name, **options):
+    res = observers.run(observers.create(name, sc.system, **{**sc.options, **options}), sc.u,
+                        sc.y)
+    assert res.status == "ok", res.message
+    for k, S in enumerate(res.sets):
+        assert S.contains(sc.x_true[k], tol=sc.tolerance), f"{name}: x_{k} outside"
+    return res
+
+
+@pytest.mark.parametrize("scenario", ["vehicle6d-cora", "tank6-linear", "alamo2d-sim",
+                                      "vehicle4d-sim"])
+def test_volmin_b_contains_the_true_state(scenario):
+    _contained(systems.scenario(scenario), "VolMin-B")
+
+
+@pytest.mark.parametrize(("scenario", "options"), [("alamo2d-sim", {}),
+                                                   ("vehicle2d-sim", {"order": 20}),
+                                                   ("vehicle4d-sim", {"order": 2})])
+def test_volmin_a_contains_the_true_state(scenario, options):
+    sc = systems.scenario(scenario, steps=60) if scenario != "alamo2d-sim" else \
+        systems.scenario(scenario)
+    _contained(sc, "VolMin-A", **options)
+
+
+def test_volmin_b_tank30_hulls_contain_the_rounded_truth():
+    sc = systems.scenario("tank30-linear-cora")
+    res = observers.run(observers.create("VolMin-B", sc.system, order=20, reduction="pca"),
+                        sc.u[:60], sc.y[:60])
+    assert np.all(sc.x_true[:60] >= res.lo - sc.tolerance)
+    assert np.all(sc.x_true[:60] <= res.hi + sc.tolerance)
