@@ -50,9 +50,12 @@ class BenchConfig:
     def options_for(self, observer: str, scenario: Scenario) -> dict[str, Any]:
         """Scenario defaults < config options < per-observer options, restricted to the
         options the observer accepts (scenario and global ones) or all (per-observer ones);
+        scenario defaults only for the options listed in the observer's ``SCENARIO_OPTIONS``;
         observers with a ``training`` option also get the scenario's offline experiment."""
-        accepted = observers.get(observer).cls.option_defaults()
-        merged = {k: v for k, v in scenario.options.items() if k in accepted}
+        cls = observers.get(observer).cls
+        accepted = cls.option_defaults()
+        from_scenario = accepted if cls.SCENARIO_OPTIONS is None else cls.SCENARIO_OPTIONS
+        merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
         merged.update({k: v for k, v in self.options.items() if k in accepted})
         merged.update(self.observer_options.get(observer, {}))
         if "training" in accepted and "training" not in merged and scenario.training is not None:

@@ -33,6 +33,9 @@ class Observer(ABC):
     info: ClassVar[ObserverInfo | None] = None
     #: accepted options and their defaults
     OPTIONS: ClassVar[dict[str, Any]] = {}
+    #: options a benchmark scenario may set by default (e.g. its zonotope order); None = all
+    #: accepted options.  Observers whose papers fix their own settings use a subset.
+    SCENARIO_OPTIONS: ClassVar[tuple[str, ...] | None] = None
     #: system attributes this observer reads (data-driven observers do not read A and B)
     REQUIRES: ClassVar[tuple[str, ...]] = ("A", "B", "C", "W", "V", "X0")
     #: relative tolerance of the CI regression gate (``python -m benchmarks check``) on this

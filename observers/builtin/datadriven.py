@@ -83,6 +83,8 @@ class DataDrivenObserver(Observer):
     """
 
     REQUIRES = ("C", "W", "V", "X0")
+    #: the paper's order 5 / Girard, not the zonotope order of the model-based benchmarks
+    SCENARIO_OPTIONS = ()
     OPTIONS = {"training": None, "model": "sound-lp", "model_order": 2.0, "state_bound": 100.0,
                "order": 5, "reduction": "girard", "sensors": None}
 
