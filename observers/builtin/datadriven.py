@@ -85,6 +85,9 @@ class DataDrivenObserver(Observer):
     REQUIRES = ("C", "W", "V", "X0")
     #: the paper's order 5 / Girard, not the zonotope order of the model-based benchmarks
     SCENARIO_OPTIONS = ()
+    #: regression-gate tolerance: the default set of models is bounded by LP solutions
+    #: (dual-evaluated, sound, but accurate only to the LP solver's tolerance)
+    REGRESSION_RTOL = 1e-4
     OPTIONS = {"training": None, "model": "sound-lp", "model_order": 2.0, "state_bound": 100.0,
                "order": 5, "reduction": "girard", "sensors": None}
 

@@ -184,6 +184,9 @@ class InvariantSetObserver(Observer):
     else a sound bound).
     """
 
+    #: regression-gate tolerance: the design is an SDP solution (see ``OfflineGain``)
+    REGRESSION_RTOL = 1e-4
+
     DESIGN_VERSION = "1"
 
     @abstractmethod
