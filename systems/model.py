@@ -49,6 +49,28 @@ def _set(S, name: str, dim: int, *, must_contain_origin: bool) -> Zonotope:
     return S
 
 
+def _system_sets(W, V, X0, n: int, ny: int) -> tuple[Zonotope, Zonotope, Zonotope]:
+    """Validated disturbance, noise and initial sets of a system."""
+    try:
+        return (
+            _set(W, "W", n, must_contain_origin=True),
+            _set(V, "V", ny, must_contain_origin=True),
+            _set(X0, "X0", n, must_contain_origin=False),
+        )
+    except SetError as exc:
+        raise ModelError(str(exc)) from None
+
+
+def _sampling_time(dt) -> float:
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        raise ModelError(f"dt must be a positive number, got {dt!r}") from None
+    if not (np.isfinite(dt) and dt > 0):
+        raise ModelError(f"dt must be a positive number, got {dt}")
+    return dt
+
+
 def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
     """``[C; C A; ...; C A^{n-1}]``."""
     blocks, M = [], C
@@ -87,15 +109,8 @@ class LinearSystem:
         self.A = A
         self.B = _matrix(B, "B", rows=n) if np.size(B) else np.zeros((n, 0))
         self.C = _matrix(C, "C", cols=n)
-        try:
-            self.W = _set(W, "W", n, must_contain_origin=True)
-            self.V = _set(V, "V", self.C.shape[0], must_contain_origin=True)
-            self.X0 = _set(X0, "X0", n, must_contain_origin=False)
-        except SetError as exc:
-            raise ModelError(str(exc)) from None
-        if not (np.isfinite(dt) and dt > 0):
-            raise ModelError(f"dt must be a positive number, got {dt}")
-        self.dt = float(dt)
+        self.W, self.V, self.X0 = _system_sets(W, V, X0, n, self.C.shape[0])
+        self.dt = _sampling_time(dt)
         self.name = name
 
     n = property(lambda self: self.A.shape[0], doc="State dimension.")
@@ -181,13 +196,8 @@ class NonlinearSystem:
         self.jacobian = jacobian
         self.C = _matrix(C, "C", cols=n)
         self._n, self._nu = int(n), int(nu)
-        try:
-            self.W = _set(W, "W", n, must_contain_origin=True)
-            self.V = _set(V, "V", self.C.shape[0], must_contain_origin=True)
-            self.X0 = _set(X0, "X0", n, must_contain_origin=False)
-        except SetError as exc:
-            raise ModelError(str(exc)) from None
-        self.dt = float(dt)
+        self.W, self.V, self.X0 = _system_sets(W, V, X0, n, self.C.shape[0])
+        self.dt = _sampling_time(dt)
         self.name = name
 
     n = property(lambda self: self._n, doc="State dimension.")
