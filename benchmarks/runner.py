@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 import observers
-from observers import DesignFailed, Diverged, OptionError, RunResult
+from observers import DesignFailed, Diverged, OptionError, RunResult, Unsupported
 from systems import ModelError, Scenario
 
 from .config import BenchConfig
@@ -80,6 +80,8 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
         raise ConfigError(str(exc)) from None
     except (DesignFailed, ModelError) as exc:
         return ObserverRun(sc, info, None, "noGain", str(exc))
+    except Unsupported as exc:
+        return ObserverRun(sc, info, None, "unsupported", str(exc))
     except Exception as exc:  # a plugin bug must not end the whole benchmark
         print(f"warning: {name} failed in its design on {sc.name}: {exc}", file=sys.stderr)
         traceback.print_exc(limit=3, file=sys.stderr)

@@ -20,6 +20,7 @@ from .errors import (
     ObserverError,
     OptionError,
     UnknownObserver,
+    Unsupported,
 )
 from .registry import ObserverInfo, available, create, get, names, register
 
@@ -33,6 +34,7 @@ __all__ = [
     "OptionError",
     "RunResult",
     "UnknownObserver",
+    "Unsupported",
     "available",
     "create",
     "get",

@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import Diverged, MeasurementError, ObserverError, OptionError
+from .errors import Diverged, MeasurementError, OptionError, Unsupported
 from .registry import ObserverInfo
 
 
@@ -46,7 +46,7 @@ class Observer(ABC):
     def __init__(self, system: Any, **options: Any):
         missing = [a for a in self.REQUIRES if not hasattr(system, a)]
         if missing:
-            raise ObserverError(
+            raise Unsupported(
                 f"{self.name or type(self).__name__} needs a system with attributes "
                 f"{', '.join(self.REQUIRES)}; missing: {', '.join(missing)}"
             )

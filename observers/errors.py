@@ -23,6 +23,13 @@ class MeasurementError(ObserverError):
     """An input or measurement passed to ``step`` has the wrong shape or is not finite."""
 
 
+class Unsupported(ObserverError):
+    """The observer does not apply to this kind of system (e.g. a linear-model observer on a
+    nonlinear system); tables show ``unsupported``."""
+
+    status = "unsupported"
+
+
 class DesignFailed(ObserverError):
     """The offline design found no gain (infeasible LMI, solver failure, failed verification)."""
 

@@ -138,3 +138,12 @@ def test_scenario_defaults_apply_only_to_declared_options():
     assert "order" not in cfg.options_for("DD-CZ-A1", sc)
     cfg.observer_options["DD-CZ-A1"] = {"order": 7}
     assert cfg.options_for("DD-CZ-A1", sc)["order"] == 7
+
+
+def test_linear_model_observers_are_unsupported_on_nonlinear_systems(tmp_path):
+    cfg = load_config(write_cfg(tmp_path, {"scenarios": [{"name": "tank6-nonlinear",
+                                                          "steps": 20}],
+                                           "observers": ["FRad-A"], "containment": "hull"}))
+    _, summary = run_config(cfg, progress=False)
+    assert set(summary["status"]) == {"unsupported"}
+    assert "missing: A, B" in summary["message"].iloc[0]

@@ -133,5 +133,5 @@ def test_duplicate_names_are_rejected():
 
 
 def test_system_attributes_are_checked():
-    with pytest.raises(observers.ObserverError, match="missing: A, B"):
+    with pytest.raises(observers.Unsupported, match="missing: A, B"):
         observers.create("FRad-A", SimpleNamespace(C=1, W=1, V=1, X0=1))
