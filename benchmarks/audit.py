@@ -196,6 +196,10 @@ def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
             continue
         status = run.status if run.status in ("ok", "noGain", "diverged") else "error"
         row[status] += 1
+        if run.status == "empty":  # the true state is in no empty set: a violation
+            row["violations"] += 1
+            row["worst_violation"] = np.inf
+            row["worst_at"] = f"seed {index}, step {run.result.failed_step} (empty set)"
         res = run.result
         sets = res.sets if res is not None else []
         for k, S in enumerate(sets):

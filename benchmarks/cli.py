@@ -31,7 +31,8 @@ def _cmd_run(args) -> int:
     cfg = load_config(args.config)
     out = Path(args.out) if args.out else Path("results") / cfg.name
     _, summary = run_config(cfg, out, progress=False if args.no_progress else None)
-    bad = summary[(summary["status"] == "ok") & (summary["violations"].fillna(0) > 0)
+    # a guaranteed observer fails if the true state left a set, or if a set became empty
+    bad = summary[((summary["violations"].fillna(0) > 0) | (summary["status"] == "empty"))
                   & summary["guaranteed"].astype(bool)]
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
     pairs = summary.drop_duplicates(["scenario", "observer"])

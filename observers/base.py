@@ -19,6 +19,7 @@ import numpy as np
 
 from .errors import Diverged, MeasurementError, OptionError, Unsupported
 from .registry import ObserverInfo
+from .sets.errors import EmptySet
 
 
 class Observer(ABC):
@@ -183,8 +184,9 @@ def run(
 
     ``step()`` and the interval hull are timed separately (``step_times``, ``hull_times``).
     A :class:`~observers.errors.Diverged` raised by the observer, a non-finite hull or a hull
-    beyond ``divergence_bound`` ends the run with status ``"diverged"``; the remaining rows
-    are NaN.
+    beyond ``divergence_bound`` ends the run with status ``"diverged"``; an empty estimate
+    (:class:`~observers.sets.EmptySet`: the measurements contradict the model and noise
+    bounds, or a numerical failure) with status ``"empty"``; the remaining rows are NaN.
     """
     system = obs.system
     n = system.C.shape[1]
@@ -208,6 +210,10 @@ def run(
         except Diverged as exc:
             result.status, result.message = "diverged", str(exc)
             result.failed_step = k if exc.step is None else exc.step
+            break
+        except EmptySet as exc:  # no state is consistent with the record: a failed estimate
+            result.status, result.failed_step = "empty", k
+            result.message = f"step {k}: the estimate is empty ({exc})"
             break
         step_times[k], hull_times[k] = t1 - t0, t2 - t1
         if not (np.all(np.isfinite(I.lo)) and np.all(np.isfinite(I.hi))) or (

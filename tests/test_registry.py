@@ -135,3 +135,26 @@ def test_duplicate_names_are_rejected():
 def test_system_attributes_are_checked():
     with pytest.raises(observers.Unsupported, match="missing: A, B"):
         observers.create("FRad-A", SimpleNamespace(C=1, W=1, V=1, X0=1))
+
+
+def test_an_empty_estimate_ends_the_run_with_status_empty():
+    from observers.sets import ConZonotope
+
+    sc = systems.scenario("vehicle2d-cora")
+
+    @observers.register("Test-Empty", family="strip", set_type="conzonotope",
+                        ready_for_control=False)
+    class EmptyObs(observers.Observer):
+        """Returns an infeasible constrained zonotope from step 3 on (test only)."""
+
+        def step(self, u_prev, y):
+            self.k += 1
+            b = [0.0] if self.k < 4 else [2.0]  # xi = 2 is outside the unit box
+            return ConZonotope([0.0, 0.0], np.eye(2), [[1.0, 0.0]], b)
+
+    try:
+        res = observers.run(observers.create("Test-Empty", sc.system), sc.u, sc.y)
+        assert res.status == "empty" and res.failed_step == 3
+        assert "empty" in res.message and np.isnan(res.lo[3:]).all()
+    finally:
+        registry._REGISTRY.pop("Test-Empty")

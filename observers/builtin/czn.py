@@ -59,15 +59,27 @@ class ConZonotopeStripObserver(ZonotopeObserver):
     hull_solver : {"auto", "batched", "highs"}
         LP solver of the interval hulls and support values of the returned sets
         (:class:`~observers.sets.HullLP`); the bounds are sound with each of them.
+    margin : float
+        Relative enlargement of the noise set in the exact intersection (default 1e-7).  An
+        exact intersection keeps the true state on the boundary of the estimate when the
+        noise sits on the vertices of V and W (found by the adversarial soundness audit), and
+        floating-point rounding (~1e-16 relative) of the constraint data can then cut it off
+        or make the set empty.  With the margin the true state lies strictly inside every
+        measurement set, by far more than the rounding.  ``0`` is CORA's exact behaviour.
     """
 
-    OPTIONS = {"max_constraints": "auto", "hull_solver": "auto"}
+    OPTIONS = {"max_constraints": "auto", "hull_solver": "auto", "margin": 1e-7}
 
     def validate_options(self) -> None:
         super().validate_options()
         if self.options["hull_solver"] not in HullLP.SOLVERS:
             raise OptionError(f"{self.name}: hull_solver must be one of "
                               f"{', '.join(HullLP.SOLVERS)}, got {self.options['hull_solver']!r}")
+        margin = self.options["margin"]
+        if (isinstance(margin, bool) or not isinstance(margin, (int, float))
+                or not 0 <= margin < 1e-3):
+            raise OptionError(f"{self.name}: margin must be a number in [0, 1e-3), "
+                              f"got {margin!r}")
         k = self.options["max_constraints"]
         if k is None or k == "auto":
             return
@@ -80,6 +92,9 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         k = self.options["max_constraints"]
         m = self.C.shape[0]
         self.max_constraints = DEFAULT_CONSTRAINT_STEPS * m if k == "auto" else k
+        inflate = 1.0 + float(self.options["margin"])
+        self.F_meas = self.F * inflate  # noise generators of the measurement set
+        self.sigma_meas = self.sigma * inflate  # strip half-widths
 
     def reset(self) -> None:
         super().reset()
@@ -126,7 +141,7 @@ class CZNA(ConZonotopeStripObserver):
         self._y_shift = self.V.c  # y - C x in V  <=>  C x in (y - c_V) + (-F) xi_v
 
     def intersect(self, c, G, A, b, y):
-        F = self.F
+        F = self.F_meas
         return ops.intersect(c, G, A, b, y - self._y_shift, -F, np.zeros((0, F.shape[1])),
                              np.zeros(0), self.C)
 
@@ -147,4 +162,4 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
     """
 
     def intersect(self, c, G, A, b, y):
-        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma, self.wang_gain(G))
+        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(G))

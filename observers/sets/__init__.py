@@ -25,7 +25,7 @@ object across sets (:class:`HullLP`, ``S.with_solver(lp)``).
 from ._lp import HullLP
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
-from .errors import SetError
+from .errors import EmptySet, SetError
 from .interval import Interval
 from .matrix_zonotope import IntervalMatrix, MatrixZonotope
 from .reduction import PCA, Girard, Reduction, get_reduction, reduction_names, register_reduction
@@ -34,6 +34,7 @@ from .zonotope import Zonotope
 __all__ = [
     "ConZonotope",
     "Ellipsoid",
+    "EmptySet",
     "Girard",
     "HullLP",
     "Interval",

@@ -25,7 +25,7 @@ except ImportError as exc:  # pragma: no cover - exercised only on broken instal
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
 from . import _dual_simplex
-from .errors import SetError
+from .errors import EmptySet, SetError
 
 _EPS = np.finfo(float).eps
 _EMPTY = "constrained zonotope is empty (its constraints are infeasible)"
@@ -90,7 +90,7 @@ def _dual_point(h: highspy.Highs, nc: int) -> np.ndarray:
     """Dual point proposed by HiGHS for ``max g'xi`` solved as ``min -g'xi`` (any point is
     valid for :func:`dual_bound`; ``0`` if HiGHS has none)."""
     if h.getModelStatus() == highspy.HighsModelStatus.kInfeasible:
-        raise SetError(_EMPTY)
+        raise EmptySet(_EMPTY)
     sol = h.getSolution()
     if sol.dual_valid and len(sol.row_dual) == nc:
         mu = -np.asarray(sol.row_dual, dtype=float)
@@ -182,7 +182,7 @@ class HullLP:
         """Sound upper bound on ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1``."""
         if A.shape[1] == 0:  # no variables: 0 = b (HiGHS does not check rows without columns)
             if np.any(np.abs(b) > _ROW_FEASIBILITY_TOL):
-                raise SetError(_EMPTY)
+                raise EmptySet(_EMPTY)
             return 0.0
         self.load(A, b)
         scale = float(np.abs(g).max(initial=0.0))

@@ -7,7 +7,7 @@ import numpy as np
 from . import conzono_ops as ops
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
 from ._lp import HullLP, box_feasible
-from .errors import SetError
+from .errors import EmptySet, SetError
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
@@ -274,6 +274,10 @@ class ConZonotope:
             np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
         up = c + (hi + rad_free) + slack
         down = c - (lo + rad_free) - slack
+        if np.any(down > up):  # both bounds are sound: they cross only for an empty set
+            i = int(np.argmax(down - up))
+            raise EmptySet(f"constrained zonotope is empty (its hull bounds cross in "
+                           f"coordinate {i}: {down[i]:.17g} > {up[i]:.17g})")
         self._hull = Interval(down, up)
         return self._hull
 

@@ -3,3 +3,8 @@
 
 class SetError(ValueError):
     """A set was built or used with invalid data (wrong shape, NaN/inf, empty, mismatched dims)."""
+
+
+class EmptySet(SetError):
+    """An operation found the set empty (e.g. infeasible constraints of a constrained
+    zonotope): for an estimate this means the measurements contradict the model."""
