@@ -147,3 +147,12 @@ def test_linear_model_observers_are_unsupported_on_nonlinear_systems(tmp_path):
     _, summary = run_config(cfg, progress=False)
     assert set(summary["status"]) == {"unsupported"}
     assert "missing: A, B" in summary["message"].iloc[0]
+
+
+def test_paper_relative_uses_only_the_observers_the_paper_compares():
+    from benchmarks.report import paper_relative
+
+    df = pd.DataFrame({"observer": ["A", "A", "B", "B", "X", "X"], "state": [0, 1] * 3,
+                       "rms_radius": [2.0, 4.0, 1.0, 8.0, 0.5, 0.1], "status": "ok",
+                       "guaranteed": True})
+    np.testing.assert_allclose(paper_relative(df, {"A", "B"}), [2.0, 1.0, 1.0, 2.0, 0.5, 0.025])
