@@ -63,7 +63,8 @@ NOISE_OF_KIND = {"uniform": "uniform", "gaussian": "gaussian-truncated", "vertex
 REL_TOL = 1e-8
 DEFAULT_REALISATIONS = 100
 RESULT_COLUMNS = ["observer", "guaranteed", "scenario", "kind", "runs", "steps", "violations",
-                  "undecided", "worst_violation", "worst_at", "ok", "noGain", "diverged",
+                  "undecided", "worst_violation", "worst_at", "ok", "noGain", "unsupported",
+                  "diverged", "empty",
                   "error", "lp_tests", "seconds"]
 
 
@@ -170,6 +171,10 @@ def check_scenario(name: str) -> None:
 
 
 # -- audit of one observer on one scenario --------------------------------------------------
+#: run statuses counted per realisation kind (anything else counts as "error")
+STATUSES = ("ok", "noGain", "unsupported", "diverged", "empty")
+
+
 def tolerance(sc: Scenario, x: np.ndarray) -> float:
     """Membership tolerance at true state ``x``."""
     return max(sc.tolerance, REL_TOL * max(1.0, float(np.abs(x).max(initial=0.0))))
@@ -181,7 +186,8 @@ def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
     cfg = BenchConfig(name="audit", title="audit", scenarios=[], observers=[observer])
     rows = {k: {"observer": observer, "guaranteed": info.guaranteed, "scenario": scenario,
                 "kind": k, "runs": 0, "steps": 0, "violations": 0, "undecided": 0,
-                "worst_violation": 0.0, "worst_at": "", "ok": 0, "noGain": 0, "diverged": 0,
+                "worst_violation": 0.0, "worst_at": "", "ok": 0, "noGain": 0, "unsupported": 0,
+                "diverged": 0, "empty": 0,
                 "error": 0, "lp_tests": 0, "seconds": 0.0} for k in KINDS}
     for index, (kind, sc) in enumerate(realisations(scenario, count)):
         t0 = time.perf_counter()
@@ -194,7 +200,7 @@ def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
         except ConfigError:  # an option rejected for this system: counted as an error run
             row["error"] += 1
             continue
-        status = run.status if run.status in ("ok", "noGain", "diverged") else "error"
+        status = run.status if run.status in STATUSES else "error"
         row[status] += 1
         if run.status == "empty":  # the true state is in no empty set: a violation
             row["violations"] += 1
@@ -266,7 +272,7 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
             "runs": int(g["runs"].sum()), "steps": int(g["steps"].sum()),
             "violations": int(g["violations"].sum()), "undecided": int(g["undecided"].sum()),
             "worst_violation": float(g["worst_violation"].max()), "worst_at": worst_at(g),
-            "failed": ", ".join(f"{s} {int(g[s].sum())}" for s in ("noGain", "diverged", "error")
+            "failed": ", ".join(f"{s} {int(g[s].sum())}" for s in STATUSES[1:] + ("error",)
                                 if g[s].sum()),
             "lp_tests": int(g["lp_tests"].sum()), "seconds": float(g["seconds"].sum()),
         })
@@ -316,7 +322,10 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) ->
         "*worst violation*: the largest certified infinity-norm distance from the true state "
         "to the set (Euclidean for ellipsoids); *undecided*: steps the LP could not decide "
         "within its precision (counted, not hidden); *failed runs*: realisations without an "
-        "estimate (noGain) or ending early (diverged: its earlier steps are still checked).",
+        "estimate (noGain: no gain found; unsupported: the observer does not apply, e.g. a "
+        "data-driven observer on a scenario without training data) or ending early "
+        "(diverged: its earlier steps are still checked; empty: the estimate became empty, "
+        "which also counts as a violation).",
         "",
         f"Realisations per observer and scenario: {count} (realisation i has seed i and "
         f"kind i mod 5: {kinds}). `vertex`, `vertex-hold` and `worst-input` are adversarial: "

@@ -150,7 +150,7 @@ def _opts(name, sc):
 
 def test_missing_or_bad_training_and_options():
     sc = systems.scenario("rotating-target", steps=5)
-    with pytest.raises(observers.DesignFailed, match="needs offline training data"):
+    with pytest.raises(observers.Unsupported, match="needs offline training data"):
         observers.create("DD-Z-A2", sc.system)
     bad = SimpleNamespace(u=sc.training.u, z=sc.training.z[:-1], C=sc.training.C,
                           Gamma=sc.training.Gamma)
@@ -160,7 +160,7 @@ def test_missing_or_bad_training_and_options():
         observers.create("DD-Z-A1", sc.system, training=sc.training, model="exact")
     with pytest.raises(observers.OptionError, match="share noise generators|add up"):
         observers.create("DD-Z-A1", sc.system, training=sc.training, sensors=[3, 3])
-    with pytest.raises(observers.DesignFailed, match="needs offline training data"):
+    with pytest.raises(observers.Unsupported, match="needs offline training data"):
         observers.create("KF-N4SID", sc.system)
 
 
@@ -173,7 +173,7 @@ def test_kalman_baseline_identifies_the_model():
     assert not observers.get("KF-N4SID").guaranteed
 
 
-def test_runner_passes_training_and_reports_no_training_as_nogain():
+def test_runner_passes_training_and_reports_no_training_as_unsupported():
     cfg = parse_config({
         "scenarios": [{"name": "rotating-target", "seed": 0, "steps": 20}, "alamo2d-sim"],
         "observers": ["DD-Z-A2", "DD-CZ-A2", "KF-N4SID"],
@@ -183,7 +183,7 @@ def test_runner_passes_training_and_reports_no_training_as_nogain():
     rows = summary.drop_duplicates(["scenario", "observer"]).set_index(["scenario", "observer"])
     for name in ("DD-Z-A2", "DD-CZ-A2", "KF-N4SID"):
         assert rows.loc[("rotating-target", name), "status"] == "ok"
-        assert rows.loc[("alamo2d-sim", name), "status"] == "noGain"
+        assert rows.loc[("alamo2d-sim", name), "status"] == "unsupported"
     assert rows.loc[("rotating-target", "DD-Z-A2"), "violations"] == 0
     assert "training" in rows.loc[("alamo2d-sim", "DD-Z-A2"), "message"]
     assert not rows.loc[("rotating-target", "KF-N4SID"), "guaranteed"]

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DesignFailed
+from ..errors import DesignFailed, Unsupported
 from ..sets import IntervalMatrix, MatrixZonotope, Zonotope
 
 _EPS = np.finfo(float).eps
@@ -77,8 +77,8 @@ class TrainingData:
 def check_training(training, n: int, nu: int, who: str) -> TrainingData:
     """Validate a training record (any object with ``u``, ``z``, ``C``, ``Gamma``)."""
     if training is None:
-        raise DesignFailed(f"{who} needs offline training data (training=...): this scenario "
-                           "provides none")
+        raise Unsupported(f"{who} needs offline training data (training=...): this scenario "
+                          "provides none")
     missing = [a for a in ("u", "z", "C", "Gamma") if not hasattr(training, a)]
     if missing:
         raise DesignFailed(f"{who}: training data lacks {', '.join(missing)} (needs u, z, C, "
