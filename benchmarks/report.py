@@ -174,8 +174,10 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     runs = None
     if figures and (results_dir / "runs.csv").is_file():
         runs = pd.read_csv(results_dir / "runs.csv")
-    for sc, df in summary.groupby("scenario", sort=False):
+    for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
+        unsupported = full[full["status"] == "unsupported"].drop_duplicates("observer")
+        df = full[full["status"] != "unsupported"]  # listed below the tables instead
         parts += [f"## {sc}", "", info.get("description", ""), "", scenario_table(df, meta), ""]
         abs_table = absolute_table(df, meta)
         if abs_table:
@@ -184,7 +186,10 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         failures = df[df["status"] != "ok"].drop_duplicates("observer")
         for _, row in failures.iterrows():
             parts.append(f"- {row['observer']}: {row['status']}: {row['message']}")
-        if len(failures):
+        if len(unsupported):
+            parts.append("- not applicable here (unsupported): " + ", ".join(
+                f"{r['observer']} ({r['message']})" for _, r in unsupported.iterrows()))
+        if len(failures) or len(unsupported):
             parts.append("")
         if runs is not None:
             links = []
