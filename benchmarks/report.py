@@ -68,8 +68,8 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
     """Markdown table of one scenario: relative RMS per state (paper value in parentheses),
     average, per-step time, design time and containment.
 
-    Where a paper table with per-state values exists, the ratios are taken against the best
-    of the observers that table compares (:func:`paper_relative`), like the paper's own;
+    Where a paper table exists, the ratios are taken against the best of the observers that
+    table compares (:func:`paper_relative`), like the paper's own;
     otherwise against all observers of the run (``rel_rms``)."""
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
@@ -82,8 +82,7 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
             "design s", "contained"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    per_state = any(r.v for r in paper.values())
-    df = df.assign(_rel=paper_relative(df, paper) if per_state else df["rel_rms"])
+    df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"])
     for obs in _order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
