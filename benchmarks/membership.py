@@ -109,6 +109,9 @@ class MembershipTester:
         if box_certificate(G, v, A, b, tol, tol_a):
             return self._count(Membership(True, 0.0, "certificate"))
         lower, upper = self._distance_lp(G, v, A, b, tol_a)
+        if lower <= tol < upper:  # undecided at the fast settings: HiGHS's robust defaults
+            lower2, upper2 = self._distance_lp(G, v, A, b, tol_a, ROBUST_LP)
+            lower, upper = max(lower, lower2), min(upper, upper2)
         lower = max(lower, d_hull)
         if upper <= tol:
             inside: bool | None = True
@@ -118,8 +121,12 @@ class MembershipTester:
             inside = None
         return self._count(Membership(inside, 0.0 if inside else lower, "lp"))
 
-    def _distance_lp(self, G, v, A, b, tol_a: float) -> tuple[float, float]:
-        """Certified (lower, upper) bounds of ``min |G xi - v|_inf`` over the feasible box."""
+    def _distance_lp(self, G, v, A, b, tol_a: float,
+                     options: dict | None = None) -> tuple[float, float]:
+        """Certified (lower, upper) bounds of ``min |G xi - v|_inf`` over the feasible box.
+
+        ``options``: HiGHS options for this solve only (default :data:`FAST_LP`).
+        """
         n, r = G.shape
         nc = A.shape[0]
         ones = np.ones((n, 1))
@@ -135,7 +142,11 @@ class MembershipTester:
                   m * (r + 1), np.arange(0, m * (r + 1), m, dtype=np.int32),
                   np.tile(np.arange(m, dtype=np.int32), r + 1),
                   np.ascontiguousarray(M.T).ravel())  # dense, column by column
+        if options is not None:
+            _set_options(h, options)
         h.run()
+        if options is not None:
+            _set_options(h, FAST_LP)
         status = h.getModelStatus()
         if status not in (highspy.HighsModelStatus.kOptimal,
                           highspy.HighsModelStatus.kInfeasible):
@@ -148,12 +159,10 @@ class MembershipTester:
         if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
             return np.inf, np.inf
         sol = h.getSolution()
-        upper = np.inf
+        candidates: list[np.ndarray | None] = []
         if sol.value_valid:
             xi_lp = np.clip(np.asarray(sol.col_value, float)[:r], -1.0, 1.0)
-            for xi in (xi_lp, polish(G, v, A, b, xi_lp)):
-                if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
-                    upper = min(upper, residual_bound(G, xi, v))
+            candidates += [xi_lp, polish(G, v, A, b, xi_lp)]
         lower = 0.0
         if sol.dual_valid and len(sol.row_dual) == 2 * n + nc:
             y = np.asarray(sol.row_dual, float)
@@ -161,6 +170,11 @@ class MembershipTester:
             mu0 = y[2 * n:]
             for d, mu in ((d0, mu0), (d0, -mu0), (-d0, mu0), (-d0, -mu0)):
                 lower = max(lower, dual_lower_bound(G, v, A, b, d, mu))
+            candidates.append(dual_polish(G, v, A, b, d0, mu0))
+        upper = np.inf
+        for xi in candidates:
+            if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
+                upper = min(upper, residual_bound(G, xi, v))
         return lower, upper
 
     def _solver(self) -> highspy.Highs:
@@ -289,3 +303,17 @@ def polish(G, v, A, b, xi: np.ndarray) -> np.ndarray | None:
     return active_set(np.vstack([G, A]), np.concatenate([v, b]), free,
                       np.where(free, 0.0, np.sign(xi)))
 
+
+def dual_polish(G, v, A, b, d: np.ndarray, mu: np.ndarray) -> np.ndarray | None:
+    """A box point guided by the LP's dual: complementary slackness puts factor ``j`` at
+    ``sign(g_j'd - a_j'mu)`` where that reduced cost is clearly nonzero; the factors with a
+    (relatively) zero reduced cost are re-solved (:func:`active_set`).  None if that fails
+    or the dual is zero (a point exactly on the boundary of a badly scaled set, where the
+    primal point's bound pattern can be wrong at solver precision)."""
+    red = G.T @ d - A.T @ mu
+    scale = float(np.abs(d).sum()) * max(float(np.abs(G).max(initial=0.0)), 1e-300)
+    if not np.isfinite(scale) or float(np.abs(red).max(initial=0.0)) == 0.0:
+        return None
+    free = np.abs(red) <= 1e-9 * scale
+    return active_set(np.vstack([G, A]), np.concatenate([v, b]), free,
+                      np.where(free, 0.0, np.sign(red)))

@@ -13,6 +13,7 @@ from scipy.optimize import linprog
 from benchmarks.membership import (
     MembershipTester,
     dual_lower_bound,
+    dual_polish,
     hull_distance,
     residual_bound,
 )
@@ -86,6 +87,28 @@ def test_points_on_the_boundary_are_certified_inside(seed):
         x_out = Z.c + G @ np.sign(G.T @ d) + 1e-4 * d / np.abs(d).max()  # beyond a face
         m = T.test(Z, x_out, 1e-9)
         assert m.inside is False and 0 < m.distance <= 1e-4 + 1e-12
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_badly_scaled_boundary_points_are_decided(seed):
+    """Points on an edge of a 2-D zonotope whose generators span five orders of magnitude
+    (as P-radius sets under worst-case inputs): the LP's primal bound pattern can be wrong
+    at solver precision there; the dual-guided point or the robust re-solve decides them."""
+    rng = np.random.default_rng(100 + seed)
+    G = rng.normal(size=(2, 180)) * 10.0 ** rng.uniform(-6, -1, size=180)
+    Z = Zonotope(np.zeros(2), G)
+    T = MembershipTester()
+    for _ in range(20):
+        j = rng.integers(180)
+        normal = np.array([-G[1, j], G[0, j]])  # the edge of generator j faces this way
+        xi = np.sign(G.T @ normal)
+        xi[j] = rng.uniform(-1, 1)
+        x = G @ xi  # a point of that edge (hand geometry: the support point plus g_j)
+        assert T.test(Z, x, 1e-9 * max(1.0, np.abs(x).max())).inside is True
+        # the dual direction of that edge alone yields the point's factors (hand derivation)
+        d = normal / np.abs(normal).sum()
+        found = dual_polish(G, x, np.zeros((0, 180)), np.zeros(0), d, np.zeros(0))
+        assert found is not None and residual_bound(G, found, x) <= 1e-12
 
 
 def test_conzonotope_segment_and_interval_and_ellipsoid():
