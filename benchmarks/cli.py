@@ -70,6 +70,12 @@ def _cmd_check(args) -> int:
               f"{', '.join(regression.changed_observers(diff))} ({where})", file=sys.stderr)
         print("if the change is intended, rewrite the golden files with "
               "`python -m benchmarks baseline --update` and commit them", file=sys.stderr)
+        env = regression.environment_differences(meta)
+        if env:
+            print("note: the environment differs from the baseline's (" + "; ".join(env)
+                  + "); rounding differences of other BLAS kernels or library versions are "
+                  "amplified by several observers, so compare in the baseline's environment "
+                  "(the Makefile pins OPENBLAS_CORETYPE on x86-64)", file=sys.stderr)
         return 1
     print(f"check passed: {n} values within tolerance ({where})")
     return 0

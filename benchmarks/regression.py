@@ -333,6 +333,19 @@ def config_changed(cfg: BenchConfig, meta: dict) -> bool:
                                                                       default=str)
 
 
+#: entries of the baseline's ``versions`` that change numerical results
+NUMERIC_ENVIRONMENT = ("blas_coretype", "numpy", "scipy", "cvxpy", "clarabel", "highspy")
+
+
+def environment_differences(meta: dict, current: dict | None = None) -> list[str]:
+    """``"key: baseline -> current"`` for each numerically relevant version that differs
+    between the baseline's environment and this one (hints for a failing check)."""
+    current = _versions() if current is None else current
+    stored = meta.get("versions", {})
+    return [f"{key}: {stored.get(key, '?')} -> {current.get(key, '?')}"
+            for key in NUMERIC_ENVIRONMENT if stored.get(key, "?") != current.get(key, "?")]
+
+
 def baseline_overview(frame: pd.DataFrame, meta: dict) -> str:
     """Plain-text overview of a stored baseline (``python -m benchmarks baseline``)."""
     lines = [f"baseline of {meta.get('created', '?')} ({meta.get('design_cache', '?')}; "

@@ -3,6 +3,7 @@ and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (atomica
 
 from __future__ import annotations
 
+import os
 import platform
 import subprocess
 import sys
@@ -154,7 +155,8 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
 
 
 def _versions() -> dict[str, str]:
-    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    out = {"python": sys.version.split()[0], "platform": platform.platform(),
+           "blas_coretype": os.environ.get("OPENBLAS_CORETYPE", "auto")}
     for pkg in ("numpy", "scipy", "cvxpy", "clarabel", "highspy", "pandas"):
         try:
             out[pkg] = metadata.version(pkg)

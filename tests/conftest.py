@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+import benchmarks  # noqa: F401  (pins the BLAS threads and kernels before tests load numpy)
+
 DATA = Path(__file__).parent / "data"
 
 

@@ -209,3 +209,22 @@ def test_a_containment_failure_fails_the_check(tmp_path, capsys, monkeypatch):
     rows = [line.split() for line in capsys.readouterr().out.splitlines()]
     assert any(r[:6] == ["alamo2d-sim", "FRad-A", "-", "violations", "0"] + r[5:6]
                and r[5] != "0" and "containment" in r for r in rows), rows
+
+
+def test_a_failing_check_names_environment_differences_from_the_baseline(tmp_path, capsys,
+                                                                         monkeypatch):
+    cfg = subset(tmp_path, observers_=("FRad-A",), scenarios=["alamo2d"])
+    assert gate(tmp_path, "baseline", cfg, "--update") == 0
+    meta_path = tmp_path / "baseline" / "meta.json"
+    meta = json.loads(meta_path.read_text())
+    assert meta["versions"]["blas_coretype"]  # recorded with the baseline
+    meta["versions"]["blas_coretype"] = "SkylakeX"
+    meta_path.write_text(json.dumps(meta))
+    assert gate(tmp_path, "check", cfg) == 0  # equal results: no note needed
+    capsys.readouterr()
+    original = frad.alamo_frad_gain
+    monkeypatch.setattr(frad, "alamo_frad_gain", lambda *a: 1.01 * original(*a))
+    assert gate(tmp_path, "check", cfg) == 1
+    err = capsys.readouterr().err
+    assert "environment differs from the baseline's (blas_coretype: SkylakeX -> " in err
+    assert regression.environment_differences(meta, meta["versions"]) == []
