@@ -42,6 +42,8 @@ _EPS = np.finfo(float).eps
 LP_TOL = 1e-10
 #: active-set steps of the membership certificate tried before the LP
 ACTIVE_SET_STEPS = 12
+#: corrections of an undecided LP point by iterative refinement
+REFINE_STEPS = 3
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,7 @@ class MembershipTester:
 
     def __post_init__(self) -> None:
         self._highs: highspy.Highs | None = None
+        self._best_xi: np.ndarray | None = None
 
     # -- public ---------------------------------------------------------------------------
     def test(self, S, x, tol: float, hull: tuple | None = None) -> Membership:
@@ -109,9 +112,13 @@ class MembershipTester:
         if box_certificate(G, v, A, b, tol, tol_a):
             return self._count(Membership(True, 0.0, "certificate"))
         lower, upper = self._distance_lp(G, v, A, b, tol_a)
-        if lower <= tol < upper:  # undecided at the fast settings: HiGHS's robust defaults
+        if lower <= tol < upper:  # undecided: refine the LP's point, or re-solve robustly
+            upper = min(upper, self._refine(G, v, A, b, tol_a))
+        if lower <= tol < upper:
             lower2, upper2 = self._distance_lp(G, v, A, b, tol_a, ROBUST_LP)
             lower, upper = max(lower, lower2), min(upper, upper2)
+            if lower <= tol < upper:
+                upper = min(upper, self._refine(G, v, A, b, tol_a))
         lower = max(lower, d_hull)
         if upper <= tol:
             inside: bool | None = True
@@ -125,8 +132,64 @@ class MembershipTester:
                      options: dict | None = None) -> tuple[float, float]:
         """Certified (lower, upper) bounds of ``min |G xi - v|_inf`` over the feasible box.
 
-        ``options``: HiGHS options for this solve only (default :data:`FAST_LP`).
+        ``options``: HiGHS options for this solve only (default :data:`FAST_LP`).  The box
+        point of the upper bound is kept in ``self._best_xi`` (for :meth:`_refine`).
         """
+        n, r = G.shape
+        nc = A.shape[0]
+        self._best_xi = None
+        status, col, row_dual = self._lp(G, v, A, b, -np.ones(r), np.ones(r), options)
+        if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
+            return np.inf, np.inf
+        candidates: list[np.ndarray | None] = []
+        if col is not None:
+            xi_lp = np.clip(col, -1.0, 1.0)
+            candidates += [xi_lp, polish(G, v, A, b, xi_lp)]
+        lower = 0.0
+        if row_dual is not None:
+            d0 = row_dual[:n] - row_dual[n:2 * n]
+            mu0 = row_dual[2 * n:]
+            for d, mu in ((d0, mu0), (d0, -mu0), (-d0, mu0), (-d0, -mu0)):
+                lower = max(lower, dual_lower_bound(G, v, A, b, d, mu))
+            candidates.append(dual_polish(G, v, A, b, d0, mu0))
+        upper = np.inf
+        for xi in candidates:
+            if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
+                bound = residual_bound(G, xi, v)
+                if bound < upper:
+                    upper, self._best_xi = bound, xi
+        if self._best_xi is None and candidates and candidates[0] is not None:
+            self._best_xi = candidates[0]
+        return lower, upper
+
+    def _refine(self, G, v, A, b, tol_a: float, steps: int = REFINE_STEPS) -> float:
+        """Upper bound of the distance after iterative refinement of the LP's box point
+        ``xi`` (``self._best_xi``): the residuals ``e = v - G xi`` and ``e_A = b - A xi``
+        (scale ``s``) are fitted by a correction ``s delta`` with ``xi + s delta`` in the
+        box, the same LP scaled by ``1 / s``, so that the solver's tolerance applies to the
+        residual and not to the data (a point on the boundary that the LP's point misses by
+        ~1e-7 is placed to ~1e-15).  Up to ``steps`` corrections; ``inf`` if none yields a
+        point that satisfies the constraints to ``tol_a``."""
+        xi = self._best_xi
+        best = np.inf
+        for _ in range(steps if xi is not None else 0):
+            e, e_a = v - G @ xi, b - A @ xi
+            scale = max(float(np.abs(e).max(initial=0.0)), float(np.abs(e_a).max(initial=0.0)))
+            if not np.isfinite(scale) or scale == 0.0:
+                break
+            _, col, _ = self._lp(G, e / scale, A, e_a / scale, (-1.0 - xi) / scale,
+                                 (1.0 - xi) / scale, ROBUST_LP)
+            if col is None:
+                break
+            xi = np.clip(xi + scale * col, -1.0, 1.0)
+            if A.shape[0] == 0 or np.abs(A @ xi - b).max() <= tol_a:
+                best = min(best, residual_bound(G, xi, v))
+        return best
+
+    def _lp(self, G, v, A, b, lo: np.ndarray, hi: np.ndarray, options: dict | None
+            ) -> tuple[object, np.ndarray | None, np.ndarray | None]:
+        """``min t`` s.t. ``|G xi - v|_inf <= t``, ``A xi = b``, ``lo <= xi <= hi`` with
+        HiGHS: ``(status, xi or None, row duals or None)``."""
         n, r = G.shape
         nc = A.shape[0]
         ones = np.ones((n, 1))
@@ -138,7 +201,7 @@ class MembershipTester:
         h.addRows(m, np.concatenate([np.full(2 * n, -inf), b]), np.concatenate([v, -v, b]),
                   0, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0))
         h.addCols(r + 1, np.concatenate([np.zeros(r), [1.0]]),
-                  np.concatenate([-np.ones(r), [0.0]]), np.concatenate([np.ones(r), [inf]]),
+                  np.concatenate([lo, [0.0]]), np.concatenate([hi, [inf]]),
                   m * (r + 1), np.arange(0, m * (r + 1), m, dtype=np.int32),
                   np.tile(np.arange(m, dtype=np.int32), r + 1),
                   np.ascontiguousarray(M.T).ravel())  # dense, column by column
@@ -156,26 +219,13 @@ class MembershipTester:
             h.run()
             status = h.getModelStatus()
             _set_options(h, FAST_LP)
-        if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
-            return np.inf, np.inf
+        if status == highspy.HighsModelStatus.kInfeasible:
+            return status, None, None
         sol = h.getSolution()
-        candidates: list[np.ndarray | None] = []
-        if sol.value_valid:
-            xi_lp = np.clip(np.asarray(sol.col_value, float)[:r], -1.0, 1.0)
-            candidates += [xi_lp, polish(G, v, A, b, xi_lp)]
-        lower = 0.0
-        if sol.dual_valid and len(sol.row_dual) == 2 * n + nc:
-            y = np.asarray(sol.row_dual, float)
-            d0 = y[:n] - y[n:2 * n]
-            mu0 = y[2 * n:]
-            for d, mu in ((d0, mu0), (d0, -mu0), (-d0, mu0), (-d0, -mu0)):
-                lower = max(lower, dual_lower_bound(G, v, A, b, d, mu))
-            candidates.append(dual_polish(G, v, A, b, d0, mu0))
-        upper = np.inf
-        for xi in candidates:
-            if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
-                upper = min(upper, residual_bound(G, xi, v))
-        return lower, upper
+        col = np.asarray(sol.col_value, float)[:r] if sol.value_valid else None
+        dual = (np.asarray(sol.row_dual, float)
+                if sol.dual_valid and len(sol.row_dual) == m else None)
+        return status, col, dual
 
     def _solver(self) -> highspy.Highs:
         if self._highs is None:

@@ -111,6 +111,25 @@ def test_badly_scaled_boundary_points_are_decided(seed):
         assert found is not None and residual_bound(G, found, x) <= 1e-12
 
 
+@pytest.mark.parametrize("constrained", [False, True])
+def test_iterative_refinement_places_a_perturbed_lp_point_on_the_boundary(constrained):
+    """A box point 1e-6 off a vertex of the set (as an LP point at solver tolerance on a
+    badly scaled set) is corrected by the refinement to a point within rounding of the
+    vertex: the vertex's own factors are one exact correction (hand derivation)."""
+    rng = np.random.default_rng(7)
+    r = 300
+    G = rng.normal(size=(6, r)) * 10.0 ** rng.uniform(-4, 0, size=r)
+    A = rng.normal(size=(3, r)) * 0.2 if constrained else np.zeros((0, r))
+    xi_star = rng.choice([-1.0, 1.0], size=r)  # a vertex of the factor box
+    xi_star[:9] = rng.uniform(-0.5, 0.5, size=9)  # and free factors for the constraints
+    b = A @ xi_star
+    v = G @ xi_star
+    T = MembershipTester()
+    T._best_xi = np.clip(xi_star + 1e-6 * rng.uniform(-1, 1, size=r), -1.0, 1.0)
+    assert residual_bound(G, T._best_xi, v) > 1e-7  # the LP-like point misses by far
+    assert T._refine(G, v, A, b, 1e-10) <= 1e-10  # rounding slack of the bound: ~2e-12
+
+
 def test_conzonotope_segment_and_interval_and_ellipsoid():
     # {xi in [-1,1]^2 : xi1 + xi2 = 0} is the segment from (-1, 1) to (1, -1)
     S = ConZonotope([0.0, 0.0], np.eye(2), [[1.0, 1.0]], [0.0])
