@@ -26,12 +26,13 @@ def test_vehicle2d_final_hull_matches_cora(name, cora_vehicle2d_refs):
 
 
 @pytest.mark.parametrize(("name", "rtol"), [("FRad-A", 0.01), ("FRad-B", 0.01),
-                                            ("FRad-C", 0.015)])
+                                            ("FRad-C", 0.01)])
 def test_tank6_rms_radii_match_arch2021_table3(name, rtol):
     # F-radius gains depend only on the generators, so the radii do not depend on the noise
     # realisation: ARCH Table 3 (relative value x smallest absolute radius) is reproducible.
-    # FRad-C lands 0.6 % and 1.2 % below the table on states 4 and 5 (FRad-A/B: < 0.05 %);
-    # generator ordering and tie-breaking variants in the reduction do not close the gap.
+    # FRad-A/B land within 0.05 % of the table, FRad-C within 0.75 % with the pinned AVX2
+    # BLAS kernels (benchmarks/__init__.py); FRad-C's PCA reductions act on repeated singular
+    # values here, so rounding moves it: with AVX-512 kernels it lands 1.2 % below on x5.
     tab = paper_table("arch2021_table3_tank6_linear")
     expected = np.array(tab["rows"][name]["v"]) * np.array(tab["smallest_absolute_radii"])
     for seed in (0, 1):
