@@ -93,7 +93,7 @@ def test_points_on_the_boundary_are_certified_inside(seed):
 def test_badly_scaled_boundary_points_are_decided(seed):
     """Points on an edge of a 2-D zonotope whose generators span five orders of magnitude
     (as P-radius sets under worst-case inputs): the LP's primal bound pattern can be wrong
-    at solver precision there; the dual-guided point or the robust re-solve decides them."""
+    at solver precision there; the dual-guided point (or the refinement) decides them."""
     rng = np.random.default_rng(100 + seed)
     G = rng.normal(size=(2, 180)) * 10.0 ** rng.uniform(-6, -1, size=180)
     Z = Zonotope(np.zeros(2), G)
