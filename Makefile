@@ -10,11 +10,6 @@ RESULTS ?= results
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
-# one OpenBLAS kernel family on every x86-64 machine (AVX2): results, and so the regression
-# baseline, are reproducible across CPUs (see benchmarks/__init__.py)
-ifeq ($(shell uname -m),x86_64)
-export OPENBLAS_CORETYPE ?= Haswell
-endif
 
 .DEFAULT_GOAL := help
 .PHONY: help install test lint bench bench-quick report check baseline audit clean

@@ -75,7 +75,8 @@ def _cmd_check(args) -> int:
             print("note: the environment differs from the baseline's (" + "; ".join(env)
                   + "); rounding differences of other BLAS kernels or library versions are "
                   "amplified by several observers, so compare in the baseline's environment "
-                  "(the Makefile pins OPENBLAS_CORETYPE on x86-64)", file=sys.stderr)
+                  "(the harness pins OPENBLAS_CORETYPE on x86-64, see benchmarks/__init__.py)",
+                  file=sys.stderr)
         return 1
     print(f"check passed: {n} values within tolerance ({where})")
     return 0

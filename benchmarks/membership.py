@@ -63,7 +63,6 @@ class MembershipTester:
 
     def __post_init__(self) -> None:
         self._highs: highspy.Highs | None = None
-        self._best_xi: np.ndarray | None = None
 
     # -- public ---------------------------------------------------------------------------
     def test(self, S, x, tol: float, hull: tuple | None = None) -> Membership:
@@ -111,15 +110,14 @@ class MembershipTester:
             return self._count(Membership(d <= tol, d, "closed-form"))
         if box_certificate(G, v, A, b, tol, tol_a):
             return self._count(Membership(True, 0.0, "certificate"))
-        lower, upper = self._distance_lp(G, v, A, b, tol_a)
-        if lower <= tol < upper:  # undecided: refine the LP's point, or re-solve robustly
-            upper = min(upper, self._refine(G, v, A, b, tol_a))
-        if lower <= tol < upper:
-            lower2, upper2 = self._distance_lp(G, v, A, b, tol_a, ROBUST_LP)
-            lower, upper = max(lower, lower2), min(upper, upper2)
-            if lower <= tol < upper:
-                upper = min(upper, self._refine(G, v, A, b, tol_a))
-        lower = max(lower, d_hull)
+        lower, upper = d_hull, np.inf
+        for options in (None, ROBUST_LP):  # fast settings first; HiGHS's robust ones if needed
+            lower_lp, upper_lp, xi = self._distance_lp(G, v, A, b, tol_a, options)
+            lower, upper = max(lower, lower_lp), min(upper, upper_lp)
+            if lower <= tol < upper:  # undecided: refine the LP's point
+                upper = min(upper, self._refine(G, v, A, b, tol_a, xi))
+            if not lower <= tol < upper:
+                break
         if upper <= tol:
             inside: bool | None = True
         elif lower > tol:
@@ -128,19 +126,19 @@ class MembershipTester:
             inside = None
         return self._count(Membership(inside, 0.0 if inside else lower, "lp"))
 
-    def _distance_lp(self, G, v, A, b, tol_a: float,
-                     options: dict | None = None) -> tuple[float, float]:
-        """Certified (lower, upper) bounds of ``min |G xi - v|_inf`` over the feasible box.
+    def _distance_lp(self, G, v, A, b, tol_a: float, options: dict | None = None
+                     ) -> tuple[float, float, np.ndarray | None]:
+        """Certified (lower, upper) bounds of ``min |G xi - v|_inf`` over the feasible box,
+        and the box point of the upper bound (the LP's point if none satisfies the
+        constraints to ``tol_a``; None without a primal point), to refine.
 
-        ``options``: HiGHS options for this solve only (default :data:`FAST_LP`).  The box
-        point of the upper bound is kept in ``self._best_xi`` (for :meth:`_refine`).
+        ``options``: HiGHS options for this solve only (default :data:`FAST_LP`).
         """
         n, r = G.shape
         nc = A.shape[0]
-        self._best_xi = None
         status, col, row_dual = self._lp(G, v, A, b, -np.ones(r), np.ones(r), options)
         if status == highspy.HighsModelStatus.kInfeasible:  # empty constrained zonotope
-            return np.inf, np.inf
+            return np.inf, np.inf, None
         candidates: list[np.ndarray | None] = []
         if col is not None:
             xi_lp = np.clip(col, -1.0, 1.0)
@@ -152,25 +150,23 @@ class MembershipTester:
             for d, mu in ((d0, mu0), (d0, -mu0), (-d0, mu0), (-d0, -mu0)):
                 lower = max(lower, dual_lower_bound(G, v, A, b, d, mu))
             candidates.append(dual_polish(G, v, A, b, d0, mu0))
-        upper = np.inf
+        upper, best = np.inf, candidates[0] if candidates else None
         for xi in candidates:
             if xi is not None and (nc == 0 or np.abs(A @ xi - b).max() <= tol_a):
                 bound = residual_bound(G, xi, v)
                 if bound < upper:
-                    upper, self._best_xi = bound, xi
-        if self._best_xi is None and candidates and candidates[0] is not None:
-            self._best_xi = candidates[0]
-        return lower, upper
+                    upper, best = bound, xi
+        return lower, upper, best
 
-    def _refine(self, G, v, A, b, tol_a: float, steps: int = REFINE_STEPS) -> float:
-        """Upper bound of the distance after iterative refinement of the LP's box point
-        ``xi`` (``self._best_xi``): the residuals ``e = v - G xi`` and ``e_A = b - A xi``
+    def _refine(self, G, v, A, b, tol_a: float, xi: np.ndarray | None,
+                steps: int = REFINE_STEPS) -> float:
+        """Upper bound of the distance after iterative refinement of a box point ``xi``
+        (e.g. the LP's, at solver tolerance): the residuals ``e = v - G xi`` and ``e_A = b - A xi``
         (scale ``s``) are fitted by a correction ``s delta`` with ``xi + s delta`` in the
         box, the same LP scaled by ``1 / s``, so that the solver's tolerance applies to the
         residual and not to the data (a point on the boundary that the LP's point misses by
         ~1e-7 is placed to ~1e-15).  Up to ``steps`` corrections; ``inf`` if none yields a
         point that satisfies the constraints to ``tol_a``."""
-        xi = self._best_xi
         best = np.inf
         for _ in range(steps if xi is not None else 0):
             e, e_a = v - G @ xi, b - A @ xi

@@ -124,10 +124,10 @@ def test_iterative_refinement_places_a_perturbed_lp_point_on_the_boundary(constr
     xi_star[:9] = rng.uniform(-0.5, 0.5, size=9)  # and free factors for the constraints
     b = A @ xi_star
     v = G @ xi_star
-    T = MembershipTester()
-    T._best_xi = np.clip(xi_star + 1e-6 * rng.uniform(-1, 1, size=r), -1.0, 1.0)
-    assert residual_bound(G, T._best_xi, v) > 1e-7  # the LP-like point misses by far
-    assert T._refine(G, v, A, b, 1e-10) <= 1e-10  # rounding slack of the bound: ~2e-12
+    xi_lp = np.clip(xi_star + 1e-6 * rng.uniform(-1, 1, size=r), -1.0, 1.0)
+    assert residual_bound(G, xi_lp, v) > 1e-7  # the LP-like point misses by far
+    # within the rounding slack of the bound (~2e-12)
+    assert MembershipTester()._refine(G, v, A, b, 1e-10, xi_lp) <= 1e-10
 
 
 def test_conzonotope_segment_and_interval_and_ellipsoid():
