@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 
 import observers  # noqa: E402
 import systems  # noqa: E402
-from observers.datadriven import (  # noqa: E402
+from observers.numerics.datadriven import (  # noqa: E402
     check_training,
     paper_model_set,
     refined_model_set,

@@ -1,28 +1,131 @@
 """Offline gains: computed once by an LMI/SDP design, cached on disk, or passed by the user.
 
 Observers with a constant gain mix in :class:`OfflineGain` before their family base class and
-implement :meth:`OfflineGain.design_gain`; ``self.gain_matrix`` is then available online::
+implement :meth:`OfflineGain.design_gain`; ``self.L`` is then available online::
 
     class PRadB(OfflineGain, AllStripsObserver):
         DESIGN_VERSION = "1"
         def design_gain(self) -> np.ndarray: ...   # solve, verify, return (n x ny) matrix
-        def gain(self, G): return self.gain_matrix
+        def gain(self, c, G): return self.L
 
 Passing ``gain=`` skips the design (e.g. to run with CORA's stored gains).
+
+Design cache
+------------
+On-disk cache of offline designs (observer gains and other matrices).
+
+A design is keyed by a SHA-256 hash of its kind, a design version string, the input arrays
+(system matrices, set generators), the design parameters and the versions of cvxpy, Clarabel
+and numpy.  ``make bench`` therefore re-solves a design only when something it depends on
+changed.  Failed designs are cached too (as their failure message), so an infeasible LMI is
+not re-attempted on every run.
+
+The folder is ``$SETOBS_CACHE_DIR`` if set, else ``~/.cache/setobs-bench/designs``; set
+``SETOBS_CACHE_DIR=off`` to disable caching.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .errors import DesignFailed, OptionError
-from .gaincache import cached_design
 
+# -- design cache ---------------------------------------------------------------------------
+_FAILED = "__design_failed__"
+
+
+def cache_dir() -> Path | None:
+    """The cache folder, or None if caching is disabled."""
+    env = os.environ.get("SETOBS_CACHE_DIR")
+    if env == "off":
+        return None
+    return Path(env) if env else Path.home() / ".cache" / "setobs-bench" / "designs"
+
+
+def _versions() -> str:
+    out = []
+    for pkg in ("cvxpy", "clarabel", "numpy"):
+        try:
+            out.append(f"{pkg}={metadata.version(pkg)}")
+        except metadata.PackageNotFoundError:
+            out.append(f"{pkg}=none")
+    return ";".join(out)
+
+
+def design_key(
+    kind: str, version: str, arrays: Mapping[str, Any], params: Mapping[str, Any]
+) -> str:
+    """Hash of everything a design depends on."""
+    h = hashlib.sha256()
+    h.update(f"{kind}|{version}|{_versions()}".encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(np.asarray(arrays[name], dtype=float))
+        h.update(name.encode())
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    h.update(json.dumps(dict(params), sort_keys=True, default=str).encode())
+    return h.hexdigest()[:32]
+
+
+def cached_design(
+    kind: str,
+    version: str,
+    arrays: Mapping[str, Any],
+    params: Mapping[str, Any],
+    compute: Callable[[], dict[str, np.ndarray]],
+) -> dict[str, np.ndarray]:
+    """Return ``compute()`` (a dict of arrays), from the cache when possible.
+
+    A :class:`~observers.errors.DesignFailed` raised by ``compute`` is cached and re-raised
+    on later calls with the same key.
+    """
+    folder = cache_dir()
+    if folder is None:
+        return compute()
+    path = folder / f"{kind}-{design_key(kind, version, arrays, params)}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                result = {k: data[k] for k in data.files}
+        except (OSError, ValueError):
+            result = None  # unreadable cache entry: recompute
+        if result is not None:
+            if _FAILED in result:
+                raise DesignFailed(str(result[_FAILED]))
+            return result
+    try:
+        result = compute()
+    except DesignFailed as exc:
+        _store(path, {_FAILED: np.array(str(exc))})
+        raise
+    _store(path, result)
+    return result
+
+
+def _store(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+        os.close(fd)
+        np.savez(tmp, **arrays)
+        os.replace(tmp, path)
+    except OSError:  # a read-only home must not break designs
+        pass
+
+
+# -- offline gain mixin ---------------------------------------------------------------------
 
 class OfflineGain:
-    """Mixin: ``design()`` sets ``self.gain_matrix`` (n x ny) from ``gain=`` or the design."""
+    """Mixin: ``design()`` sets ``self.L`` (n x ny) from ``gain=`` or the design."""
 
     OPTIONS: dict[str, Any] = {"gain": None}
     #: bump when the design code changes, so that cached gains are recomputed
@@ -61,11 +164,11 @@ class OfflineGain:
                 raise OptionError(f"{self.name}: gain must have shape ({n}, {ny}), got {L.shape}")
             if not np.all(np.isfinite(L)):
                 raise OptionError(f"{self.name}: gain contains non-finite values")
-            self.gain_matrix = L
+            self.L = L
             return
         result = cached_design(self.name, self.DESIGN_VERSION, self.design_arrays(),
                                self.design_params(), lambda: {"gain": self.design_gain()})
         L = np.asarray(result["gain"], dtype=float)
         if L.shape != (n, ny) or not np.all(np.isfinite(L)):
             raise DesignFailed(f"{self.name}: design returned an invalid gain of shape {L.shape}")
-        self.gain_matrix = L
+        self.L = L

@@ -12,7 +12,7 @@ import observers
 import systems
 from benchmarks.config import parse_config
 from benchmarks.runner import run_config
-from observers.datadriven import (
+from observers.numerics.datadriven import (
     check_training,
     hbr_pinv,
     implicit_gain,

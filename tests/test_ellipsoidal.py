@@ -10,7 +10,7 @@ from scipy.linalg import eigh
 import observers
 import systems
 from benchmarks.metrics import rms_radius
-from observers.invariant import error_system, schur_bound
+from observers.numerics.ellipsoidal import error_system, schur_bound
 
 from .conftest import paper_table
 

@@ -12,8 +12,8 @@ import systems
 from benchmarks.metrics import rms_radius
 from observers.builtin.prad import cora_epsilon
 from observers.errors import DesignFailed
-from observers.pradius import (
-    cora_bisection_end,
+from observers.numerics.lmi import cora_bisection_end
+from observers.numerics.prad import (
     le_gain,
     line_search,
     verify_decay,
@@ -37,7 +37,7 @@ def test_clarabel_design_matches_cora_sdpt3_gain(name, vehicle2d, cora_refs):
     # CORA's stored gain (SDPT3) of its own SDP; ALGORITHMS.md: Clarabel gets ~2e-7
     obs = observers.create(name, vehicle2d.system, **vehicle2d.options)
     ref = np.array(cora_refs["gains_vehicle2D_sdpt3"][name]).reshape(2, 1)
-    np.testing.assert_allclose(obs.gain_matrix, ref, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(obs.L, ref, rtol=0, atol=1e-5)
 
 
 @pytest.mark.parametrize(("name", "cora_name"), [
@@ -79,25 +79,25 @@ def test_verification_rejects_a_gain_that_breaks_the_inequality(vehicle2d):
     A, C, E, F = _arrays(s)
     d = le_gain(A, C, E, F, cora_epsilon(s.W, np.array([0.1])))
     Ww, Wv = E.T @ E, F.T @ F
-    verify_decay(d.P, d.gain, A, C, E, F, d.beta * d.P, Ww, Wv, "test")
+    verify_decay(d.P, d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
     with pytest.raises(DesignFailed, match="P-radius inequality: verification failed"):
-        verify_decay(d.P, 10 * d.gain, A, C, E, F, d.beta * d.P, Ww, Wv, "test")
+        verify_decay(d.P, 10 * d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
     with pytest.raises(DesignFailed, match="P > 0"):
-        verify_decay(np.diag([1.0, 0.0]), d.gain, A, C, E, F, d.beta * d.P, Ww, Wv, "test")
+        verify_decay(np.diag([1.0, 0.0]), d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
 
 
 @pytest.mark.parametrize("design", [wang_c1_gain, wang_c2_gain, wang_d_gain])
 def test_well_posed_designs_return_certified_gains(design, vehicle2d):
     A, C, E, F = _arrays(vehicle2d.system)
     d = design(A, C, E, F)
-    assert d.gain.shape == (2, 1) and np.all(np.isfinite(d.gain))
-    assert 0 < d.beta < 1 and np.linalg.eigvalsh(d.P)[0] > 0
+    assert d.L.shape == (2, 1) and np.all(np.isfinite(d.L))
+    assert 0 < d.info["rate"] < 1 and np.linalg.eigvalsh(d.P)[0] > 0
     assert 0 < d.info["radius_bound"] < np.inf
 
 
 def test_prad_c_variants_are_different_designs(vehicle2d):
     A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
-    g1, g2 = wang_c1_gain(A, C, E, F).gain, wang_c2_gain(A, C, E, F).gain
+    g1, g2 = wang_c1_gain(A, C, E, F).L, wang_c2_gain(A, C, E, F).L
     assert np.abs(g1 - g2).max() > 1e-2 * np.abs(g1).max()
 
 
@@ -124,10 +124,10 @@ def test_designs_are_cached_and_gain_option_skips_them(vehicle2d, monkeypatch):
     monkeypatch.setattr(prad, "wang_c2_gain", counting)
     a = observers.create("PRad-C-II", vehicle2d.system, **vehicle2d.options)
     b = observers.create("PRad-C-II", vehicle2d.system, **vehicle2d.options)
-    np.testing.assert_array_equal(a.gain_matrix, b.gain_matrix)
+    np.testing.assert_array_equal(a.L, b.L)
     assert len(calls) <= 1  # 0 if an earlier test already cached this design
     c = observers.create("PRad-C-II", vehicle2d.system, gain=[0.01, 0.02])
-    np.testing.assert_array_equal(c.gain_matrix, [[0.01], [0.02]])
+    np.testing.assert_array_equal(c.L, [[0.01], [0.02]])
     assert len(calls) <= 1
 
 
@@ -153,7 +153,7 @@ def test_arch2021_prad_b_radii_lie_among_optimal_gains_of_the_sdp():
     # span per state a range of RMS radii that contains ARCH's published value.
     import cvxpy as cp
 
-    from observers.pradius import decay_lmi
+    from observers.numerics.prad import decay_lmi
 
     sc = systems.scenario("tank6-linear")
     s = sc.system

@@ -10,7 +10,7 @@ import pytest
 import observers
 import systems
 from benchmarks.metrics import rms_radius
-from observers.interval import interval_bound, luenberger_step
+from observers.families import interval_bound, luenberger_step
 from observers.sets import Interval
 
 from .conftest import paper_table
@@ -65,14 +65,15 @@ def test_tank6_rms_radii_match_arch2021_table3(name, extra, rtol):
 def test_prad_e_sdp_and_closed_form_reach_the_same_optimum_on_the_tank():
     """Both routes maximise trace(P) over the same LMI: the objective agrees to solver
     accuracy even where the gain is ill-determined (see the comment above)."""
-    from observers.luenberger_gains import cora_bisection_beta, prad_e_design
+    from observers.numerics.lmi import cora_bisection_end
+    from observers.numerics.luenberger import prad_e_design
 
     s = systems.scenario("tank6-linear").system
-    beta = cora_bisection_beta(0.01)
+    beta = cora_bisection_end(0.0, 1.0, 0.01)
     ric = prad_e_design(s.A, s.C, s.W.G, s.V.G, beta, "riccati")
     sdp = prad_e_design(s.A, s.C, s.W.G, s.V.G, beta, "sdp")
     assert np.trace(sdp.P) == pytest.approx(np.trace(ric.P), rel=1e-5)
-    assert max(ric.rho, sdp.rho) <= np.sqrt(beta) * (1 + 1e-6)
+    assert max(ric.info["rho"], sdp.info["rho"]) <= np.sqrt(beta) * (1 + 1e-6)
 
 
 def test_interval_observer_bound_is_the_hull_of_unreduced_set_propagation():
@@ -81,7 +82,7 @@ def test_interval_observer_bound_is_the_hull_of_unreduced_set_propagation():
     for name, gain in [("alamo2d-sim", None), ("vehicle2d-sim", [0.05, 0.07])]:
         sc = systems.scenario(name)
         hinf = observers.create("Hinf-G", sc.system, **({} if gain is None else {"gain": gain}))
-        prop = observers.create("PRad-E", sc.system, gain=hinf.gain_matrix, order=1e9)
+        prop = observers.create("PRad-E", sc.system, gain=hinf.L, order=1e9)
         a = observers.run(hinf, sc.u, sc.y)
         b = observers.run(prop, sc.u, sc.y)
         scale = np.abs(b.hi).max()
@@ -140,7 +141,7 @@ def test_true_state_inside_hulls_on_cora_tank30():
     # (cora_records.yaml).
     sc = systems.scenario("tank30-linear-cora")
     prad = observers.create("PRad-E", sc.system, **sc.options)
-    hinf = observers.create("Hinf-G", sc.system, gain=prad.gain_matrix)
+    hinf = observers.create("Hinf-G", sc.system, gain=prad.L)
     for obs in (prad, hinf):
         res = observers.run(obs, sc.u, sc.y, keep_sets=False)
         assert res.status == "ok"

@@ -88,10 +88,6 @@ def offline_observer():
                 raise DesignFailed(f"{self.name}: the LMI is infeasible (test)")
             return gain["L"]
 
-        @property
-        def L(self):
-            return self.gain_matrix
-
     yield gain
     registry._REGISTRY.pop("Test-OfflineGate")
 

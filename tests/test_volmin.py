@@ -11,8 +11,8 @@ import observers
 import systems
 from benchmarks.metrics import rms_radius
 from benchmarks.runner import run_observer
-from observers.strip import strip_update
-from observers.volume import ZERO_PROJECTION, bravo_scores, bravo_update, volume_lp_gain
+from observers.families import strip_update
+from observers.numerics.volmin import ZERO_PROJECTION, bravo_scores, bravo_update, volume_lp_gain
 
 from .conftest import paper_table
 

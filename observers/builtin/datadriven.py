@@ -16,7 +16,9 @@ from abc import abstractmethod
 import numpy as np
 
 from ..base import Observer
-from ..datadriven import (
+from ..errors import OptionError
+from ..families import as_zonotope
+from ..numerics.datadriven import (
     check_training,
     implicit_gain,
     implicit_update,
@@ -26,8 +28,6 @@ from ..datadriven import (
     sound_model_set,
     split_sensors,
 )
-from ..errors import OptionError
-from ..families import as_zonotope
 from ..registry import register
 from ..sets import ConZonotope, SetError, Zonotope, get_reduction
 from ..sets.reduction import check_order
@@ -70,7 +70,7 @@ class DataDrivenObserver(Observer):
         Construction of ``M_Sigma``: our provably sound matrix zonotope (``"sound"``), its
         interval hull tightened by the per-sample linear constraints (``"sound-lp"``,
         default; also sound) or Lemma 1 as published (``"paper"``, not guaranteed; see
-        :mod:`observers.datadriven.learning`).
+        :mod:`observers.numerics.datadriven.learning`).
     model_order : float
         Order of the (vectorised) ``M_Sigma`` after its reduction for the online phase.
     state_bound : float

@@ -10,15 +10,18 @@ import numpy as np
 from ..base import Observer
 from ..errors import DesignFailed, Diverged, OptionError
 from ..families import as_zonotope
-from ..gaincache import cached_design
-from ..invariant import error_system, invariant_step, loukkas_design, martinez_design
-from ..obe import (
+from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
+    error_system,
     gollamudi_update_cora,
+    invariant_step,
     liu_prediction,
     liu_update_cora,
+    loukkas_design,
+    martinez_design,
     obe_update,
 )
+from ..offline import cached_design
 from ..registry import register
 from ..sets import Ellipsoid, Zonotope
 from ..sets.ellipsoid import CONVERSIONS, max_quadratic_on_zonotope
@@ -37,8 +40,8 @@ class EllipsoidalStripObserver(Observer):
     Options
     -------
     variant : {"paper", "cora"}
-        ``"cora"`` reproduces CORA's update quirks (see :mod:`observers.obe`); its estimate is
-        CORA's stored ellipsoid.
+        ``"cora"`` reproduces CORA's update quirks (see
+        :mod:`observers.numerics.ellipsoidal`); its estimate is CORA's stored ellipsoid.
     conversion : {"outer:norm", "inner:norm"}
         Zonotope-to-ellipsoid conversion of X0, W and V.
     """
@@ -178,7 +181,7 @@ class InvariantSetObserver(Observer):
     """Luenberger observer with an ellipsoidal bound ``e'Pe <= l_k`` of its error.
 
     Offline: ``L``, ``P``, ``lambda``, ``gamma`` (cached, verified; see
-    :mod:`observers.invariant`).  Online: the estimate and the level recursion, and the
+    :mod:`observers.numerics.ellipsoidal`).  Online: the estimate and the level recursion, and the
     ellipsoid ``xh_k + {e : e'Pe <= l_k}`` with a precomputed ``P^-1``.  The level starts at
     the exact maximum of ``e'Pe`` over ``X0 - c`` (vertex enumeration up to 16 generators,
     else a sound bound).

@@ -6,8 +6,8 @@ import numpy as np
 
 from ..errors import OptionError
 from ..families import AllStripsObserver, PerStripObserver, PropagationObserver
+from ..numerics.frad import alamo_frad_gain, combastel_gain, wang_frad_gain
 from ..registry import register
-from ..strip import alamo_frad_gain, combastel_gain, wang_frad_gain
 
 
 @register(
@@ -58,7 +58,7 @@ class FRadB(WangGainVariant, AllStripsObserver):
         See :class:`WangGainVariant` (``"cora"``: CORA's double application of ``A``).
     """
 
-    def gain(self, G: np.ndarray) -> np.ndarray:
+    def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.wang_gain(G)
 
 

@@ -2,7 +2,7 @@
 PRad-D (Althoff & Rath 2021, Table 2).
 
 All five intersect the predicted zonotope with the measurement strips using a constant gain
-designed offline by an SDP (:mod:`observers.pradius`; cvxpy + Clarabel, verified in numpy,
+designed offline by an SDP (:mod:`observers.numerics.prad`; cvxpy + Clarabel, verified in numpy,
 cached on disk); ``gain=`` skips the design.  PRad-A uses intersection method I (strip by
 strip, one gain column per output), the others method II (all strips at once).
 
@@ -81,8 +81,8 @@ import numpy as np
 
 from ..errors import OptionError
 from ..families import AllStripsObserver, PerStripObserver
+from ..numerics.prad import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
 from ..offline import OfflineGain
-from ..pradius import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
 from ..registry import register
 
 
@@ -120,18 +120,18 @@ class PRadA(_BetaTol, OfflineGain, PerStripObserver):
             phi = np.array([abs(self.V.c[i]) + F_i[0, 0]])
             d = le_gain(self.A, self.C[i:i + 1], self.E, F_i, cora_epsilon(self.W, phi),
                         self.options["beta_tol"], what=f"PRad-A (output {i + 1})")
-            cols.append(d.gain[:, 0])
+            cols.append(d.L[:, 0])
         return np.column_stack(cols)
 
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
-        return self.gain_matrix[:, i]
+        return self.L[:, i]
 
 
 class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     """Method II with the offline gain."""
 
-    def gain(self, G: np.ndarray) -> np.ndarray:
-        return self.gain_matrix
+    def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
+        return self.L
 
 
 @register(
@@ -145,7 +145,7 @@ class PRadB(_BetaTol, _ConstantAllStrips):
 
     def design_gain(self) -> np.ndarray:
         return le_gain(self.A, self.C, self.E, self.F, cora_epsilon(self.W, self.sigma),
-                       self.options["beta_tol"]).gain
+                       self.options["beta_tol"]).L
 
 
 @register(
@@ -158,7 +158,7 @@ class PRadCI(_ConstantAllStrips):
     DESIGN_VERSION = "1"
 
     def design_gain(self) -> np.ndarray:
-        return wang_c1_gain(self.A, self.C, self.E, self.F).gain
+        return wang_c1_gain(self.A, self.C, self.E, self.F).L
 
 
 @register(
@@ -171,7 +171,7 @@ class PRadCII(_ConstantAllStrips):
     DESIGN_VERSION = "1"
 
     def design_gain(self) -> np.ndarray:
-        return wang_c2_gain(self.A, self.C, self.E, self.F).gain
+        return wang_c2_gain(self.A, self.C, self.E, self.F).L
 
 
 @register(
@@ -204,4 +204,4 @@ class PRadD(_ConstantAllStrips):
 
     def design_gain(self) -> np.ndarray:
         return wang_d_gain(self.A, self.C, self.E, self.F, alpha=self.options["alpha"],
-                           beta=self.options["beta"]).gain
+                           beta=self.options["beta"]).L

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..base import Observer
-from ..datadriven import check_training
 from ..errors import DesignFailed, OptionError
 from ..families import as_zonotope
+from ..numerics.datadriven import check_training
 from ..registry import register
 from ..sets import Ellipsoid
 

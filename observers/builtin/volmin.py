@@ -5,7 +5,7 @@ Both intersect the predicted zonotope with the measurement strips one after the 
 CORA), with no offline design:
 
 * **VolMin-A** (intersection method I): per strip the gain of least volume, an LP over the
-  exact volume expression (:func:`observers.volume.volume_lp_gain`).  The LP enumerates all
+  exact volume expression (:func:`observers.numerics.volmin.volume_lp_gain`).  The LP enumerates all
   n- and (n-1)-subsets of the generators, ``C(r, n) + C(r, n-1)`` of them, which explodes with
   the generator count r (Althoff & Rath 2021 could only run it on the 2-state vehicle).  The
   observer therefore checks at construction time the largest count it can meet,
@@ -15,8 +15,8 @@ CORA), with no offline design:
   in the message) instead of hanging.  Lower ``order`` or raise ``max_subsets`` to run it.
 * **VolMin-B** (intersection method III): per strip the candidate of least ``det(T T')``
   among the r + 1 zonotopes of Bravo et al., all scored at once
-  (:func:`observers.volume.bravo_scores`).  The choice depends only on the generators, not on
-  the measured values, so the radii do not depend on the noise realisation.
+  (:func:`observers.numerics.volmin.bravo_scores`).  The choice depends only on the
+  generators, not on the measured values, so the radii do not depend on the noise realisation.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ import numpy as np
 
 from ..errors import DesignFailed, OptionError
 from ..families import PerStripObserver, StripBasedObserver
+from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
 from ..registry import register
-from ..volume import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
 
 
 @register(

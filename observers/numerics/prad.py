@@ -20,54 +20,45 @@ returned ``Lam`` (smallest eigenvalue >= -1e-6 relative, :data:`VERIFY_TOL`), el
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .errors import DesignFailed
-from .lmi import require_pd, require_psd
+from ..errors import DesignFailed
+from .lmi import (
+    GainDesign,
+    bmat,
+    cora_bisection_end,
+    gain_from,
+    psd_constraint,
+    require_pd,
+    require_psd,
+    solved,
+)
 
-FEASIBLE = ("optimal", "optimal_inaccurate")
 #: relative tolerance of the numpy check of (*): the optimum of every design lies on the
 #: boundary of the LMI, where the solver's feasibility tolerance (1e-8 on its scaled problem)
 #: shows up as eigenvalues of order -1e-7 relative to the largest entry of D
 VERIFY_TOL = 1e-6
 
 
-@dataclass(frozen=True)
-class GainDesign:
-    """A verified constant gain with the design data that certify it."""
-
-    gain: np.ndarray
-    P: np.ndarray
-    beta: float
-    info: dict[str, Any] = field(default_factory=dict)
-
-
 def decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv) -> list[list]:
-    """Blocks of ``D(P, Y)`` in (*), for numpy arrays or cvxpy expressions alike."""
-    n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
-    Z = np.zeros
+    """Blocks of ``D(P, Y)`` in (*) (``None``: zero), for :func:`~observers.numerics.lmi.bmat`."""
     M1 = (P - Y @ C) @ A
     M2 = (P - Y @ C) @ E
     M3 = Y @ F
     return [
-        [Wx, Z((n, nw)), Z((n, nv)), M1.T],
-        [Z((nw, n)), Ww, Z((nw, nv)), M2.T],
-        [Z((nv, n)), Z((nv, nw)), Wv, M3.T],
+        [Wx, None, None, M1.T],
+        [None, Ww, None, M2.T],
+        [None, None, Wv, M3.T],
         [M1, M2, M3, P],
     ]
 
 
 def decay_lmi(P, Y, A, C, E, F, Wx, Ww, Wv):
     """cvxpy constraint ``D(P, Y) >= 0`` (symmetrised, as cvxpy requires)."""
-    import cvxpy as cp
-
-    S = cp.bmat(decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv))
-    return (S + S.T) / 2 >> 0
+    return psd_constraint(bmat(decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv)))
 
 
 def verify_decay(
@@ -79,41 +70,8 @@ def verify_decay(
     require_pd(P, f"{what}: P > 0", margin=1e-9 * max(top, 0.0))
     if not np.all(np.isfinite(L)):
         raise DesignFailed(f"{what}: the gain is not finite")
-    D = np.block(decay_blocks(P, P @ L, A, C, E, F, Wx, Ww, Wv))
+    D = bmat(decay_blocks(P, P @ L, A, C, E, F, Wx, Ww, Wv))
     return require_psd(D, f"{what}: P-radius inequality", tol=VERIFY_TOL)
-
-
-#: Clarabel tolerances of the line-search evaluations (the chosen point is solved again with
-#: the defaults, 1e-8): they only rank decay rates, and save about a third of the iterations
-ROUGH = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-7}
-
-
-def _solve(problem, rough: bool = False) -> bool:
-    """Solve with Clarabel; True if the problem was solved to (inaccurate) optimality."""
-    import cvxpy as cp
-
-    try:
-        with warnings.catch_warnings():  # "solution may be inaccurate": judged by the status
-            warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **(ROUGH if rough else {}))
-    except (cp.error.SolverError, ArithmeticError, ValueError):
-        return False
-    return problem.status in FEASIBLE
-
-
-def cora_bisection_end(lo: float, hi: float, tol: float) -> float:
-    """Where CORA's bisection ends when every tested value is feasible.
-
-    CORA halves ``[lo, hi]`` until ``hi - lo <= tol``, moving *up* after a feasible solve and
-    keeping the values of the last solve.  Its PRad-A/B SDP is feasible for every ``beta``
-    (``P = Y = 0``, ``tau = 0``), so the loop always moves up and ends at ``hi - (hi - lo)
-    2^-k`` (0.9921875 for [0, 1] and tol 0.01), where the gain is that of one solve.
-    """
-    if not hi > lo or not tol > 0:
-        raise ValueError("bisection needs lo < hi and tol > 0")
-    while hi - lo > tol:
-        lo = 0.5 * (lo + hi)
-    return lo
 
 
 def line_search(
@@ -169,14 +127,6 @@ def _as_arrays(A, C, E, F):
     return tuple(np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, C, E, F))
 
 
-def _gain(P: np.ndarray, Y: np.ndarray, what: str) -> np.ndarray:
-    P = 0.5 * (P + P.T)
-    try:
-        return np.linalg.solve(P, Y)
-    except np.linalg.LinAlgError:
-        raise DesignFailed(f"{what}: P is singular") from None
-
-
 def _variables(n: int, m: int):
     import cvxpy as cp
 
@@ -205,12 +155,13 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
     Ww, Wv = E.T @ E, F.T @ F
     cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
             (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
-    if not _solve(cp.Problem(cp.Maximize(tau), cons)):
+    if not solved(cp.Problem(cp.Maximize(tau), cons)):
         raise DesignFailed(f"{what}: the P-radius SDP could not be solved at beta={beta}")
     Pv = 0.5 * (P.value + P.value.T)
-    L = _gain(Pv, Y.value, what)
+    L = gain_from(Pv, Y.value, what)
     verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
-    return GainDesign(L, Pv, beta, {"tau": float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)})
+    tau = float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)
+    return GainDesign(L, Pv, {"rate": beta, "tau": tau})
 
 
 # -- PRad-C-I, PRad-C-II (Wang et al. 2018), PRad-D (Wang et al. 2019) -----------------------------
@@ -251,18 +202,18 @@ class _WeightedLMI:
 
         def evaluate(b: float, rough: bool):
             self.beta.value = b
-            if not _solve(prob, rough):
+            if not solved(prob, rough):
                 return None
             return prob.value / (1 - b), tuple(v.value for v in (self.P, self.Y, self.gw, self.gv))
 
         b, (Pv, Yv, gw, gv) = _line_searched(evaluate, what, search, monotone=True)
         gw, gv = np.maximum(gw, 0), np.maximum(gv, 0)
         Pv = 0.5 * (Pv + Pv.T)
-        L = _gain(Pv, Yv, what)
+        L = gain_from(Pv, Yv, what)
         A, C, E, F = self.data
         verify_decay(Pv, L, A, C, E, F, b * Pv, np.diag(gw), np.diag(gv), what)
         bound = (gw.sum() + gv.sum()) / ((1 - b) * np.linalg.eigvalsh(Pv)[0])
-        return GainDesign(L, Pv, b, {"radius_bound": float(np.sqrt(bound))})
+        return GainDesign(L, Pv, {"rate": b, "radius_bound": float(np.sqrt(bound))})
 
 
 def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None) -> GainDesign:
@@ -334,7 +285,7 @@ def wang_d_gain(
     def evaluate(al: float, rough: bool = False):
         a.value, ca.value = al, 1 - al
         # t at the level of rounding relative to P means "no P > 0" (P singular)
-        if not _solve(prob, rough) or t.value <= 1e-9 * float(np.abs(P.value).max()):
+        if not solved(prob, rough) or t.value <= 1e-9 * float(np.abs(P.value).max()):
             return None
         return r_inf / t.value, (P.value, Y.value)
 
@@ -346,8 +297,8 @@ def wang_d_gain(
             raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius LMI with alpha={alpha}")
         al, (Pv, Yv) = alpha, out[1]
     Pv = 0.5 * (Pv + Pv.T)
-    L = _gain(Pv, Yv, what)
+    L = gain_from(Pv, Yv, what)
     verify_decay(Pv, L, A, C, E, F, al * Pv, (1 - al) * beta * np.eye(nw),
                  (1 - al) * (1 - beta) * np.eye(nv), what)
     bound = r_inf / np.linalg.eigvalsh(Pv)[0]
-    return GainDesign(L, Pv, al, {"radius_bound": float(np.sqrt(bound))})
+    return GainDesign(L, Pv, {"rate": al, "radius_bound": float(np.sqrt(bound))})

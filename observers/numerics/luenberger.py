@@ -7,7 +7,7 @@
 
 Each design solves its LMI with cvxpy + Clarabel (PRad-E also in closed form, through a
 Riccati equation), then re-checks the LMI on the returned numbers with numpy eigenvalues
-(:mod:`observers.lmi`) and returns a verified :class:`GainDesign`; an infeasible or failed
+(:mod:`observers.numerics.lmi`) and returns a verified :class:`GainDesign`; an infeasible or failed
 design raises :class:`~observers.errors.DesignFailed`.
 
 Notation: ``E`` and ``F`` are the generator matrices of the disturbance set ``W`` (state
@@ -18,85 +18,14 @@ objectives chosen here make every gain the unique (or central) solution of a sta
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import dataclass, field
-
 import numpy as np
 
+from ..errors import DesignFailed
 from . import lmi
-from .errors import DesignFailed
+from .lmi import GainDesign, bmat, gain_from, range_basis, range_factor
 
-#: tolerances of the PRad-E SDP: its optimum is unique, so it is solved to high accuracy
-TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
 #: strictness margin of the strict LMIs (``SM <= -eps I`` stands for ``SM < 0``)
 STRICT_EPS = 1e-6
-
-
-@dataclass(frozen=True)
-class GainDesign:
-    """A verified observer gain ``L = P^{-1} Y`` with its Lyapunov matrix and figures of merit."""
-
-    L: np.ndarray
-    P: np.ndarray
-    rho: float  # spectral radius of A - L C
-    info: dict = field(default_factory=dict)
-
-
-# -- helpers ----------------------------------------------------------------------------------
-def range_factor(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
-    """``U_r S_r`` from the thin SVD of ``G``: a full-column-rank factor with the same ``G G'``.
-
-    LMIs in which ``G`` enters only through ``G' G`` and ``G' X`` keep their feasible set in
-    the other variables when ``G`` is replaced by this factor (congruence with ``V_r'``).
-    """
-    G = np.asarray(G, dtype=float)
-    if G.size == 0:
-        return np.zeros((G.shape[0], 0))
-    U, s, _ = np.linalg.svd(G, full_matrices=False)
-    r = int(np.sum(s > rtol * s[0])) if s.size and s[0] > 0 else 0
-    return U[:, :r] * s[:r]
-
-
-def range_basis(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
-    """Orthonormal basis of the range of ``G`` (n x rank)."""
-    F = range_factor(G, rtol)
-    return F / np.linalg.norm(F, axis=0) if F.shape[1] else F
-
-
-def gain_from(P: np.ndarray, Y: np.ndarray, what: str) -> np.ndarray:
-    """``L = P^{-1} Y`` after checking that ``P`` is positive definite."""
-    P = lmi.sym(P)
-    lam = np.linalg.eigvalsh(P)
-    if not np.all(np.isfinite(lam)) or lam[0] <= 1e-12 * max(1.0, lam[-1]):
-        raise DesignFailed(f"{what}: P is not positive definite (eigenvalues "
-                           f"{lam[0]:.3g} ... {lam[-1]:.3g}), so L = P^-1 Y is undefined")
-    return np.linalg.solve(P, Y)
-
-
-def _solve(problem, what: str, **solver_options) -> str:
-    """:func:`observers.lmi.solve` without cvxpy's "inaccurate" warning: an inaccurate
-    solution is accepted or rejected by the numpy verification that follows every solve."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-        return lmi.solve(problem, what, **solver_options)
-
-
-def _bmat(blocks: list[list]):
-    """Block matrix where ``None`` is a zero block (its size read from the other blocks).
-
-    With numpy blocks only it is a numpy array; with any cvxpy expression among them, a cvxpy
-    expression (so each LMI below is written once, for the solver and for the verification).
-    """
-    rows = [next(b.shape[0] for b in row if b is not None) for row in blocks]
-    cols = [next(row[j].shape[1] for row in blocks if row[j] is not None)
-            for j in range(len(blocks[0]))]
-    filled = [[np.zeros((rows[i], cols[j])) if b is None else b for j, b in enumerate(row)]
-              for i, row in enumerate(blocks)]
-    if all(isinstance(b, np.ndarray) for row in filled for b in row):
-        return np.block(filled)
-    import cvxpy as cp
-
-    return cp.bmat(filled)
 
 
 def check_modes(system, who: str, rate: float = 1.0) -> None:
@@ -116,22 +45,6 @@ def check_modes(system, who: str, rate: float = 1.0) -> None:
 
 
 # -- PRad-E -----------------------------------------------------------------------------------
-def cora_bisection_beta(tol: float = 0.01) -> float:
-    """Contraction factor at which CORA's bisection for PRad-E stops.
-
-    CORA bisects ``beta`` on [0, 1] until the bracket is narrower than ``tol``, moving up after
-    every solve that is not certified infeasible.  The PRad-E LMI as CORA states it is
-    non-strict, and ``(P, Y) = (0, 0)`` satisfies it for every ``beta``, so every step moves up
-    and the last (kept) solve is at ``1 - 2**-k`` (0.9921875 for ``tol = 0.01``).  This
-    function replays that bracket arithmetic, which makes the 6 earlier solves unnecessary.
-    """
-    lo, hi, beta = 0.0, 1.0, 0.5
-    while hi - lo > tol:
-        beta = 0.5 * (lo + hi)
-        lo = beta  # feasible, see above
-    return beta
-
-
 def prad_e_lmi(A, C, E, F, beta, P, Y):
     """The PRad-E matrix of Wang et al. (CCC 2017, eq. 17), to be ``<= 0``::
 
@@ -144,7 +57,7 @@ def prad_e_lmi(A, C, E, F, beta, P, Y):
     ``F Y'`` in the third block row; that equals ``F' Y'`` for the symmetric (diagonal) ``F``
     of all benchmarks, and only ``F' Y'`` has the right shape for a non-square ``F``.
     """
-    return _bmat([[-beta * P, None, None, A.T @ P - C.T @ Y.T],
+    return bmat([[-beta * P, None, None, A.T @ P - C.T @ Y.T],
                   [None, -E.T @ E, None, E.T @ P],
                   [None, None, -F.T @ F, F.T @ Y.T],
                   [P @ A - Y @ C, P @ E, Y @ F, -P]])
@@ -162,7 +75,8 @@ def prad_e_design(A, C, E, F, beta: float, solver: str = "auto") -> GainDesign:
         with ``diag(I, T_E, T_F, I)``), so they are replaced by orthonormal range bases; this
         is the same problem, scaled for the solver.
     beta : float
-        Contraction factor in (0, 1); CORA uses :func:`cora_bisection_beta` (0.9921875).
+        Contraction factor in (0, 1); CORA uses
+        :func:`~observers.numerics.lmi.cora_bisection_end` (0.9921875).
     solver : {"auto", "sdp", "riccati"}
         ``"sdp"``: maximise ``trace(P)`` with cvxpy + Clarabel.  ``"auto"``: ``"riccati"`` when
         V is full-dimensional, else ``"sdp"``.  ``"riccati"``: the same optimum in closed
@@ -200,7 +114,8 @@ def prad_e_design(A, C, E, F, beta: float, solver: str = "auto") -> GainDesign:
     if rho > np.sqrt(beta) * (1 + 1e-6):
         raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
                            f"{rho:.6g} > sqrt(beta) = {np.sqrt(beta):.6g})")
-    return GainDesign(L, P, rho, {"beta": beta, "solver": solver, "trace_P": float(np.trace(P))})
+    return GainDesign(L, P, {"rho": rho, "beta": beta, "solver": solver,
+                             "trace_P": float(np.trace(P))})
 
 
 def _prad_e_sdp(A, C, QE, QF, beta, what):
@@ -211,7 +126,7 @@ def _prad_e_sdp(A, C, QE, QF, beta, what):
     Y = cp.Variable((n, m))
     SM = prad_e_lmi(A, C, QE, QF, beta, P, Y)
     problem = cp.Problem(cp.Maximize(cp.trace(P)), [P >> 0, 0.5 * (SM + SM.T) << 0])
-    _solve(problem, what, **TIGHT)
+    lmi.solve(problem, what, **lmi.TIGHT)
     return P.value, Y.value
 
 
@@ -243,7 +158,7 @@ def nom_g_lmi(A, C, mu, P, Y):
     """The Nom-G matrix (Wang et al., Automatica 2018, eq. 36), to be ``> 0``:
     ``[[mu P, (P A - Y C)'], [P A - Y C, P]]``."""
     M = P @ A - Y @ C
-    return _bmat([[mu * P, M.T], [M, P]])
+    return bmat([[mu * P, M.T], [M, P]])
 
 
 def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
@@ -272,7 +187,7 @@ def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
     Y = cp.Variable((n, m))
     SM = nom_g_lmi(A, C, mu, P, Y)
     problem = cp.Problem(cp.Maximize(cp.log_det(0.5 * (SM + SM.T))), [cp.trace(P) == n])
-    _solve(problem, what)
+    lmi.solve(problem, what)
     P, Y = lmi.sym(P.value), Y.value
     L = gain_from(P, Y, what)
     margin = lmi.require_pd(nom_g_lmi(A, C, mu, P, Y), f"{what} LMI")
@@ -280,7 +195,7 @@ def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
     if rho >= np.sqrt(mu):
         raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
                            f"{rho:.6g} >= sqrt(mu) = {np.sqrt(mu):.6g})")
-    return GainDesign(L, P, rho, {"mu": mu, "lmi_margin": margin})
+    return GainDesign(L, P, {"rho": rho, "mu": mu, "lmi_margin": margin})
 
 
 # -- Hinf-G -----------------------------------------------------------------------------------
@@ -297,7 +212,7 @@ def hinf_g_lmi(A, C, E, F, g, P, Y):
     """
     n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
     M = P @ A - Y @ C
-    return _bmat([[np.eye(n) - P, None, None, M.T],
+    return bmat([[np.eye(n) - P, None, None, M.T],
                   [None, -g * np.eye(nw), None, (P @ E).T],
                   [None, None, -g * np.eye(nv), (-Y @ F).T],
                   [M, P @ E, -Y @ F, -P]])
@@ -334,11 +249,11 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1) -> GainDesign:
     def strict(SM):
         return 0.5 * (SM + SM.T) << -STRICT_EPS * np.eye(SM.shape[0])
 
-    _solve(cp.Problem(cp.Minimize(g), [strict(hinf_g_lmi(A, C, E, F, g, P, Y))]),
+    lmi.solve(cp.Problem(cp.Minimize(g), [strict(hinf_g_lmi(A, C, E, F, g, P, Y))]),
               f"{what} (min gamma)")
     g_star = float(g.value)
     g_max = (1.0 + gamma_slack) ** 2 * g_star
-    _solve(cp.Problem(cp.Minimize(cp.trace(P)),
+    lmi.solve(cp.Problem(cp.Minimize(cp.trace(P)),
                          [strict(hinf_g_lmi(A, C, E, F, g_max, P, Y))]),
               f"{what} (min trace P)")
     P, Y = lmi.sym(P.value), Y.value
@@ -348,5 +263,5 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1) -> GainDesign:
     if rho >= 1.0:
         raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
                            f"{rho:.6g} >= 1)")
-    return GainDesign(L, P, rho, {"gamma_min": float(np.sqrt(g_star)),
+    return GainDesign(L, P, {"rho": rho, "gamma_min": float(np.sqrt(g_star)),
                                   "gamma": float(np.sqrt(g_max))})

@@ -1,18 +1,23 @@
-"""Set-propagation observers with an offline gain: PRad-E and Nom-G.
+"""Observers with an offline Luenberger gain: PRad-E and Nom-G (set propagation) and Hinf-G
+(interval observer).
 
-Both run the shared loop of :class:`~observers.families.PropagationObserver`
-(``S+ = (A - L C) S + B u + L y + (-L) V + W``, then order reduction) with a constant gain
-designed once in the constructor (:mod:`observers.luenberger_gains`), cached on disk, or
-passed as ``gain=`` (e.g. CORA's stored gains).
+PRad-E and Nom-G run the shared loop of :class:`~observers.families.PropagationObserver`
+(``S+ = (A - L C) S + B u + L y + (-L) V + W``, then order reduction), Hinf-G the interval
+observer of :class:`~observers.families.IntervalObserver`; each with a constant gain designed
+once in the constructor (:mod:`observers.numerics.luenberger`), cached on disk, or passed as
+``gain=`` (e.g. CORA's stored gains).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..errors import OptionError
-from ..families import ConstantGainPropagationObserver
-from ..luenberger_gains import check_modes, cora_bisection_beta, nom_g_design, prad_e_design
+from ..families import ConstantGainPropagationObserver, IntervalObserver
+from ..numerics.lmi import cora_bisection_end
+from ..numerics.luenberger import check_modes, hinf_g_design, nom_g_design, prad_e_design
 from ..offline import OfflineGain
 from ..registry import register
 
@@ -28,11 +33,7 @@ def _number(obs, key: str, lo: float, hi: float, hi_closed: bool) -> None:
 
 
 class _OfflineGainPropagation(OfflineGain, ConstantGainPropagationObserver):
-    """Set propagation with ``L = gain_matrix`` from :class:`OfflineGain`."""
-
-    @property
-    def L(self) -> np.ndarray:
-        return self.gain_matrix
+    """Set propagation with ``L = L`` from :class:`OfflineGain`."""
 
 
 @register(
@@ -48,12 +49,12 @@ class PRadE(_OfflineGainPropagation):
         Contraction factor of the P-radius in (0, 1).  ``None`` (default) takes the value at
         which CORA's bisection (tolerance 0.01) stops, 0.9921875: the LMI is feasible for
         every beta, so CORA's bisection always ends there (see
-        :func:`~observers.luenberger_gains.cora_bisection_beta`).
+        :func:`~observers.numerics.lmi.cora_bisection_end`).
     solver : {"auto", "sdp", "riccati"}
         ``"sdp"``: maximise ``trace(P)`` with cvxpy + Clarabel (as CORA, with SDPT3).
         ``"riccati"``: the same unique optimum in closed form from a discrete Riccati
         equation, in milliseconds also for large systems where the SDP takes minutes (see
-        :func:`~observers.luenberger_gains.prad_e_design`).  ``"auto"`` (default):
+        :func:`~observers.numerics.luenberger.prad_e_design`).  ``"auto"`` (default):
         ``"riccati"`` when the noise set V is full-dimensional, else ``"sdp"``.
     gain : array, optional
         Use this gain instead of designing one.
@@ -73,7 +74,7 @@ class PRadE(_OfflineGainPropagation):
     def beta(self) -> float:
         """The contraction factor used by the design."""
         b = self.options["beta"]
-        return cora_bisection_beta(0.01) if b is None else float(b)
+        return cora_bisection_end(0.0, 1.0, 0.01) if b is None else float(b)
 
     def design_gain(self) -> np.ndarray:
         s = self.system
@@ -96,7 +97,7 @@ class NomG(_OfflineGainPropagation):
         Use this gain instead of designing one.
 
     The LMI is a feasibility problem; the gain is the analytic centre of its feasible set
-    normalised by ``trace(P) = n`` (see :func:`~observers.luenberger_gains.nom_g_design`).
+    normalised by ``trace(P) = n`` (see :func:`~observers.numerics.luenberger.nom_g_design`).
     """
 
     OPTIONS = {"mu": 1.0}
@@ -109,3 +110,42 @@ class NomG(_OfflineGainPropagation):
         s = self.system
         check_modes(s, self.name, rate=np.sqrt(self.options["mu"]))
         return nom_g_design(s.A, s.C, float(self.options["mu"])).L
+
+
+@register(
+    "Hinf-G", family="interval", set_type="interval", ready_for_control=True,
+    reference="Tang, Wang, Wang, Raissi, Shen, IEEE TAC 64(11), 2019, eq. 16 and Alg. 1 "
+              "(Althoff & Rath 2021, Sec. 3.3)",
+)
+class HinfG(OfflineGain, IntervalObserver):
+    """Interval observer (Tang et al., Alg. 1) with the H-infinity gain, min gamma then min trace P.
+
+    Options
+    -------
+    gamma_slack : float
+        The gain minimises ``trace(P)`` among the gains with
+        ``gamma <= (1 + gamma_slack) * min gamma`` (default 0.1); see
+        :func:`~observers.numerics.luenberger.hinf_g_design`.
+    convention : {"aligned", "cora-lagged"}
+        ``"aligned"`` (default): the set of step k contains ``x_k``.  ``"cora-lagged"``:
+        CORA's sets, one step late (for conformance tests only; see
+        :mod:`observers.families`).
+    gain : array, optional
+        Use this gain instead of designing one.
+    """
+
+    OPTIONS = {"gamma_slack": 0.1}
+
+    def validate_options(self) -> None:
+        super().validate_options()
+        v = self.options["gamma_slack"]
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+            raise OptionError(f"{self.name}: gamma_slack must be a positive number, got {v!r}")
+
+    def design_params(self) -> dict[str, Any]:
+        return {"gamma_slack": float(self.options["gamma_slack"])}
+
+    def design_gain(self) -> np.ndarray:
+        s = self.system
+        check_modes(s, self.name)
+        return hinf_g_design(s.A, s.C, s.W.G, s.V.G, float(self.options["gamma_slack"])).L

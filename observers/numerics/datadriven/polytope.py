@@ -6,7 +6,7 @@ any consistent ``[A B] = Theta`` satisfies, for every transition k,
     ``|xh_i(k+1) - c_w,i - theta_i' dh(k)| <= e_bar_i + r_w,i + sum_j |a_ij| e_bar_j``
 
 (``dh(k) = [xh(k); u(k)]``, ``r_w`` the interval radius of W).  Given a sound prior box
-``lo <= Theta <= hi`` (from :func:`~observers.datadriven.learning.sound_model_set`), the
+``lo <= Theta <= hi`` (from :func:`~observers.numerics.datadriven.learning.sound_model_set`), the
 unknown ``|a_ij|`` is bounded by ``max(|lo_ij|, |hi_ij|)``, so each row lies in a polytope of
 2T half-spaces intersected with the prior box.  Its interval hull is computed by linear
 programs (HiGHS, called directly) and each bound is made sound by weak duality: for *any*

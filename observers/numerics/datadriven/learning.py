@@ -42,8 +42,8 @@ Data (Alanwar et al., ECC 2022, eqs. 4-5): inputs ``u(0..T-1)``, outputs ``z(0..
 :func:`refined_model_set`
     The interval hull of the sound set tightened by the linear constraints that each sample
     imposes on each row of ``[A B]`` (LP bounds made sound by weak duality,
-    :mod:`observers.datadriven.polytope`); unlike the pseudo-inverse bound it shrinks as the
-    experiment grows.
+    :mod:`observers.numerics.datadriven.polytope`); unlike the pseudo-inverse bound it shrinks
+    as the experiment grows.
 """
 
 from __future__ import annotations
@@ -52,8 +52,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DesignFailed, Unsupported
-from ..sets import IntervalMatrix, MatrixZonotope, Zonotope
+from ...errors import DesignFailed, Unsupported
+from ...sets import IntervalMatrix, MatrixZonotope, Zonotope
 
 _EPS = np.finfo(float).eps
 
@@ -221,7 +221,8 @@ def sound_model_set(data: TrainingData, W: Zonotope, state_bound: float = 100.0)
 def refined_model_set(data: TrainingData, W: Zonotope, prior: MatrixZonotope,
                       rounds: int = 2) -> IntervalMatrix:
     """The interval hull of ``prior`` tightened by the per-sample linear constraints (LPs with
-    dual-checked bounds, :mod:`observers.datadriven.polytope`); sound whenever ``prior`` is."""
+    dual-checked bounds, :mod:`observers.numerics.datadriven.polytope`); sound whenever
+    ``prior`` is."""
     from .polytope import refine_box
 
     xh, H = _state_sets(data, 0.0)

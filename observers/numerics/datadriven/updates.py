@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..strip import wang_frad_gain
+from ..frad import wang_frad_gain
 from .learning import output_inverse
 
 

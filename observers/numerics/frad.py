@@ -1,4 +1,4 @@
-"""Numeric kernels of the zonotopic observers (pure functions on centre/generator arrays).
+"""F-radius gains of the zonotopic observers FRad-A, FRad-B, FRad-C (and CZN-B), pure functions.
 
 Notation: a zonotope is ``(c, G)``; the measurement set of ``y`` is the strip (or the
 intersection of strips) ``|C x - y| <= sigma``; ``E`` and ``F`` are the generator matrices of
@@ -8,20 +8,6 @@ the disturbance set ``W`` and the noise set ``V``.
 from __future__ import annotations
 
 import numpy as np
-
-
-def strip_update(
-    c: np.ndarray, G: np.ndarray, Lam: np.ndarray, C: np.ndarray, y: np.ndarray, sigma: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Zonotope enclosing ``(c, G)`` intersected with the strips ``|C x - y| <= sigma``.
-
-    For any gain ``Lam`` (n x m) this is the parameterised family of Alamo et al. (2005,
-    Property 3) and Le et al. (2013):
-    ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]``.
-    """
-    c_new = c + Lam @ (y - C @ c)
-    G_new = np.hstack([G - Lam @ (C @ G), Lam * sigma])
-    return c_new, G_new
 
 
 def alamo_frad_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray:
@@ -51,24 +37,3 @@ def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -
     S = C @ P @ C.T + F @ F.T
     return A @ np.linalg.solve(S, C @ P).T
 
-
-def propagate(
-    c: np.ndarray,
-    G: np.ndarray,
-    A: np.ndarray,
-    B: np.ndarray,
-    C: np.ndarray,
-    L: np.ndarray,
-    u: np.ndarray,
-    y: np.ndarray,
-    V: tuple[np.ndarray, np.ndarray],
-    W: tuple[np.ndarray, np.ndarray],
-) -> tuple[np.ndarray, np.ndarray]:
-    """One set-propagation step ``S+ = (A - L C) S + B u + L y + (-L) V + W`` (eq. 8 of
-    Althoff & Rath 2021), exact on zonotopes; generators ``[(A-LC) G, -L G_V, G_W]``."""
-    cV, GV = V
-    cW, GW = W
-    M = A - L @ C
-    c_new = M @ c + B @ u + L @ (y - cV) + cW
-    G_new = np.hstack([M @ G, -L @ GV, GW])
-    return c_new, G_new

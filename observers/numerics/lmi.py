@@ -1,0 +1,195 @@
+"""The LMI toolbox of the offline designs: solve with cvxpy + Clarabel, then verify in numpy.
+
+Every offline gain of the project (PRad-A..E, Nom-G, Hinf-G, ESO-C/D) is designed with the
+pieces of this module, so that each step is written once:
+
+* :func:`bmat` writes a block matrix once for cvxpy (the solver) and numpy (the verification);
+* :func:`solve` is the one Clarabel call with one status policy (:data:`ACCEPTED`);
+* :func:`gain_from` computes ``L = P^-1 Y`` from a positive definite ``P``;
+* :func:`require_psd`, :func:`require_pd`, :func:`require_nsd` check the inequalities on the
+  *returned numbers* with ``numpy.linalg.eigvalsh``: a solver's "optimal" status is not enough;
+* :func:`cora_bisection_end` replays where CORA's bisections on a decay rate stop;
+* :class:`GainDesign` is what every design returns.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import DesignFailed
+
+#: solver statuses accepted; an "inaccurate" point is judged by the numpy verification that
+#: follows every solve
+ACCEPTED = ("optimal", "optimal_inaccurate")
+#: Clarabel tolerances of rough evaluations inside a line search (the chosen point is solved
+#: again with the defaults, 1e-8): they only rank decay rates and save about a third of the
+#: iterations
+ROUGH = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-7}
+#: tolerances for problems with a unique optimum that is solved to high accuracy (PRad-E)
+TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
+
+
+@dataclass(frozen=True)
+class GainDesign:
+    """A verified constant observer gain with the data that certify it.
+
+    Attributes
+    ----------
+    L : ndarray
+        The gain (n x ny): the strip-intersection gain ``Lambda`` of a strip-based observer or
+        the Luenberger gain of a propagation or interval observer.
+    P : ndarray
+        The Lyapunov (or P-radius) matrix of the certificate.
+    info : dict
+        Figures of merit of the design: ``rate``, the decay rate of the P-radius certified by
+        a P-radius design (``beta`` or ``alpha`` in the papers); ``rho``, the spectral radius
+        of ``A - L C`` of a Luenberger design; bounds and solver settings.
+    """
+
+    L: np.ndarray
+    P: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def solve(problem, what: str, **solver_options) -> str:
+    """Solve a cvxpy problem with Clarabel; return the status or raise :class:`DesignFailed`.
+
+    A solver exception or a status outside :data:`ACCEPTED` is a failed design.  cvxpy's
+    "solution may be inaccurate" warning is silenced: the numpy verification that follows every
+    solve accepts or rejects the point.
+    """
+    import cvxpy as cp
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL, **solver_options)
+    except (cp.error.SolverError, ArithmeticError, ValueError) as exc:
+        raise DesignFailed(f"{what}: solver failed ({exc})") from None
+    status = problem.status
+    if status not in ACCEPTED:
+        raise DesignFailed(f"{what}: the SDP is {status}")
+    return status
+
+
+def solved(problem, rough: bool = False) -> bool:
+    """:func:`solve` as a feasibility test: True if the problem was solved to an accepted
+    status (``rough``: with the :data:`ROUGH` tolerances)."""
+    try:
+        solve(problem, "", **(ROUGH if rough else {}))
+    except DesignFailed:
+        return False
+    return True
+
+
+def bmat(blocks: list[list]):
+    """Block matrix where ``None`` is a zero block (its size read from the other blocks).
+
+    With numpy blocks only it is a numpy array; with any cvxpy expression among them, a cvxpy
+    expression, so that each LMI is written once for the solver and for the verification.
+    """
+    rows = [next(b.shape[0] for b in row if b is not None) for row in blocks]
+    cols = [next(row[j].shape[1] for row in blocks if row[j] is not None)
+            for j in range(len(blocks[0]))]
+    filled = [[np.zeros((rows[i], cols[j])) if b is None else b for j, b in enumerate(row)]
+              for i, row in enumerate(blocks)]
+    if all(isinstance(b, np.ndarray) for row in filled for b in row):
+        return np.block(filled)
+    import cvxpy as cp
+
+    return cp.bmat(filled)
+
+
+def psd_constraint(M):
+    """cvxpy constraint ``M >= 0`` on the symmetric part of ``M`` (as cvxpy requires)."""
+    return (M + M.T) / 2 >> 0
+
+
+def sym(M: np.ndarray) -> np.ndarray:
+    """Symmetric part ``(M + M') / 2``."""
+    M = np.asarray(M, dtype=float)
+    return 0.5 * (M + M.T)
+
+
+def min_eig(M: np.ndarray) -> float:
+    """Smallest eigenvalue of the symmetric part of ``M``."""
+    return float(np.linalg.eigvalsh(sym(M))[0])
+
+
+def require_psd(M: np.ndarray, what: str, tol: float = 1e-8) -> float:
+    """Check ``M >= -tol * scale`` (scale = max(1, |M|_max)); returns the smallest eigenvalue."""
+    lam = min_eig(M)
+    scale = max(1.0, float(np.abs(M).max()))
+    if not np.isfinite(lam) or lam < -tol * scale:
+        raise DesignFailed(f"{what}: verification failed (smallest eigenvalue {lam:.3g})")
+    return lam
+
+
+def require_pd(M: np.ndarray, what: str, margin: float = 0.0) -> float:
+    """Check ``M > margin`` strictly; returns the smallest eigenvalue."""
+    lam = min_eig(M)
+    if not np.isfinite(lam) or lam <= margin:
+        raise DesignFailed(f"{what}: verification failed (smallest eigenvalue {lam:.3g})")
+    return lam
+
+
+def require_nsd(M: np.ndarray, what: str, tol: float = 1e-8) -> float:
+    """Check ``M <= tol * scale``; returns the largest eigenvalue."""
+    return -require_psd(-np.asarray(M, float), what, tol)
+
+
+def spectral_radius(M: np.ndarray) -> float:
+    """Largest absolute eigenvalue."""
+    return float(np.max(np.abs(np.linalg.eigvals(M)))) if np.size(M) else 0.0
+
+
+def gain_from(P: np.ndarray, Y: np.ndarray, what: str) -> np.ndarray:
+    """``L = P^{-1} Y`` (the change of variables ``Y = P L`` of every design) after checking
+    that the symmetric part of ``P`` is positive definite."""
+    P = sym(P)
+    lam = np.linalg.eigvalsh(P)
+    if not np.all(np.isfinite(lam)) or lam[0] <= 1e-12 * max(1.0, lam[-1]):
+        raise DesignFailed(f"{what}: P is not positive definite (eigenvalues "
+                           f"{lam[0]:.3g} ... {lam[-1]:.3g}), so L = P^-1 Y is undefined")
+    return np.linalg.solve(P, np.asarray(Y, dtype=float))
+
+
+def cora_bisection_end(lo: float = 0.0, hi: float = 1.0, tol: float = 0.01) -> float:
+    """Where CORA's bisection on a decay rate in ``[lo, hi]`` stops when every solve is feasible.
+
+    CORA halves ``[lo, hi]`` until ``hi - lo <= tol``, moving *up* after every solve that is
+    not certified infeasible, and keeps the values of the last solve.  Its PRad-A/B and PRad-E
+    LMIs are non-strict and satisfied by ``P = Y = 0`` for every rate, so every step moves up
+    and the loop ends at ``hi - (hi - lo) 2^-k`` (0.9921875 for ``[0, 1]`` and ``tol = 0.01``),
+    where the gain is that of one solve.  Replaying the bracket arithmetic makes the earlier
+    solves unnecessary.
+    """
+    if not hi > lo or not tol > 0:
+        raise ValueError("bisection needs lo < hi and tol > 0")
+    while hi - lo > tol:
+        lo = 0.5 * (lo + hi)
+    return lo
+
+
+def range_factor(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """``U_r S_r`` from the thin SVD of ``G``: a full-column-rank factor with the same ``G G'``.
+
+    LMIs in which ``G`` enters only through ``G' G`` and ``G' X`` keep their feasible set in
+    the other variables when ``G`` is replaced by this factor (congruence with ``V_r'``).
+    """
+    G = np.asarray(G, dtype=float)
+    if G.size == 0:
+        return np.zeros((G.shape[0], 0))
+    U, s, _ = np.linalg.svd(G, full_matrices=False)
+    r = int(np.sum(s > rtol * s[0])) if s.size and s[0] > 0 else 0
+    return U[:, :r] * s[:r]
+
+
+def range_basis(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """Orthonormal basis of the range of ``G`` (n x rank)."""
+    F = range_factor(G, rtol)
+    return F / np.linalg.norm(F, axis=0) if F.shape[1] else F
