@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from observers.registry import CANONICAL_ORDER  # noqa: E402
+from observers.registry import table_order  # noqa: E402
 
 from .errors import ConfigError  # noqa: E402
 from .io import atomic_savefig, atomic_write_text  # noqa: E402
@@ -36,12 +36,6 @@ def _fmt(x, digits: int = 4) -> str:
 
 def _pair(ours, paper) -> str:
     return _fmt(ours) if paper is None else f"{_fmt(ours)} ({_fmt(paper)})"
-
-
-def _order(names) -> list[str]:
-    def key(n):
-        return (CANONICAL_ORDER.index(n), n) if n in CANONICAL_ORDER else (99, n.lower())
-    return sorted(names, key=key)
 
 
 def _status_cell(g: pd.DataFrame) -> str:
@@ -83,7 +77,7 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
             "design s", "contained"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"])
-    for obs in _order(df["observer"].unique()):
+    for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         rel = g["_rel"].to_numpy(float)
@@ -109,7 +103,7 @@ def absolute_table(df: pd.DataFrame, meta: dict) -> str:
     paper = paper_rows(info.get("paper_table"), n)
     head = ["Observer"] + [f"r{i + 1}" for i in range(n)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for obs in _order(df["observer"].unique()):
+    for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         r = g["rms_radius"].to_numpy(float)
@@ -192,7 +186,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
             parts.append("")
         if runs is not None:
             links = []
-            for obs in _order(df["observer"].unique()):
+            for obs in table_order(df["observer"].unique()):
                 p = bounds_figure(runs, sc, obs, meta, fig_dir / sc / f"{obs}.png")
                 if p is not None:
                     links.append(f"[{obs}]({p.relative_to(out.parent).as_posix()})")

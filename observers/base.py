@@ -13,13 +13,15 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from time import perf_counter
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from .errors import Diverged, MeasurementError, OptionError, Unsupported
-from .registry import ObserverInfo
 from .sets.errors import EmptySet
+
+if TYPE_CHECKING:  # pragma: no cover - annotation only (the registry sets ``info``)
+    from .registry import ObserverInfo
 
 
 class Observer(ABC):

@@ -130,17 +130,23 @@ def _load_plugins() -> None:
             )
 
 
-def _sort_key(name: str) -> tuple[int, str]:
-    try:
-        return (CANONICAL_ORDER.index(name), name)
-    except ValueError:
-        return (len(CANONICAL_ORDER), name.lower())
+def table_order(names) -> list[str]:
+    """``names`` sorted in the papers' table order (:data:`CANONICAL_ORDER`), others
+    alphabetically after them; the one row order of every table and listing."""
+
+    def key(name: str) -> tuple[int, str]:
+        try:
+            return (CANONICAL_ORDER.index(name), name)
+        except ValueError:
+            return (len(CANONICAL_ORDER), name.lower())
+
+    return sorted(names, key=key)
 
 
 def available() -> list[ObserverInfo]:
     """All registered observers, in the papers' table order (others alphabetically)."""
     _load_plugins()
-    return [_REGISTRY[n] for n in sorted(_REGISTRY, key=_sort_key)]
+    return [_REGISTRY[n] for n in table_order(_REGISTRY)]
 
 
 def names() -> list[str]:

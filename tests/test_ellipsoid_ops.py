@@ -27,7 +27,7 @@ def _vertices(Z: Zonotope) -> np.ndarray:
 
 # -- conversions ----------------------------------------------------------------------------------
 def test_conversions_of_a_parallelotope_follow_cora():
-    # CORA (ALGORITHMS.md, section 3): inner:norm gives G G', outer gives n G G'
+    # CORA's conversion of a zonotope to an ellipsoid: inner:norm gives G G', outer n G G'
     G = np.array([[1.0, 0.5], [0.0, 2.0]])
     Z = Zonotope([1.0, -1.0], G)
     inner = Ellipsoid.from_zonotope(Z, "inner:norm")

@@ -35,7 +35,7 @@ def test_vehicle2d_final_hull_matches_cora(name, cora_vehicle2d_refs):
 
 
 def test_eso_a_cora_variant_matches_arch2021_table3():
-    # CORA's tank tests convert with the outer ellipsoid (ALGORITHMS.md, section 3); ESO-A's
+    # CORA's tank tests convert with the outer ellipsoid (see observers.sets.ellipsoid); ESO-A's
     # update weight is capped at 1e-4, so its radii hardly depend on the noise realisation.
     tab = paper_table("arch2021_table3_tank6_linear")
     expected = np.array(tab["rows"]["ESO-A"]["v"]) * np.array(tab["smallest_absolute_radii"])
@@ -47,7 +47,7 @@ def test_eso_a_cora_variant_matches_arch2021_table3():
 
 
 def test_cora_eso_b_diverges_on_the_6d_vehicle_and_reports_the_step():
-    # ALGORITHMS.md (ESO-B): on the 6-D vehicle data CORA's sigma^2 becomes negative
+    # on the 6-D vehicle data CORA's sigma^2 becomes negative (liu_update_cora)
     sc = systems.scenario("vehicle6d-cora")
     res = observers.run(observers.create("ESO-B", sc.system, **CORA_OPTIONS), sc.u, sc.y)
     assert res.status == "diverged" and res.failed_step is not None

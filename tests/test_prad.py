@@ -34,7 +34,7 @@ def vehicle2d():
 
 @pytest.mark.parametrize("name", ["PRad-A", "PRad-B"])
 def test_clarabel_design_matches_cora_sdpt3_gain(name, vehicle2d, cora_refs):
-    # CORA's stored gain (SDPT3) of its own SDP; ALGORITHMS.md: Clarabel gets ~2e-7
+    # CORA's stored gain (SDPT3) of its own SDP; Clarabel gets ~2e-7 (measured)
     obs = observers.create(name, vehicle2d.system, **vehicle2d.options)
     ref = np.array(cora_refs["gains_vehicle2D_sdpt3"][name]).reshape(2, 1)
     np.testing.assert_allclose(obs.L, ref, rtol=0, atol=1e-5)
@@ -203,7 +203,7 @@ def test_true_state_inside_every_set_on_cora_vehicle6(name):
 @pytest.mark.parametrize("scenario", ["vehicle6d-cora", "vehicle4d-sim"])
 def test_prad_a_diverges_on_the_vehicle_and_is_reported(scenario):
     # per-output designs give no guarantee for the strip-by-strip composition; on the 4- and
-    # 6-state vehicles the estimate explodes (ALGORITHMS.md: 1e121 with Clarabel gains on the
+    # 6-state vehicles the estimate explodes (1e121 with Clarabel gains on the
     # 6-state record, as here); the run ends with status "diverged", not an exception
     sc = systems.scenario(scenario)
     res = observers.run(observers.create("PRad-A", sc.system, **sc.options), sc.u, sc.y)

@@ -114,7 +114,8 @@ def test_cora_lagged_sets_are_the_aligned_sets_one_step_late():
     np.testing.assert_array_equal(lagged.lo[2:], aligned.lo[1:-1])
     np.testing.assert_array_equal(lagged.hi[2:], aligned.hi[1:-1])
     assert all(isinstance(S, Interval) for S in aligned.sets[1:])
-    # CORA's convention misses the true state (ALGORITHMS.md 2.4: by up to 15 on this record)
+    # CORA's convention misses the true state (by up to 15 on this record: the set of step
+    # k bounds x_{k-1})
     miss = np.maximum(lagged.lo - sc.x_true, sc.x_true - lagged.hi).max()
     assert miss > 1.0
 

@@ -16,7 +16,7 @@ Relation to CORA and to the papers
   CORA's bisection ends (0.9921875; the SDP is feasible for every ``beta``, so CORA's loop,
   which moves up after each feasible solve, always ends there).  Clarabel reproduces CORA's
   stored SDPT3 gain of the 2-D vehicle to ~2e-7.
-* **PRad-C** and **PRad-D** are ill-posed as written in CORA (ALGORITHMS.md): CORA's PRad-C
+* **PRad-C** and **PRad-D** are ill-posed as CORA implements them: CORA's PRad-C
   SDP maximises ``tr P`` under constraints homogeneous in ``(P, Y, G, O)`` (unbounded: any
   feasible point can be scaled up), and its PRad-D constraint ``[[I, gamma P], [gamma P, P]]
   <= 0`` is infeasible (its (1,1) block is ``I > 0``); CORA's stored gains are the last

@@ -102,7 +102,7 @@ def gollamudi_update_cora(
     q: np.ndarray, P: np.ndarray, s2_prev: float, C: np.ndarray, y: np.ndarray, phi: float,
     alpha: float = CORA_ALPHA,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """CORA's Gollamudi update (ALGORITHMS.md, ESO-A).
+    """CORA's Gollamudi update of ESO-A (``@ellipsoid/intersectStrip.m``).
 
     Deviations from the paper reproduced here: the test and ``beta`` compare against ``phi``
     instead of ``phi^2``; the weight is capped at ``alpha`` (1e-4); the new level is computed
@@ -132,8 +132,8 @@ def gollamudi_update_cora(
 def liu_update_cora(
     q: np.ndarray, P: np.ndarray, s2_prev: float, C: np.ndarray, y: np.ndarray, T: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """CORA's Liu update (ALGORITHMS.md, ESO-B), ``T`` the upper Cholesky factor of
-    ``V^-1``.
+    """CORA's Liu update of ESO-B (``@ellipsoid/intersectStrip.m``), ``T`` the upper Cholesky
+    factor of ``V^-1``.
 
     Deviations from the paper reproduced here: the test and ``beta`` use the raw innovation
     ``delta`` instead of the whitened one, and the new shape is ``(1-lam) (I - K C) P``

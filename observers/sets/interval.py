@@ -96,12 +96,6 @@ class Interval:
         x = vector(x, "point", dim=self.dim)
         return bool(np.all(x >= self._lo - tol) and np.all(x <= self._hi + tol))
 
-    def to_zonotope(self):
-        """The same box as a :class:`~observers.sets.Zonotope` with diagonal generators."""
-        from .zonotope import Zonotope
-
-        return Zonotope(self.center(), np.diag(self.radius()))
-
     # -- value semantics --------------------------------------------------------------------
     def __eq__(self, other) -> bool:
         return (

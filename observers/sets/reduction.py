@@ -5,7 +5,8 @@ generator matrix (the centre of a zonotope is never changed by these methods).  
 looked up by name with :func:`get_reduction`, so observers receive them as plain option values
 (``reduction="pca"``) and users may register their own with :func:`register_reduction`.
 
-Both built-in methods follow the definition used by CORA (ALGORITHMS.md, section 1.2):
+Both built-in methods follow the definition used by CORA (``@zonotope/reduce.m``, methods ``girard``
+and ``pca``):
 
 1. all-zero generator columns are dropped;
 2. nothing else happens if the zonotope has at most ``n * order`` generators;
