@@ -49,10 +49,10 @@ from systems import ModelError, Scenario
 
 from .config import BenchConfig
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_text
+from .io import atomic_write_csv, atomic_write_text, environment
 from .membership import MembershipTester
 from .progress import Progress
-from .runner import _versions, run_observer
+from .runner import run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim")
 KINDS = ("uniform", "gaussian", "vertex", "vertex-hold", "worst-input")
@@ -305,7 +305,7 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) ->
     first = df[(df["observer"] == df["observer"].iloc[0])
                & (df["scenario"] == df["scenario"].iloc[0])] if len(df) else df
     kinds = ", ".join(f"{r.kind} {r.runs}" for r in first.itertuples(index=False))
-    versions = _versions()
+    versions = environment()
     parts = [
         "# Soundness audit",
         "",

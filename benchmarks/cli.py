@@ -1,4 +1,4 @@
-"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit} ...``.
+"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit,time} ...``.
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
 (``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
@@ -17,10 +17,10 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, regression
+from . import audit, regression, timing
 from .config import load_config
 from .errors import ConfigError
-from .io import atomic_write_csv
+from .io import atomic_write_csv, atomic_write_json
 from .report import write_report
 from .runner import run_config
 
@@ -126,6 +126,15 @@ def _cmd_audit(args) -> int:
     return 0
 
 
+def _cmd_time(args) -> int:
+    sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup)
+    print(timing.format_table(sc, args.repeat, warmup, rows))
+    if args.json:
+        atomic_write_json(args.json, timing.to_json(sc, args.repeat, warmup, rows))
+        print(f"wrote {args.json}")
+    return 0
+
+
 def _cmd_report(args) -> int:
     path = write_report(args.dir, args.out, figures=not args.no_figures)
     print(f"wrote {path}")
@@ -145,7 +154,7 @@ def _cmd_list(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (sub-commands run, report, list)."""
+    """The argument parser (sub-commands run, report, list, check, baseline, audit, time)."""
     p = argparse.ArgumentParser(prog="python -m benchmarks",
                                 description="Guaranteed state estimator benchmarks")
     sub = p.add_subparsers(dest="command", required=True)
@@ -196,6 +205,18 @@ def build_parser() -> argparse.ArgumentParser:
                     help="Markdown report (default reports/soundness.md)")
     au.add_argument("--no-progress", action="store_true", help="no progress bar")
     au.set_defaults(func=_cmd_audit)
+    ti = sub.add_parser("time", help="per-step times of observers against a Kalman filter step",
+                        description=timing.__doc__.splitlines()[0])
+    ti.add_argument("names", nargs="+", metavar="NAME", help="observer names")
+    ti.add_argument("--scenario", required=True, metavar="S",
+                    help="scenario name (see `list scenarios`)")
+    ti.add_argument("--repeat", type=int, default=timing.DEFAULT_REPEAT, metavar="N",
+                    help=f"runs over the record per observer (default {timing.DEFAULT_REPEAT})")
+    ti.add_argument("--warmup", type=int, metavar="K",
+                    help="steps of each run not timed (default: as summary.csv, "
+                         "min(5, N // 10))")
+    ti.add_argument("--json", metavar="F", help="also write every number to this JSON file")
+    ti.set_defaults(func=_cmd_time)
     return p
 
 

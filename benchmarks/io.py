@@ -1,4 +1,5 @@
-"""Atomic file output: write to a temporary file in the target folder, then rename.
+"""Atomic file output (write to a temporary file in the target folder, then rename) and the
+environment recorded with every result.
 
 A failed or interrupted run therefore never leaves half-written results behind, and the
 previous results stay untouched until the new ones are complete.
@@ -8,7 +9,11 @@ from __future__ import annotations
 
 import json
 import os
+import platform
+import subprocess
+import sys
 import tempfile
+from importlib import metadata
 from pathlib import Path
 
 import pandas as pd
@@ -50,3 +55,35 @@ def atomic_savefig(fig, path: str | Path, **kwargs) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+#: packages whose versions :func:`environment` records
+ENVIRONMENT_PACKAGES = ("numpy", "scipy", "cvxpy", "clarabel", "highspy", "pandas")
+
+
+def environment() -> dict[str, str]:
+    """Versions and platform of this process, as recorded in ``meta.json`` (``versions``).
+
+    Returns
+    -------
+    dict of str to str
+        ``python`` (version), ``platform``, ``blas_coretype`` (the OpenBLAS kernel family,
+        ``OPENBLAS_CORETYPE``, pinned in :mod:`benchmarks`; ``"auto"`` if unset), the version
+        of each of :data:`ENVIRONMENT_PACKAGES` (``"missing"`` if not installed) and ``git``
+        (the short commit of this checkout, ``""`` outside a git checkout).
+    """
+    out = {"python": sys.version.split()[0], "platform": platform.platform(),
+           "blas_coretype": os.environ.get("OPENBLAS_CORETYPE", "auto")}
+    for pkg in ENVIRONMENT_PACKAGES:
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "missing"
+    try:
+        out["git"] = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+            cwd=Path(__file__).resolve().parent, timeout=5,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        out["git"] = ""
+    return out

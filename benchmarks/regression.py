@@ -42,9 +42,9 @@ import observers
 
 from .config import BenchConfig, load_config
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json
+from .io import atomic_write_csv, atomic_write_json, environment
 from .metrics import add_relative_rms
-from .runner import _versions, run_config
+from .runner import run_config
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
@@ -110,7 +110,7 @@ def _meta(cfg: BenchConfig, cache_note: str) -> dict:
         "observers": cfg.observers,
         "design_cache": cache_note,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": _versions(),
+        "versions": environment(),
     }
 
 
@@ -340,7 +340,7 @@ NUMERIC_ENVIRONMENT = ("blas_coretype", "numpy", "scipy", "cvxpy", "clarabel", "
 def environment_differences(meta: dict, current: dict | None = None) -> list[str]:
     """``"key: baseline -> current"`` for each numerically relevant version that differs
     between the baseline's environment and this one (hints for a failing check)."""
-    current = _versions() if current is None else current
+    current = environment() if current is None else current
     stored = meta.get("versions", {})
     return [f"{key}: {stored.get(key, '?')} -> {current.get(key, '?')}"
             for key in NUMERIC_ENVIRONMENT if stored.get(key, "?") != current.get(key, "?")]

@@ -3,14 +3,10 @@ and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (atomica
 
 from __future__ import annotations
 
-import os
-import platform
-import subprocess
 import sys
 import traceback
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +18,7 @@ from systems import ModelError, Scenario
 
 from .config import BenchConfig
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json
+from .io import atomic_write_csv, atomic_write_json, environment
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import Progress
@@ -68,6 +64,50 @@ def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: boo
     return hull, in_set
 
 
+def design_observer(name: str, sc: Scenario, options: dict
+                    ) -> tuple[observers.Observer | None, str, str]:
+    """Create observer ``name`` for ``sc.system`` (its offline design); a failed design
+    becomes a status, not an exception.
+
+    Parameters
+    ----------
+    name : str
+        Registered observer name.
+    sc : Scenario
+        The scenario whose system the observer is designed for.
+    options : dict
+        Observer options (e.g. :meth:`BenchConfig.options_for`).
+
+    Returns
+    -------
+    obs : Observer or None
+        The designed observer, ``None`` if the design failed.
+    status : str
+        ``"ok"``, or the table status of the failure: ``"noGain"`` (design infeasible),
+        ``"unsupported"`` (the observer does not apply to this system) or ``"error"`` (a bug in
+        the plugin, reported with a short traceback on stderr).
+    message : str
+        Why the design failed (``""`` if it did not).
+
+    Raises
+    ------
+    ConfigError
+        If an option is invalid for this observer.
+    """
+    try:
+        return observers.create(name, sc.system, **options), "ok", ""
+    except OptionError as exc:
+        raise ConfigError(str(exc)) from None
+    except (DesignFailed, ModelError) as exc:
+        return None, "noGain", str(exc)
+    except Unsupported as exc:
+        return None, "unsupported", str(exc)
+    except Exception as exc:  # a plugin bug must not end the whole benchmark
+        print(f"warning: {name} failed in its design on {sc.name}: {exc}", file=sys.stderr)
+        traceback.print_exc(limit=3, file=sys.stderr)
+        return None, "error", f"{type(exc).__name__}: {exc}"
+
+
 def run_observer(name: str, sc: Scenario, options: dict, containment: str,
                  keep_sets: bool = False) -> ObserverRun:
     """Design and run one observer; failures become statuses, not exceptions.
@@ -75,18 +115,9 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     ``keep_sets``: keep the estimated sets in ``run.result.sets`` (for the soundness audit).
     """
     info = observers.get(name)
-    try:
-        obs = observers.create(name, sc.system, **options)
-    except OptionError as exc:
-        raise ConfigError(str(exc)) from None
-    except (DesignFailed, ModelError) as exc:
-        return ObserverRun(sc, info, None, "noGain", str(exc))
-    except Unsupported as exc:
-        return ObserverRun(sc, info, None, "unsupported", str(exc))
-    except Exception as exc:  # a plugin bug must not end the whole benchmark
-        print(f"warning: {name} failed in its design on {sc.name}: {exc}", file=sys.stderr)
-        traceback.print_exc(limit=3, file=sys.stderr)
-        return ObserverRun(sc, info, None, "error", f"{type(exc).__name__}: {exc}")
+    obs, status, message = design_observer(name, sc, options)
+    if obs is None:
+        return ObserverRun(sc, info, None, status, message)
     try:
         res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None)
     except Diverged as exc:  # pragma: no cover - run() already converts these
@@ -154,24 +185,6 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
     })
 
 
-def _versions() -> dict[str, str]:
-    out = {"python": sys.version.split()[0], "platform": platform.platform(),
-           "blas_coretype": os.environ.get("OPENBLAS_CORETYPE", "auto")}
-    for pkg in ("numpy", "scipy", "cvxpy", "clarabel", "highspy", "pandas"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "missing"
-    try:
-        out["git"] = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-            cwd=Path(__file__).resolve().parent, timeout=5,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        out["git"] = ""
-    return out
-
-
 def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None):
     """Run every (scenario, observer) pair of ``cfg``.
 
@@ -211,6 +224,6 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                 "state_names": list(sc.state_names), "tolerance": sc.tolerance,
             } for sc in cfg.scenarios},
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            "versions": _versions(),
+            "versions": environment(),
         })
     return runs_df, summary

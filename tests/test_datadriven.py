@@ -190,8 +190,8 @@ def test_runner_passes_training_and_reports_no_training_as_unsupported():
 
 
 def test_planar_geometry_by_hand():
-    from benchmarks.geometry import polygon, set_area
     from observers.sets import ConZonotope
+    from observers.sets.planar import polygon, set_area
 
     G = [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]  # box plus a diagonal segment: area 4 * 3 = 12
     assert set_area(Zonotope([5.0, -1.0], G)) == pytest.approx(12.0)

@@ -39,6 +39,7 @@ from ..families import ZonotopeObserver
 from ..registry import register
 from ..sets import ConZonotope, HullLP
 from ..sets import conzono_ops as ops
+from ..sets._lp import HullLPStats
 from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m
@@ -100,6 +101,12 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         super().reset()
         self._state: tuple[np.ndarray, ...] | None = None
         self._lp = HullLP(self.options["hull_solver"])
+
+    @property
+    def hull_stats(self) -> HullLPStats:
+        """Work of the interval-hull LPs of the sets returned since the last :meth:`reset`
+        (a run): LPs solved, simplex iterations, LPs handed to HiGHS."""
+        return self._lp.stats
 
     @abstractmethod
     def intersect(self, c, G, A, b, y):

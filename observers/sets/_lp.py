@@ -16,6 +16,8 @@ solver does not finish.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -123,6 +125,30 @@ class BoxLP:
         return dual_bound(g, self.A, self.b, _dual_point(h, self.A.shape[0]))
 
 
+@dataclass(frozen=True)
+class HullLPStats:
+    """Work counters of a :class:`HullLP` (read-only snapshot, see :attr:`HullLP.stats`).
+
+    Attributes
+    ----------
+    solves : int
+        LPs solved (one per direction; batched and HiGHS alike).
+    iterations : int
+        Simplex iterations, summed over the LPs.
+    fallbacks : int
+        LPs that the batched dual simplex did not finish and handed to HiGHS.
+    """
+
+    solves: int
+    iterations: int
+    fallbacks: int
+
+    @property
+    def iterations_per_solve(self) -> float:
+        """Mean simplex iterations per LP (NaN if no LP was solved)."""
+        return self.iterations / self.solves if self.solves else float("nan")
+
+
 class HullLP:
     """Sound bounds ``max g'xi  s.t.  A xi = b, -1 <= xi <= 1`` for a sequence of sets and many
     directions, in one HiGHS model kept alive.
@@ -168,6 +194,11 @@ class HullLP:
         self.solves = 0
         self.iterations = 0
         self.fallbacks = 0
+
+    @property
+    def stats(self) -> HullLPStats:
+        """LPs solved, simplex iterations and HiGHS fallbacks so far (a read-only snapshot)."""
+        return HullLPStats(self.solves, self.iterations, self.fallbacks)
 
     def load(self, A: np.ndarray, b: np.ndarray) -> None:
         """Make ``A xi = b, -1 <= xi <= 1`` the feasible set (no-op if already loaded)."""

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.sets import ConZonotope, Ellipsoid, Zonotope
+from .conzonotope import ConZonotope
+from .ellipsoid import Ellipsoid
+from .zonotope import Zonotope
 
 
 def zonotope_vertices(c: np.ndarray, G: np.ndarray) -> np.ndarray:

@@ -1,0 +1,340 @@
+"""Per-step timing of observers against a plain Kalman filter step.
+
+``python -m benchmarks time NAME... --scenario S [--repeat N] [--warmup K] [--json F]``
+
+Each observer is designed once (the offline design is not part of the step times; its
+duration is reported separately as ``design_s``), then run ``repeat`` times over the
+scenario's record by :func:`observers.run`, which times every ``step()`` and every interval
+hull (``RunResult.step_times``, ``RunResult.hull_times``).  The first ``warmup`` steps of each
+run are dropped (default :func:`benchmarks.metrics.warmup_steps`, as in ``summary.csv``); the
+statistics are over the remaining steps of all runs together.
+
+Reference: right after the observer, in the same process and on the same record, a plain
+numpy Kalman filter (:func:`kalman_step_times`) is timed the same way; ``ratio`` is the
+observer's median step time divided by the Kalman filter's median step time.
+
+Observers whose hulls solve LPs with a :class:`~observers.sets.HullLP` (the CZN observers)
+expose its counters as ``hull_stats``; they are reported per run (median over the runs).
+
+Timings on a shared machine are noisy: read them as indicative, never as test values.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import asdict, dataclass
+from time import perf_counter
+from typing import Any
+
+import numpy as np
+
+import observers
+import systems
+from observers.base import as_record
+from systems import Scenario
+
+from .config import BenchConfig
+from .errors import ConfigError
+from .io import environment
+from .metrics import warmup_steps
+from .runner import design_observer
+
+DEFAULT_REPEAT = 5
+#: how the reference Kalman filter is built (printed with the table and stored in the JSON)
+KALMAN_MODEL = ("numpy Kalman filter, covariance form (predict P = A P A' + Q, update with "
+                "K = P C' (C P C' + R)^-1, P = (I - K C) P); Q = E E'/3, R = F F'/3 from the "
+                "generators E of W and F of V (the covariances of uniform noise on the "
+                "generator factors), means W.c and V.c, x0 = X0.c, P0 = G0 G0'/3")
+
+
+@dataclass
+class TimingRow:
+    """Timing of one observer on one scenario (times after the warm-up of every run).
+
+    Attributes
+    ----------
+    observer : str
+        Observer name.
+    status : str
+        ``"ok"``, or why no timing is reported: a failed design (``noGain``, ``unsupported``,
+        ``error``) or a failed run (``diverged``, ``empty``, ``error``).
+    message : str
+        Reason of a failure (``""`` if none).
+    step_ms_median, step_ms_p90 : float
+        Median and 90th percentile of the ``step()`` times (ms).
+    hull_ms_median : float
+        Median of the interval hull times (ms).
+    step_hull_ms_median : float
+        Median of the per-step sums of ``step()`` and interval hull times (ms).
+    timed_steps : int
+        Number of steps in these statistics (all runs together).
+    design_s : float
+        Duration of the offline design (s; a cached design loads fast).
+    kalman_ms_median : float
+        Median step time of the reference Kalman filter (ms; NaN if the system has no model
+        for it).
+    ratio : float
+        ``step_ms_median / kalman_ms_median``.
+    hull_lp : dict or None
+        Per run (median over the runs): ``solves``, ``iterations``, ``fallbacks`` (LPs handed
+        to HiGHS) and ``iterations_per_solve`` of the hull LPs; ``None`` if the observer has
+        none.
+    """
+
+    observer: str
+    status: str
+    message: str = ""
+    step_ms_median: float = math.nan
+    step_ms_p90: float = math.nan
+    hull_ms_median: float = math.nan
+    step_hull_ms_median: float = math.nan
+    timed_steps: int = 0
+    design_s: float = math.nan
+    kalman_ms_median: float = math.nan
+    ratio: float = math.nan
+    hull_lp: dict[str, float] | None = None
+
+
+def kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Seconds of every predict + update step of a plain Kalman filter over one record.
+
+    The filter is the textbook covariance form on the observer's model: at step ``k``
+    (``k > 0``) predict ``x = A x + B u[k-1] + W.c``, ``P = A P A' + Q``, then update with
+    ``y[k]``: ``S = C P C' + R``, ``K = P C' S^-1``, ``x = x + K (y[k] - C x - V.c)``,
+    ``P = (I - K C) P`` (step 0 is the update of the prior ``x0 = X0.c``, ``P0 = G0 G0'/3``).
+    The covariances are those of uniform noise on the generator factors of the bounded sets,
+    ``Q = E E'/3`` and ``R = F F'/3`` for the generators ``E`` of ``W`` and ``F`` of ``V``.
+    Only the step is timed (``perf_counter``), not the set-up of ``Q`` and ``R``.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        A system with ``A``, ``B``, ``C`` and zonotopes ``W``, ``V``, ``X0``.
+    u : (N, nu) or (N - 1, nu) ndarray
+        Inputs; ``u[k-1]`` enters step ``k``.
+    y : (N, ny) ndarray
+        Measurements.
+
+    Returns
+    -------
+    (N,) ndarray
+        Seconds of each step.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If an innovation covariance ``S`` is singular.
+    """
+    A, B, C = (np.asarray(M, dtype=float) for M in (system.A, system.B, system.C))
+    u, y = as_record(u, y, B.shape[1], C.shape[0])
+    E, F, G0 = system.W.G, system.V.G, system.X0.G
+    Q, R = E @ E.T / 3.0, F @ F.T / 3.0
+    w_mean, v_mean = np.asarray(system.W.c, float), np.asarray(system.V.c, float)
+    x = np.array(system.X0.c, dtype=float)
+    P = G0 @ G0.T / 3.0
+    eye = np.eye(A.shape[0])
+    times = np.empty(y.shape[0])
+    for k in range(y.shape[0]):
+        t0 = perf_counter()
+        if k > 0:
+            x = A @ x + B @ u[k - 1] + w_mean
+            P = A @ P @ A.T + Q
+        PCt = P @ C.T
+        S = C @ PCt + R
+        K = np.linalg.solve(S, PCt.T).T  # P C' S^-1 (S is symmetric)
+        x = x + K @ (y[k] - C @ x - v_mean)
+        P = (eye - K @ C) @ P
+        times[k] = perf_counter() - t0
+    return times
+
+
+def _kalman_median_ms(sc: Scenario, repeat: int, warmup: int) -> float:
+    """Median Kalman step (ms) over ``repeat`` runs of the record, warm-up dropped; NaN if the
+    system has no model for it or the filter fails numerically."""
+    try:
+        t = np.concatenate([kalman_step_times(sc.system, sc.u, sc.y)[warmup:]
+                            for _ in range(repeat)])
+    except (AttributeError, ValueError, np.linalg.LinAlgError):
+        return math.nan
+    t = t[np.isfinite(t)]
+    return float(np.median(t) * 1e3) if t.size else math.nan
+
+
+def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: int
+                  ) -> TimingRow:
+    """Design ``name`` once, run it ``repeat`` times over ``sc``'s record, then time the
+    Kalman filter on the same record; failures become the row's status.
+
+    Parameters
+    ----------
+    name : str
+        Registered observer name.
+    sc : Scenario
+        Scenario with the system and the record.
+    options : dict
+        Observer options (as :meth:`BenchConfig.options_for` gives them).
+    repeat : int
+        Runs over the record (at least 1).
+    warmup : int
+        Steps dropped at the start of every run.
+
+    Returns
+    -------
+    TimingRow
+    """
+    obs, status, message = design_observer(name, sc, options)
+    if obs is None:
+        return TimingRow(name, status, message)
+    steps, hulls, lp_runs = [], [], []
+    for _ in range(repeat):
+        try:
+            res = observers.run(obs, sc.u, sc.y, keep_sets=False)
+        except Exception as exc:  # a plugin bug must not end the table
+            print(f"warning: {name} failed on {sc.name}: {exc}", file=sys.stderr)
+            return TimingRow(name, "error", f"{type(exc).__name__}: {exc}",
+                             design_s=obs.design_time)
+        if res.status != "ok":
+            return TimingRow(name, res.status, res.message, design_s=obs.design_time)
+        steps.append(res.step_times[warmup:])
+        hulls.append(res.hull_times[warmup:])
+        stats = getattr(obs, "hull_stats", None)
+        if stats is not None:
+            lp_runs.append(stats)
+    step, hull = np.concatenate(steps) * 1e3, np.concatenate(hulls) * 1e3
+    kalman = _kalman_median_ms(sc, repeat, warmup)
+    step_median = float(np.median(step))
+    row = TimingRow(
+        name, "ok", "", step_median, float(np.percentile(step, 90)), float(np.median(hull)),
+        float(np.median(step + hull)), int(step.size), obs.design_time, kalman,
+        step_median / kalman if kalman > 0 else math.nan)
+    if lp_runs:
+        row.hull_lp = {
+            "solves": float(np.median([s.solves for s in lp_runs])),
+            "iterations": float(np.median([s.iterations for s in lp_runs])),
+            "fallbacks": float(np.median([s.fallbacks for s in lp_runs])),
+            "iterations_per_solve": float(np.median([s.iterations_per_solve
+                                                     for s in lp_runs])),
+        }
+    return row
+
+
+def resolve_warmup(sc: Scenario, warmup: int | None) -> int:
+    """The steps dropped per run: ``warmup``, or :func:`warmup_steps` of the record length.
+
+    Raises
+    ------
+    ConfigError
+        If ``warmup`` is negative or leaves no step to time.
+    """
+    if warmup is None:
+        return warmup_steps(sc.N)
+    if warmup < 0:
+        raise ConfigError(f"--warmup must be non-negative, got {warmup}")
+    if warmup >= sc.N:
+        raise ConfigError(f"--warmup {warmup} leaves no step to time ({sc.name} has {sc.N} "
+                          "steps)")
+    return warmup
+
+
+def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT,
+                   warmup: int | None = None) -> tuple[Scenario, int, list[TimingRow]]:
+    """Time every observer of ``names`` on ``scenario`` (see the module docstring).
+
+    Parameters
+    ----------
+    names : list of str
+        Observer names (each is timed once, in the given order).
+    scenario : str
+        Scenario name (``python -m benchmarks list scenarios``).
+    repeat : int
+        Runs over the record per observer.
+    warmup : int or None
+        Steps dropped at the start of every run (default :func:`warmup_steps`).
+
+    Returns
+    -------
+    sc : Scenario
+    warmup : int
+        The steps dropped per run.
+    rows : list of TimingRow
+
+    Raises
+    ------
+    ConfigError
+        Bad ``repeat`` or ``warmup``.
+    observers.UnknownObserver, systems.ModelError
+        Unknown observer or scenario (before anything runs).
+    """
+    if repeat < 1:
+        raise ConfigError(f"--repeat must be at least 1, got {repeat}")
+    names = list(dict.fromkeys(names))
+    for name in names:
+        observers.get(name)  # unknown names fail before anything runs
+    sc = systems.scenario(scenario)
+    warmup = resolve_warmup(sc, warmup)
+    cfg = BenchConfig(name="time", title="time", scenarios=[sc], observers=names)
+    rows = [time_observer(name, sc, cfg.options_for(name, sc), repeat, warmup)
+            for name in names]
+    return sc, warmup, rows
+
+
+def _num(x: float, width: int) -> str:
+    return f"{'-':>{width}}" if not math.isfinite(x) else f"{x:>{width}.4g}"
+
+
+def format_table(sc: Scenario, repeat: int, warmup: int, rows: list[TimingRow]) -> str:
+    """The plain-text table of ``python -m benchmarks time``."""
+    lines = [
+        f"{sc.name}: {repeat} run(s) of {sc.N} steps per observer, the first {warmup} step(s) "
+        "of each run not timed",
+        "times in ms (median, 90th percentile) over the timed steps of all runs; design in s",
+        f"{'observer':<10} {'status':<11} {'step med':>9} {'step p90':>9} {'hull med':>9} "
+        f"{'step+hull':>9} {'steps':>6} {'design s':>9} {'KF step':>9} {'ratio':>7}",
+    ]
+    for r in rows:
+        lines.append(
+            f"{r.observer:<10} {r.status:<11} {_num(r.step_ms_median, 9)} "
+            f"{_num(r.step_ms_p90, 9)} {_num(r.hull_ms_median, 9)} "
+            f"{_num(r.step_hull_ms_median, 9)} {r.timed_steps:>6d} {_num(r.design_s, 9)} "
+            f"{_num(r.kalman_ms_median, 9)} {_num(r.ratio, 7)}")
+    lines.append("KF step: plain numpy Kalman filter step (covariance form; Q = E E'/3, "
+                 "R = F F'/3 from the")
+    lines.append("generators of W and V), timed after each observer on the same record; "
+                 "ratio = step med / KF step")
+    for r in rows:
+        if r.hull_lp is not None:
+            s = r.hull_lp
+            lines.append(f"hull LPs of {r.observer} per run: {s['solves']:.0f} LPs, "
+                         f"{s['iterations_per_solve']:.2f} simplex iterations per LP, "
+                         f"{s['fallbacks']:.0f} handed to HiGHS")
+    for r in rows:
+        if r.status != "ok":
+            lines.append(f"note: {r.observer}: {r.status}: {r.message}")
+    return "\n".join(lines)
+
+
+def _finite_or_none(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    return x
+
+
+def to_json(sc: Scenario, repeat: int, warmup: int, rows: list[TimingRow]) -> dict[str, Any]:
+    """All numbers of the table as a JSON-ready dict (NaN as ``null``).
+
+    Keys: ``scenario``, ``steps_per_run``, ``repeat``, ``warmup``, ``kalman_model``,
+    ``environment`` (:func:`benchmarks.io.environment`) and ``results``, one dict per
+    observer with the fields of :class:`TimingRow`.
+    """
+    return {
+        "scenario": sc.name,
+        "steps_per_run": sc.N,
+        "repeat": repeat,
+        "warmup": warmup,
+        "kalman_model": KALMAN_MODEL,
+        "environment": environment(),
+        "results": [{k: _finite_or_none(v) for k, v in asdict(r).items()} for r in rows],
+    }
