@@ -233,9 +233,10 @@ class Number(OptionSpec):
             What is accepted.
         """
         kind = f"finite {self.KIND}" if self.finite else self.KIND
+        a_kind = f"{'an' if kind[0] in 'aeiou' else 'a'} {kind}"
         low, high = self.low, self.high
         if low is not None and high is not None:
-            main = (f"a {kind} in {'(' if self.low_open else '['}{low:g}, {high:g}"
+            main = (f"{a_kind} in {'(' if self.low_open else '['}{low:g}, {high:g}"
                     f"{')' if self.high_open else ']'}")
         elif low is not None:
             if low == 0:
@@ -243,11 +244,11 @@ class Number(OptionSpec):
             elif self.KIND == "integer" and low == 1 and not self.low_open:
                 main = f"a positive {kind}"
             else:
-                main = f"a {kind} {'>' if self.low_open else '>='} {low:g}"
+                main = f"{a_kind} {'>' if self.low_open else '>='} {low:g}"
         elif high is not None:
-            main = f"a {kind} {'<' if self.high_open else '<='} {high:g}"
+            main = f"{a_kind} {'<' if self.high_open else '<='} {high:g}"
         else:
-            main = f"a {kind}"
+            main = a_kind
         return _alternatives(main, self.special, self.allow_none)
 
 
