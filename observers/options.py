@@ -32,6 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .errors import OptionError
+from .sets import reduction_names
 
 __all__ = [
     "Bool",
@@ -535,16 +536,12 @@ def zonotope_order(default: float) -> Number:
 
 
 def _is_reduction(value: Any) -> bool:
-    from .sets import reduction_names
-
     if isinstance(value, str):
         return value in reduction_names()
     return value is not None and callable(getattr(value, "reduce", None))
 
 
 def _reductions_accepted() -> str:
-    from .sets import reduction_names
-
     names = ", ".join(map(repr, reduction_names()))
     return f"one of {names} or a strategy with .reduce(G, order)"
 

@@ -45,7 +45,7 @@ _MODEL_CACHE: dict[str, tuple] = {}
 MODELS = ("sound-lp", "sound", "paper")
 
 
-def _is_sensor_split(value) -> bool:
+def _is_sensor_split(value: object) -> bool:
     """None or a sequence of positive integers (the outputs of each sensor)."""
     if value is None:
         return True
