@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from .errors import Diverged, MeasurementError, OptionError, Unsupported
+from .options import OptionSpec, as_spec
 from .sets.errors import EmptySet
 
 if TYPE_CHECKING:  # pragma: no cover - annotation only (the registry sets ``info``)
@@ -27,15 +28,18 @@ if TYPE_CHECKING:  # pragma: no cover - annotation only (the registry sets ``inf
 class Observer(ABC):
     """Base class of every observer plugin.
 
-    Subclasses declare their options with defaults in ``OPTIONS`` (merged along the class
-    hierarchy), do their offline work in :meth:`design` (timed into ``design_time``), keep
-    their online state in :meth:`reset` and implement :meth:`step`.
+    Subclasses declare their options in ``OPTIONS`` (merged along the class hierarchy) as
+    typed specs of :mod:`observers.options` (``{"order": Number(100, low=1)}``; a plain value
+    is an untyped default), do their offline work in :meth:`design` (timed into
+    ``design_time``), keep their online state in :meth:`reset` and implement :meth:`step`.
+    The constructor checks every option with its spec before :meth:`validate_options` and
+    the design.
     """
 
     name: ClassVar[str] = ""
     info: ClassVar[ObserverInfo | None] = None
-    #: accepted options and their defaults
-    OPTIONS: ClassVar[dict[str, Any]] = {}
+    #: accepted options: name -> spec (:mod:`observers.options`) or plain default value
+    OPTIONS: ClassVar[dict[str, OptionSpec | Any]] = {}
     #: options a benchmark scenario may set by default (e.g. its zonotope order); None = all
     #: accepted options.  Observers whose papers fix their own settings use a subset.
     SCENARIO_OPTIONS: ClassVar[tuple[str, ...] | None] = None
@@ -55,6 +59,7 @@ class Observer(ABC):
             )
         self.system = system
         self.options = self._resolve_options(options)
+        self._check_options()
         self.validate_options()
         t0 = perf_counter()
         self.design()
@@ -63,12 +68,31 @@ class Observer(ABC):
 
     # -- options ------------------------------------------------------------------------------
     @classmethod
-    def option_defaults(cls) -> dict[str, Any]:
-        """All accepted options with their defaults."""
-        out: dict[str, Any] = {}
+    def option_specs(cls) -> dict[str, OptionSpec]:
+        """All accepted options with their specs, merged along the MRO (a subclass overrides
+        its bases); plain values in ``OPTIONS`` become :class:`~observers.options.Untyped`.
+
+        Returns
+        -------
+        dict
+            Option name -> :class:`~observers.options.OptionSpec`.
+        """
+        out: dict[str, OptionSpec] = {}
         for klass in reversed(cls.__mro__):
-            out.update(getattr(klass, "OPTIONS", {}))
+            for key, entry in vars(klass).get("OPTIONS", {}).items():
+                out[key] = as_spec(entry)
         return out
+
+    @classmethod
+    def option_defaults(cls) -> dict[str, Any]:
+        """All accepted options with their defaults.
+
+        Returns
+        -------
+        dict
+            Option name -> default value.
+        """
+        return {key: spec.default for key, spec in cls.option_specs().items()}
 
     def _resolve_options(self, options: dict[str, Any]) -> dict[str, Any]:
         defaults = self.option_defaults()
@@ -80,8 +104,19 @@ class Observer(ABC):
             )
         return {**defaults, **options}
 
+    def _check_options(self) -> None:
+        """Check every option against its spec (one :class:`OptionError` for the first bad
+        one); values are kept as given."""
+        who = self.name or type(self).__name__
+        for key, spec in self.option_specs().items():
+            spec.check(who, key, self.options[key])
+
     def validate_options(self) -> None:  # noqa: B027 - optional hook
-        """Hook: raise :class:`OptionError` for invalid option values."""
+        """Hook: raise :class:`OptionError` for invalid combinations of options.
+
+        Runs after every option passed its own spec; checks of a single option's type or
+        range belong in its spec.
+        """
 
     # -- lifecycle -------------------------------------------------------------------------------
     def design(self) -> None:  # noqa: B027 - optional hook

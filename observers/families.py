@@ -47,9 +47,9 @@ from abc import abstractmethod
 import numpy as np
 
 from .base import Observer
-from .errors import ObserverError, OptionError
-from .sets import Interval, SetError, Zonotope, get_reduction
-from .sets.reduction import check_order
+from .errors import ObserverError
+from .options import Choice, reduction_method, zonotope_order
+from .sets import Interval, Zonotope, get_reduction
 
 
 # -- one-step formulas (pure functions on centre/generator arrays) --------------------
@@ -114,14 +114,7 @@ class LinearModelObserver(Observer):
 class ZonotopeObserver(LinearModelObserver):
     """Common options and system data of the zonotopic observers."""
 
-    OPTIONS = {"order": 100, "reduction": "girard"}
-
-    def validate_options(self) -> None:
-        try:
-            check_order(self.options["order"])
-            get_reduction(self.options["reduction"])
-        except SetError as exc:
-            raise OptionError(f"{self.name}: {exc}") from None
+    OPTIONS = {"order": zonotope_order(100), "reduction": reduction_method("girard")}
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""
@@ -256,14 +249,8 @@ class IntervalObserver(LinearModelObserver):
     Subclasses provide ``L`` (n x ny), e.g. through :class:`~observers.offline.OfflineGain`.
     """
 
-    OPTIONS = {"convention": "aligned"}
+    OPTIONS = {"convention": Choice("aligned", CONVENTIONS)}
     L: np.ndarray
-
-    def validate_options(self) -> None:
-        if self.options["convention"] not in CONVENTIONS:
-            raise OptionError(f"{self.name}: convention must be one of "
-                              f"{', '.join(map(repr, CONVENTIONS))}, "
-                              f"got {self.options['convention']!r}")
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""

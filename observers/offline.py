@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from .errors import DesignFailed, OptionError
+from .options import Matrix
 
 # -- design cache ---------------------------------------------------------------------------
 _FAILED = "__design_failed__"
@@ -127,7 +128,7 @@ def _store(path: Path, arrays: dict[str, np.ndarray]) -> None:
 class OfflineGain:
     """Mixin: ``design()`` sets ``self.L`` (n x ny) from ``gain=`` or the design."""
 
-    OPTIONS: dict[str, Any] = {"gain": None}
+    OPTIONS: dict[str, Any] = {"gain": Matrix(None)}
     #: bump when the design code changes, so that cached gains are recomputed
     DESIGN_VERSION = "1"
     #: regression-gate tolerance: an SDP solution is accurate to the solver's tolerance
@@ -153,17 +154,12 @@ class OfflineGain:
         super().design()  # type: ignore[misc]
         n, ny = self.system.C.shape[1], self.system.C.shape[0]
         given = self.options.get("gain")
-        if given is not None:
-            try:
-                L = np.array(given, dtype=float)
-            except (TypeError, ValueError):
-                raise OptionError(f"{self.name}: gain must be a numeric matrix") from None
+        if given is not None:  # a finite numeric vector or matrix (its spec); the shape is ours
+            L = np.array(given, dtype=float)
             if L.ndim == 1 and L.size == n * ny:
                 L = L.reshape(n, ny)
             if L.shape != (n, ny):
                 raise OptionError(f"{self.name}: gain must have shape ({n}, {ny}), got {L.shape}")
-            if not np.all(np.isfinite(L)):
-                raise OptionError(f"{self.name}: gain contains non-finite values")
             self.L = L
             return
         result = cached_design(self.name, self.DESIGN_VERSION, self.design_arrays(),

@@ -110,7 +110,7 @@ BAD_CONFIGS = [
      "V must contain the origin"),
     # negative orders, steps, seeds
     ("order 0 for one observer", cfg_with(cfg__observer_options={"FRad-A": {"order": 0}}),
-     "order must be >= 1"),
+     "FRad-A: order must be a finite number >= 1, got 0"),
     ("negative box radius", cfg_with(system__V={"box": [-0.1]}), "non-negative"),
     ("negative steps", cfg_with(scen__simulate={"steps": -5}), "steps must be an integer >= 1"),
     ("named negative seed", cfg_with(cfg__scenarios=[{"name": "tank6-linear", "seed": -1}]),
@@ -121,7 +121,7 @@ BAD_CONFIGS = [
     ("unknown noise", cfg_with(cfg__scenarios=[{"name": "alamo2d-sim", "noise": "pink"}]),
      "unknown noise model 'pink'"),
     ("unknown reduction", cfg_with(cfg__options={"reduction": "best"}),
-     "unknown reduction method 'best'"),
+     "reduction must be one of 'girard', 'pca' .*, got 'best'"),
     ("unknown excluded observer", cfg_with(cfg__exclude=["FRad-Q"]), "unknown observer 'FRad-Q'"),
     ("unknown observer options", cfg_with(cfg__observer_options={"Kalman-X": {}}),
      "unknown observer 'Kalman-X'"),

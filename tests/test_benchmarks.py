@@ -91,7 +91,7 @@ def test_report_shows_published_values_beside_ours(tmp_path):
         ({"scenarios": ["vehicle2d-cora"], "observers": ["FRad-A"], "colour": "red"},
          "unknown key"),
         ({"scenarios": ["vehicle2d-cora"], "observers": ["FRad-A"], "options": {"order": -1}},
-         "order must be >= 1"),
+         "order must be a finite number >= 1"),
     ],
 )
 def test_bad_configs_end_with_one_line_error(tmp_path, capsys, cfg, message):

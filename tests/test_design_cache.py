@@ -58,7 +58,8 @@ def test_offline_gain_mixin_uses_given_gain_or_design():
             observers.create("Test-Offline", s, gain=[0.5, 0.6]).L, [[0.5], [0.6]])
         with pytest.raises(observers.OptionError, match=r"gain must have shape \(2, 1\)"):
             observers.create("Test-Offline", s, gain=np.ones((3, 1)))
-        with pytest.raises(observers.OptionError, match="non-finite"):
+        with pytest.raises(observers.OptionError,
+                           match="gain must be a numeric vector or matrix with finite entries"):
             observers.create("Test-Offline", s, gain=[np.nan, 1.0])
     finally:
         registry._REGISTRY.pop("Test-Offline")

@@ -124,7 +124,7 @@ def test_prad_e_beta_below_the_slowest_unobservable_mode_is_no_gain():
 
 @pytest.mark.parametrize(("name", "options", "message"), [
     ("PRad-E", {"beta": 1.0}, r"beta must be a number in \(0, 1\)"),
-    ("PRad-E", {"solver": "mosek"}, "solver must be 'auto', 'sdp' or 'riccati'"),
+    ("PRad-E", {"solver": "mosek"}, "solver must be one of 'auto', 'sdp', 'riccati'"),
     ("Nom-G", {"mu": 0}, r"mu must be a number in \(0, 1\]"),
     ("Hinf-G", {"gamma_slack": -1}, "gamma_slack must be a positive number"),
     ("Hinf-G", {"convention": "cora"}, "convention must be one of 'aligned', 'cora-lagged'"),

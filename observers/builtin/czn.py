@@ -34,8 +34,8 @@ from abc import abstractmethod
 
 import numpy as np
 
-from ..errors import OptionError
 from ..families import ZonotopeObserver
+from ..options import Choice, Integer, Number
 from ..registry import register
 from ..sets import ConZonotope, HullLP
 from ..sets import conzono_ops as ops
@@ -69,24 +69,11 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         measurement set, by far more than the rounding.  ``0`` is CORA's exact behaviour.
     """
 
-    OPTIONS = {"max_constraints": "auto", "hull_solver": "auto", "margin": 1e-7}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        if self.options["hull_solver"] not in HullLP.SOLVERS:
-            raise OptionError(f"{self.name}: hull_solver must be one of "
-                              f"{', '.join(HullLP.SOLVERS)}, got {self.options['hull_solver']!r}")
-        margin = self.options["margin"]
-        if (isinstance(margin, bool) or not isinstance(margin, (int, float))
-                or not 0 <= margin < 1e-3):
-            raise OptionError(f"{self.name}: margin must be a number in [0, 1e-3), "
-                              f"got {margin!r}")
-        k = self.options["max_constraints"]
-        if k is None or k == "auto":
-            return
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
-            raise OptionError(f"{self.name}: max_constraints must be a non-negative integer, "
-                              f"'auto' or None, got {k!r}")
+    OPTIONS = {
+        "max_constraints": Integer("auto", low=0, allow_none=True, special=("auto",)),
+        "hull_solver": Choice("auto", HullLP.SOLVERS),
+        "margin": Number(1e-7, low=0, high=1e-3, high_open=True),
+    }
 
     def design(self) -> None:
         super().design()

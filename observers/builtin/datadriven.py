@@ -28,13 +28,36 @@ from ..numerics.datadriven import (
     sound_model_set,
     split_sensors,
 )
+from ..options import (
+    Choice,
+    Custom,
+    Integer,
+    Number,
+    reduction_method,
+    training_data,
+    zonotope_order,
+)
 from ..registry import register
-from ..sets import ConZonotope, SetError, Zonotope, get_reduction
-from ..sets.reduction import check_order
+from ..sets import ConZonotope, Zonotope, get_reduction
 
 REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
 _MODEL_CACHE: dict[str, tuple] = {}
 MODELS = ("sound-lp", "sound", "paper")
+
+
+def _is_sensor_split(value: object) -> bool:
+    """None or a sequence of positive integers (the outputs of each sensor)."""
+    if value is None:
+        return True
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple, np.ndarray)):
+        return False
+    return all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1
+               for s in value)
+
+
+#: spec of the option ``sensors`` (whether the sizes add up to the outputs and respect the
+#: noise coupling depends on the system: checked by the design)
+SENSORS = Custom(None, _is_sensor_split, "a list of positive integers or None")
 
 
 def learn_model_set(data, W: Zonotope, construction: str, state_bound: float):
@@ -88,22 +111,11 @@ class DataDrivenObserver(Observer):
     #: regression-gate tolerance: the default set of models is bounded by LP solutions
     #: (dual-evaluated, sound, but accurate only to the LP solver's tolerance)
     REGRESSION_RTOL = 1e-4
-    OPTIONS = {"training": None, "model": "sound-lp", "model_order": 2.0, "state_bound": 100.0,
-               "order": 5, "reduction": "girard", "sensors": None}
-
-    def validate_options(self) -> None:
-        o = self.options
-        if o["model"] not in MODELS:
-            raise OptionError(f"{self.name}: model must be one of {', '.join(MODELS)}, got "
-                              f"{o['model']!r}")
-        try:
-            check_order(o["order"])
-            check_order(o["model_order"])
-            get_reduction(o["reduction"])
-        except SetError as exc:
-            raise OptionError(f"{self.name}: {exc}") from None
-        if not (isinstance(o["state_bound"], (int, float)) and o["state_bound"] > 0):
-            raise OptionError(f"{self.name}: state_bound must be a positive number")
+    OPTIONS = {"training": training_data(), "model": Choice("sound-lp", MODELS),
+               "model_order": zonotope_order(2.0),
+               "state_bound": Number(100.0, low=0, low_open=True),
+               "order": zonotope_order(5), "reduction": reduction_method("girard"),
+               "sensors": SENSORS}
 
     def design(self) -> None:
         s = self.system
@@ -179,16 +191,8 @@ class ConZonotopeDD(DataDrivenObserver):
     are eliminated with the Frobenius-optimal gain); the generators are reduced on the lifted
     zonotope, its constraint rows normalised, to ``order`` times its dimension."""
 
-    OPTIONS = {"constraints": None}
+    OPTIONS = {"constraints": Integer(None, low=0, allow_none=True)}
     CONSTRAINTS_PER_STATE = 1
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        k = self.options["constraints"]
-        if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer))
-                              or k < 0):
-            raise OptionError(f"{self.name}: constraints must be a non-negative integer or "
-                              f"None, got {k!r}")
 
     def initial_set(self) -> ConZonotope:
         return ConZonotope(self.X0.c, self.X0.G)

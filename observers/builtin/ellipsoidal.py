@@ -8,7 +8,7 @@ from abc import abstractmethod
 import numpy as np
 
 from ..base import Observer
-from ..errors import DesignFailed, Diverged, OptionError
+from ..errors import DesignFailed, Diverged
 from ..families import as_zonotope
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
@@ -22,6 +22,7 @@ from ..numerics.ellipsoidal import (
     obe_update,
 )
 from ..offline import cached_design
+from ..options import Choice, Number
 from ..registry import register
 from ..sets import Ellipsoid, Zonotope
 from ..sets.ellipsoid import CONVERSIONS, max_quadratic_on_zonotope
@@ -46,15 +47,8 @@ class EllipsoidalStripObserver(Observer):
         Zonotope-to-ellipsoid conversion of X0, W and V.
     """
 
-    OPTIONS = {"variant": "paper", "conversion": "outer:norm"}
-
-    def validate_options(self) -> None:
-        if self.options["variant"] not in VARIANTS:
-            raise OptionError(f"{self.name}: variant must be one of {', '.join(VARIANTS)}, "
-                              f"got {self.options['variant']!r}")
-        if self.options["conversion"] not in CONVERSIONS:
-            raise OptionError(f"{self.name}: conversion must be one of {', '.join(CONVERSIONS)}"
-                              f", got {self.options['conversion']!r}")
+    OPTIONS = {"variant": Choice("paper", VARIANTS),
+               "conversion": Choice("outer:norm", CONVERSIONS)}
 
     def design(self) -> None:
         s, mode = self.system, self.options["conversion"]
@@ -122,13 +116,7 @@ class ESOA(EllipsoidalStripObserver):
         more closely and give radii of ESO-B's magnitude on the shipped benchmarks.
     """
 
-    OPTIONS = {"alpha": 1e-4}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        a = self.options["alpha"]
-        if not isinstance(a, (int, float)) or not 0.0 < a < 1.0:
-            raise OptionError(f"ESO-A: alpha must be a number in (0, 1), got {a!r}")
+    OPTIONS = {"alpha": Number(1e-4, low=0, high=1, low_open=True, high_open=True)}
 
     def design(self) -> None:
         super().design()
@@ -252,12 +240,7 @@ class ESOC(InvariantSetObserver):
         weight ``Q`` (``chi2inv(quantile, n)``; 0.999 as in CORA).
     """
 
-    OPTIONS = {"quantile": 0.999}
-
-    def validate_options(self) -> None:
-        p = self.options["quantile"]
-        if not isinstance(p, (int, float)) or not 0.0 < p < 1.0:
-            raise OptionError(f"ESO-C: quantile must be a number in (0, 1), got {p!r}")
+    OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True)}
 
     def compute_design(self, A, C, E, F) -> dict:
         W = Zonotope(np.zeros(A.shape[0]), E)

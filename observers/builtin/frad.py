@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import OptionError
 from ..families import AllStripsObserver, PerStripObserver, PropagationObserver
 from ..numerics.frad import alamo_frad_gain, combastel_gain, wang_frad_gain
+from ..options import Choice
 from ..registry import register
 
 
@@ -31,13 +31,7 @@ class WangGainVariant:
     ``A G G' A' + E E'`` is the prediction).  Used by FRad-B and CZN-B.
     """
 
-    OPTIONS = {"variant": "cora"}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        if self.options["variant"] not in ("cora", "textbook"):
-            raise OptionError(f"{self.name}: variant must be 'cora' or 'textbook', "
-                              f"got {self.options['variant']!r}")
+    OPTIONS = {"variant": Choice("cora", ("cora", "textbook"))}
 
     def wang_gain(self, G: np.ndarray) -> np.ndarray:
         """Gain (n x m) for the predicted set's generators ``G``."""

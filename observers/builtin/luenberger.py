@@ -14,22 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import OptionError
 from ..families import ConstantGainPropagationObserver, IntervalObserver
 from ..numerics.lmi import cora_bisection_end
 from ..numerics.luenberger import check_modes, hinf_g_design, nom_g_design, prad_e_design
 from ..offline import OfflineGain
+from ..options import Choice, Number
 from ..registry import register
-
-
-def _number(obs, key: str, lo: float, hi: float, hi_closed: bool) -> None:
-    """Check that option ``key`` is a number in ``(lo, hi)`` or ``(lo, hi]``."""
-    v = obs.options[key]
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and lo < v and (
-        v <= hi if hi_closed else v < hi)
-    if not ok:
-        raise OptionError(f"{obs.name}: {key} must be a number in ({lo:g}, {hi:g}"
-                          f"{']' if hi_closed else ')'}, got {v!r}")
 
 
 class _OfflineGainPropagation(OfflineGain, ConstantGainPropagationObserver):
@@ -60,15 +50,8 @@ class PRadE(_OfflineGainPropagation):
         Use this gain instead of designing one.
     """
 
-    OPTIONS = {"beta": None, "solver": "auto"}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        if self.options["beta"] is not None:
-            _number(self, "beta", 0.0, 1.0, hi_closed=False)
-        if self.options["solver"] not in ("auto", "sdp", "riccati"):
-            raise OptionError(f"{self.name}: solver must be 'auto', 'sdp' or 'riccati', "
-                              f"got {self.options['solver']!r}")
+    OPTIONS = {"beta": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
+               "solver": Choice("auto", ("auto", "sdp", "riccati"))}
 
     @property
     def beta(self) -> float:
@@ -100,11 +83,7 @@ class NomG(_OfflineGainPropagation):
     normalised by ``trace(P) = n`` (see :func:`~observers.numerics.luenberger.nom_g_design`).
     """
 
-    OPTIONS = {"mu": 1.0}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        _number(self, "mu", 0.0, 1.0, hi_closed=True)
+    OPTIONS = {"mu": Number(1.0, low=0, high=1, low_open=True)}
 
     def design_gain(self) -> np.ndarray:
         s = self.system
@@ -134,13 +113,7 @@ class HinfG(OfflineGain, IntervalObserver):
         Use this gain instead of designing one.
     """
 
-    OPTIONS = {"gamma_slack": 0.1}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        v = self.options["gamma_slack"]
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
-            raise OptionError(f"{self.name}: gamma_slack must be a positive number, got {v!r}")
+    OPTIONS = {"gamma_slack": Number(0.1, low=0, low_open=True)}
 
     def design_params(self) -> dict[str, Any]:
         return {"gamma_slack": float(self.options["gamma_slack"])}

@@ -79,10 +79,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import OptionError
 from ..families import AllStripsObserver, PerStripObserver
 from ..numerics.prad import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
 from ..offline import OfflineGain
+from ..options import Number
 from ..registry import register
 
 
@@ -95,13 +95,8 @@ def cora_epsilon(W, sigma: np.ndarray) -> float:
 class _BetaTol:
     """Option ``beta_tol`` of the CORA-style designs (tolerance of the bisection on beta)."""
 
-    OPTIONS: dict[str, Any] = {"beta_tol": 0.01}
-
-    def validate_options(self) -> None:
-        super().validate_options()  # type: ignore[misc]
-        tol = self.options["beta_tol"]
-        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 1:
-            raise OptionError(f"{self.name}: beta_tol must be a number in (0, 1), got {tol!r}")
+    OPTIONS: dict[str, Any] = {
+        "beta_tol": Number(0.01, low=0, high=1, low_open=True, high_open=True)}
 
 
 @register(
@@ -190,17 +185,9 @@ class PRadD(_ConstantAllStrips):
         Split of the noise weight between disturbance and measurement noise, in (0, 1).
     """
 
-    OPTIONS = {"alpha": None, "beta": 0.5}
+    OPTIONS = {"alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
+               "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
     DESIGN_VERSION = "1"
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        for key in ("alpha", "beta"):
-            v = self.options[key]
-            if v is None and key == "alpha":
-                continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < 1:
-                raise OptionError(f"PRad-D: {key} must be a number in (0, 1), got {v!r}")
 
     def design_gain(self) -> np.ndarray:
         return wang_d_gain(self.A, self.C, self.E, self.F, alpha=self.options["alpha"],

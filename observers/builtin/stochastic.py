@@ -16,9 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..base import Observer
-from ..errors import DesignFailed, OptionError
+from ..errors import DesignFailed
 from ..families import as_zonotope
 from ..numerics.datadriven import check_training
+from ..options import Choice, Integer, Number, training_data
 from ..registry import register
 from ..sets import Ellipsoid
 
@@ -74,17 +75,9 @@ class KalmanN4SID(Observer):
     """
 
     REQUIRES = ("C", "W", "V", "X0")
-    OPTIONS = {"training": None, "block_rows": 4, "sigma": 3.0, "tuning": "uniform"}
-
-    def validate_options(self) -> None:
-        if not (isinstance(self.options["block_rows"], (int, np.integer))
-                and self.options["block_rows"] >= 1):
-            raise OptionError(f"{self.name}: block_rows must be a positive integer")
-        if not (isinstance(self.options["sigma"], (int, float)) and self.options["sigma"] > 0):
-            raise OptionError(f"{self.name}: sigma must be a positive number")
-        if self.options["tuning"] not in ("uniform", "paper"):
-            raise OptionError(f"{self.name}: tuning must be 'uniform' or 'paper', got "
-                              f"{self.options['tuning']!r}")
+    OPTIONS = {"training": training_data(), "block_rows": Integer(4, low=1),
+               "sigma": Number(3.0, low=0, low_open=True),
+               "tuning": Choice("uniform", ("uniform", "paper"))}
 
     def design(self) -> None:
         s = self.system

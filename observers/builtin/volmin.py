@@ -25,9 +25,10 @@ import math
 
 import numpy as np
 
-from ..errors import DesignFailed, OptionError
+from ..errors import DesignFailed
 from ..families import PerStripObserver, StripBasedObserver
 from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
+from ..options import Integer
 from ..registry import register
 
 
@@ -45,13 +46,7 @@ class VolMinA(PerStripObserver):
         enumerate; beyond it the observer refuses at construction (``DesignFailed``).
     """
 
-    OPTIONS = {"max_subsets": 200_000}
-
-    def validate_options(self) -> None:
-        super().validate_options()
-        m = self.options["max_subsets"]
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
-            raise OptionError(f"VolMin-A: max_subsets must be a positive integer, got {m!r}")
+    OPTIONS = {"max_subsets": Integer(200_000, low=1)}
 
     def design(self) -> None:
         super().design()
