@@ -47,8 +47,9 @@ from abc import abstractmethod
 import numpy as np
 
 from .base import Observer
-from .errors import ObserverError
+from .errors import ObserverError, Unsupported
 from .options import Choice, reduction_method, zonotope_order
+from .prediction import prediction_for
 from .sets import Interval, Zonotope, get_reduction
 
 
@@ -70,21 +71,24 @@ def propagate(
     c: np.ndarray,
     G: np.ndarray,
     A: np.ndarray,
-    B: np.ndarray,
+    d: np.ndarray,
     C: np.ndarray,
     L: np.ndarray,
-    u: np.ndarray,
     y: np.ndarray,
     V: tuple[np.ndarray, np.ndarray],
     W: tuple[np.ndarray, np.ndarray],
+    R: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """One set-propagation step ``S+ = (A - L C) S + B u + L y + (-L) V + W`` (eq. 8 of
-    Althoff & Rath 2021), exact on zonotopes; generators ``[(A-LC) G, -L G_V, G_W]``."""
+    """One set-propagation step ``S+ = (A - L C) S + d + L y + (-L) V + W (+ R)`` (eq. 8 of
+    Althoff & Rath 2021 with ``d = B u``), exact on zonotopes; generators
+    ``[(A-LC) G, -L G_V, G_W, R]``.  For a nonlinear system ``A, d`` are the linearisation
+    at the centre and ``R`` the generators of its remainder box
+    (:mod:`observers.prediction`)."""
     cV, GV = V
     cW, GW = W
     M = A - L @ C
-    c_new = M @ c + B @ u + L @ (y - cV) + cW
-    G_new = np.hstack([M @ G, -L @ GV, GW])
+    c_new = M @ c + d + L @ (y - cV) + cW
+    G_new = np.hstack([M @ G, -L @ GV, GW] + ([] if R is None else [R]))
     return c_new, G_new
 
 
@@ -99,16 +103,54 @@ def as_zonotope(S, what: str) -> Zonotope:
 
 class LinearModelObserver(Observer):
     """Observers that read the linear model: ``design`` collects ``A, B, C`` and the sets
-    ``X0, W, V`` as zonotopes (subclasses extend it with ``super().design()``)."""
+    ``X0, W, V`` as zonotopes (subclasses extend it with ``super().design()``).
+
+    Observers whose class sets ``NONLINEAR = True`` also accept a nonlinear system
+    (:class:`systems.NonlinearSystem`): their loops predict with ``self.prediction``
+    (:mod:`observers.prediction`, conservative linearisation at every step) and ``self.A`` is
+    then the Jacobian of the latest linearisation (what online gains such as FRad-B's and
+    FRad-C's use).
+    """
+
+    #: whether the online loop works with a per-step linearisation (nonlinear systems)
+    NONLINEAR: bool = False
+    #: prediction strategy for nonlinear systems (:func:`observers.prediction.prediction_for`)
+    LINEARISATION: str = "lagrange"
 
     def design(self) -> None:
         s = self.system
-        self.A = np.asarray(s.A, dtype=float)
-        self.B = np.asarray(s.B, dtype=float)
+        if not getattr(s, "is_linear", True) and not self.NONLINEAR:
+            raise Unsupported(f"{self.name or type(self).__name__} needs a linear system "
+                              "(its gain is designed offline for fixed A, B)")
+        self.prediction = prediction_for(
+            s, get_reduction(self.options.get("reduction", "girard")).reduce,
+            self.LINEARISATION, self.options.get("remainder", "box"))
+        if getattr(s, "is_linear", True):
+            self.A = np.asarray(s.A, dtype=float)
+            self.B = np.asarray(s.B, dtype=float)
+        else:  # until the first linearisation: the Jacobian at the centre of X0
+            self.A = np.asarray(s.jacobian(as_zonotope(s.X0, "X0").c, np.zeros(s.nu))[0])
+            self.B = np.zeros((s.n, s.nu))
         self.C = np.asarray(s.C, dtype=float)
         self.X0 = as_zonotope(s.X0, "X0")
         self.W = as_zonotope(s.W, "W")
         self.V = as_zonotope(s.V, "V")
+
+
+class Linearised:
+    """Mixin of the observers that also run on nonlinear systems (conservative linearisation
+    at every step, :mod:`observers.prediction`).
+
+    Options
+    -------
+    remainder : {"box", "zonotope"}
+        Nonlinear systems only: append the interval hull of the second-order remainder
+        enclosure (n generators, default) or CORA's zonotope itself (n (n+1)/2 generators).
+    """
+
+    NONLINEAR = True
+    REQUIRES = ("C", "W", "V", "X0")
+    OPTIONS = {"remainder": Choice("box", ("box", "zonotope"))}
 
 
 class ZonotopeObserver(LinearModelObserver):
@@ -145,8 +187,9 @@ class StripBasedObserver(ZonotopeObserver):
             c, G = self.intersect(self.X0.c, self.X0.G, y)
         else:
             u = self._input(u_prev)
-            c = self.A @ self._c + self.B @ u + self.W.c
-            G = np.hstack([self.A @ self._G, self.E])
+            self.A, d, R = self.prediction(self._c, self._G, u, self.k)
+            c = self.A @ self._c + d + self.W.c
+            G = np.hstack([self.A @ self._G, self.E, R])
             c, G = self.intersect(c, G, y)
             G = self._reduce(G, self.order)
         self._c, self._G = c, G
@@ -198,10 +241,11 @@ class PropagationObserver(ZonotopeObserver):
             c, G = self.X0.c, self.X0.G
         else:
             u = self._input(u_prev)
+            self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(
-                self._c, self._G, self.A, self.B, self.C, L, u, self._y_prev,
-                (self.V.c, self.F), (self.W.c, self.E),
+                self._c, self._G, self.A, d, self.C, L, self._y_prev,
+                (self.V.c, self.F), (self.W.c, self.E), R,
             )
             G = self._reduce(G, self.order)
         self._c, self._G, self._y_prev = c, G, y
