@@ -124,7 +124,7 @@ class LinearModelObserver(Observer):
                               "(its gain is designed offline for fixed A, B)")
         self.prediction = prediction_for(
             s, get_reduction(self.options.get("reduction", "girard")).reduce,
-            self.LINEARISATION, self.options.get("remainder", "box"))
+            self.LINEARISATION, self.options.get("remainder", "zonotope"))
         if getattr(s, "is_linear", True):
             self.A = np.asarray(s.A, dtype=float)
             self.B = np.asarray(s.B, dtype=float)
@@ -143,14 +143,15 @@ class Linearised:
 
     Options
     -------
-    remainder : {"box", "zonotope"}
-        Nonlinear systems only: append the interval hull of the second-order remainder
-        enclosure (n generators, default) or CORA's zonotope itself (n (n+1)/2 generators).
+    remainder : {"zonotope", "box"}
+        Nonlinear systems only: append CORA's zonotope enclosure of the second-order remainder
+        (``n (n+1)/2 + n`` generators, default; reproduces CORA's stored results) or its
+        interval hull (n generators).
     """
 
     NONLINEAR = True
     REQUIRES = ("C", "W", "V", "X0")
-    OPTIONS = {"remainder": Choice("box", ("box", "zonotope"))}
+    OPTIONS = {"remainder": Choice("zonotope", ("zonotope", "box"))}
 
 
 class ZonotopeObserver(LinearModelObserver):

@@ -94,6 +94,15 @@ class ConservativeLinearisation:
         self.reduce = reduce
         self.as_box = remainder == "box"
 
+    def _order_one(self, G: np.ndarray) -> np.ndarray:
+        """Order-1 enclosure of ``G`` (CORA's error order 1): with the PCA strategy all
+        generators go into the box aligned with the principal axes (computed directly, without
+        sorting the generators); other strategies use their own reduction."""
+        if getattr(self.reduce, "__self__", None).__class__.__name__ != "PCA":
+            return self.reduce(G, 1.0)
+        _, U = np.linalg.eigh(G @ G.T)
+        return U * np.abs(U.T @ G).sum(axis=1)
+
     def __call__(self, c, G, u, k):
         r = np.abs(G).sum(axis=1)
         lo, hi = np.nextafter(c - r, -np.inf), np.nextafter(c + r, np.inf)
@@ -109,7 +118,7 @@ class ConservativeLinearisation:
         if len(idx):
             idx = np.asarray(idx, dtype=int).reshape(-1, 3)
             Hm, Hr = 0.5 * (Hlo + Hhi), np.nextafter(0.5 * (Hhi - Hlo), np.inf)
-            cq, Z = quadratic_enclosure(self.reduce(G, 1.0), idx, Hm)
+            cq, Z = quadratic_enclosure(self._order_one(G), idx, Hm)
             i, j, kk = idx.T
             d = np.nextafter(r, np.inf)
             np.add.at(rad, i, np.where(j == kk, 0.5, 1.0) * Hr * d[j] * d[kk])

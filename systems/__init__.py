@@ -5,16 +5,21 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 
 from .alamo import alamo2d
 from .errors import ModelError
+from .derivatives import SYMBOLIC
+from .errors import DomainError
 from .model import LinearSystem, NonlinearSystem, observability_matrix
 from .rotating import rotating_target
 from .scenarios import Scenario, register_scenario, scenario, scenario_names
 from .simulate import NOISE_MODELS, Simulation, simulate
 from .tank import tank, tank_input
+from .vanderpol import vanderpol
 from .training import Training, offline_experiment
 from .vehicle import lane_change_input, vehicle
 
 __all__ = [
+    "DomainError",
     "NOISE_MODELS",
+    "SYMBOLIC",
     "LinearSystem",
     "ModelError",
     "NonlinearSystem",
@@ -32,5 +37,6 @@ __all__ = [
     "simulate",
     "tank",
     "tank_input",
+    "vanderpol",
     "vehicle",
 ]
