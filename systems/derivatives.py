@@ -90,6 +90,9 @@ class SymbolicDerivatives:
         Ju = sympy.Matrix(exprs).jacobian(us) if nu else sympy.zeros(n, 0)
         self.jacobian_expressions = (Jx, Ju)
         self._jx = sympy.lambdify((xs, us), Jx, modules="numpy")
+        self._jx_entries = [(i, j) for i in range(n) for j in range(n) if Jx[i, j] != 0]
+        self._jx_interval = sympy.lambdify(
+            (xs, us), [Jx[i, j] for i, j in self._jx_entries], modules=[FUNCTIONS])
         self._ju = sympy.lambdify((xs, us), Ju, modules="numpy")
         # second derivatives in x (u enters with dz_u = 0): keep the non-zero ones, j <= k
         entries, exprs2 = [], []
@@ -121,3 +124,14 @@ class SymbolicDerivatives:
         vals = [Ival._of(v) for v in self._hess(xs, tuple(float(v) for v in u))]
         return Ival(np.array([v.lo for v in vals], dtype=float),
                     np.array([v.hi for v in vals], dtype=float))
+
+    def jacobian_bounds(self, lo: np.ndarray, hi: np.ndarray,
+                        u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(Jlo, Jhi)`` of ``df/dx`` over the box ``[lo, hi]`` (interval arithmetic)."""
+        Jlo, Jhi = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
+        xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
+        vals = self._jx_interval(xs, tuple(float(v) for v in u))
+        for (i, j), v in zip(self._jx_entries, vals, strict=True):
+            v = Ival._of(v)
+            Jlo[i, j], Jhi[i, j] = v.lo, v.hi
+        return Jlo, Jhi

@@ -256,6 +256,16 @@ class NonlinearSystem:
                 f"the boundary of the domain ({dlo[i]:.6g}, {dhi[i]:.6g}) of {self.name or 'f'}",
                 state=i)
 
+    def jacobian_bounds(self, lo: np.ndarray, hi: np.ndarray,
+                        u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Interval Jacobian ``(Jlo, Jhi)`` of ``df/dx`` over ``[lo, hi]`` (derived; after
+        :meth:`check_domain`), for the mean-value extension."""
+        self.check_domain(lo, hi)
+        try:
+            return self.derived.jacobian_bounds(lo, hi, u)
+        except SetError as exc:
+            raise DomainError(f"{self.name or 'f'}: {exc} over the estimate's box") from None
+
     def hessian(self, lo: np.ndarray, hi: np.ndarray,
                 u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bounds of the non-zero second derivatives over ``[lo, hi]`` (after

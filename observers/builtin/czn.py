@@ -165,3 +165,22 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
 
     def intersect(self, c, G, A, b, y):
         return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(G))
+
+
+@register(
+    "CZN-MV", family="strip", set_type="conzonotope", ready_for_control=False,
+    reference="Rego, Raffo, Scott, Raimondo, Automatica 111, 108614, 2020 (mean-value "
+              "extension); Scott et al. 2016",
+)
+class CZNMV(CZNA):
+    """CZN-A with the mean-value extension of Rego et al. (2020) as prediction.
+
+    Beyond CORA.  For a nonlinear system the prediction encloses ``f(x) - f(c)`` by the
+    interval Jacobian over the box of the estimate, ``J(B) (x - c)``: its midpoint is applied
+    to the set and its radius adds the box ``rad J(B) |x - c|``
+    (:class:`observers.prediction.MeanValuePrediction`).  It needs first derivatives only
+    (no Hessian), and is tighter than the second-order remainder when the curvature is large
+    relative to the set; on linear systems it is CZN-A.
+    """
+
+    LINEARISATION = "mean-value"
