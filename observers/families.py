@@ -123,7 +123,7 @@ class LinearModelObserver(Observer):
             raise Unsupported(f"{self.name or type(self).__name__} needs a linear system "
                               "(its gain is designed offline for fixed A, B)")
         self.prediction = prediction_for(
-            s, get_reduction(self.options.get("reduction", "girard")).reduce,
+            s, get_reduction(self.options.get("reduction", "girard")),
             self.LINEARISATION, self.options.get("remainder", "box"))
         if getattr(s, "is_linear", True):
             self.A = np.asarray(s.A, dtype=float)

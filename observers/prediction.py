@@ -14,8 +14,8 @@ depends on the system being linear.
   ``d = f(p, u) - J p`` plus the centre of ``R``, an enclosure of the Lagrange remainder
   over the set (Hessian bounded over its interval hull); this is the on-the-fly
   conservative linearisation CORA uses for nonlinear systems (Althoff, ARCH 2021, Sec. 3;
-  Althoff, Stursberg, Buss, CDC 2008).  A box leaving the model's domain ends the run as ``diverged``
-  with the step and the state named.
+  Althoff, Stursberg, Buss, CDC 2008).  A box leaving the model's domain ends the run as
+  ``diverged`` with the step and the state named.
 * :class:`MeanValuePrediction`: the mean-value extension (Rego, Raffo, Scott, Raimondo,
   Automatica 111, 2020, Sec. 4): ``f(x) in f(p) + J(B) (x - p)`` with the *interval*
   Jacobian ``J(B)`` over the box ``B`` of ``S``, enclosed as ``mid J(B)`` applied to the set
@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import Diverged
+from .sets import PCA
 
 
 class LinearPrediction:
@@ -51,27 +52,34 @@ def _box_generators(r: np.ndarray) -> np.ndarray:
     return R
 
 
-def quadratic_enclosure(Gr: np.ndarray, idx: np.ndarray, Hm: np.ndarray):
-    """Zonotope ``(c, Z)`` enclosing ``{q(delta) : delta in (0, Gr)}`` with
-    ``q_i(delta) = 1/2 sum_{(i,j,k)} Hm_e delta_j delta_k`` (entries ``idx = (i, j, k)``,
-    ``j <= k``; a mixed entry stands for both orders).
-
-    With ``delta = Gr beta``, ``q_i = 1/2 beta' M_i beta`` and ``M_i = Gr' Q_i Gr``; squares
-    ``beta_l^2`` lie in ``[0, 1]`` (centre 1/2, generator 1/2), products ``beta_l beta_m`` in
-    ``[-1, 1]`` (the quadratic map of a zonotope, Althoff, Stursberg, Buss, CDC 2008, as CORA
-    computes the second-order error).  Returns ``c`` (n,) and ``Z`` (n x r(r+1)/2).
-    """
-    n, r = Gr.shape[0], Gr.shape[1]
+def quadratic_forms(Gr: np.ndarray, idx: np.ndarray, Hm: np.ndarray) -> np.ndarray:
+    """``M_i = Gr' Q_i Gr`` (n x r x r), ``Q_i`` the symmetric matrix of the second derivatives
+    ``Hm_e`` at ``idx = (i, j, k)`` (``j <= k``; a mixed entry fills ``(j, k)`` and ``(k, j)``)."""
+    n, r = Gr.shape
     i, j, k = idx.T
-    outer = Hm[:, None, None] * (Gr[j][:, :, None] * Gr[k][:, None, :])
-    outer = np.where((j != k)[:, None, None], outer + outer.transpose(0, 2, 1), outer)
-    M = np.zeros((n, r, r))
-    np.add.at(M, i, outer)
+    S = np.zeros((n, len(i)))  # scatter of the entries to their output i
+    S[i, np.arange(len(i))] = np.where(j != k, 1.0, 0.5) * Hm
+    P = (S @ (Gr[j][:, :, None] * Gr[k][:, None, :]).reshape(len(i), r * r)).reshape(n, r, r)
+    return P + P.transpose(0, 2, 1)
+
+
+def quadratic_enclosure(M: np.ndarray, as_box: bool):
+    """Enclosure of ``{1/2 beta' M_i beta : beta in [-1, 1]^r}``: a zonotope ``(c, Z)``, or
+    with ``as_box`` the centre and radius ``(c, rad)`` of its interval hull.
+
+    Squares ``beta_l^2`` lie in ``[0, 1]`` (centre 1/2, generator 1/2), products
+    ``beta_l beta_m`` in ``[-1, 1]``: the quadratic map of a zonotope (Althoff, Stursberg,
+    Buss, CDC 2008), as CORA computes the second-order error.  ``Z`` has ``r (r+1)/2``
+    columns.
+    """
+    r = M.shape[1]
     dg = np.einsum("ill->il", M)
     c = 0.25 * dg.sum(axis=1)
+    if as_box:
+        adg = np.abs(dg).sum(axis=1)
+        return c, 0.25 * adg + 0.5 * (np.abs(M).sum(axis=(1, 2)) - adg)
     lu, mu = np.triu_indices(r, 1)
-    Z = np.hstack([0.25 * dg, 0.5 * (M[:, lu, mu] + M[:, mu, lu])])
-    return c, Z
+    return c, np.hstack([0.25 * dg, 0.5 * (M[:, lu, mu] + M[:, mu, lu])])
 
 
 class ConservativeLinearisation:
@@ -89,17 +97,17 @@ class ConservativeLinearisation:
 
     exact = False
 
-    def __init__(self, system, reduce, remainder: str = "box"):
+    def __init__(self, system, reduction, remainder: str = "box"):
         self.system = system
-        self.reduce = reduce
+        self.reduction = reduction
         self.as_box = remainder == "box"
 
     def _order_one(self, G: np.ndarray) -> np.ndarray:
         """Order-1 enclosure of ``G`` (CORA's error order 1): with the PCA strategy all
         generators go into the box aligned with the principal axes (computed directly, without
         sorting the generators); other strategies use their own reduction."""
-        if getattr(self.reduce, "__self__", None).__class__.__name__ != "PCA":
-            return self.reduce(G, 1.0)
+        if not isinstance(self.reduction, PCA):
+            return self.reduction.reduce(G, 1.0)
         _, U = np.linalg.eigh(G @ G.T)
         return U * np.abs(U.T @ G).sum(axis=1)
 
@@ -118,15 +126,16 @@ class ConservativeLinearisation:
         if len(idx):
             idx = np.asarray(idx, dtype=int).reshape(-1, 3)
             Hm, Hr = 0.5 * (Hlo + Hhi), np.nextafter(0.5 * (Hhi - Hlo), np.inf)
-            cq, Z = quadratic_enclosure(self._order_one(G), idx, Hm)
+            M = quadratic_forms(self._order_one(G), idx, Hm)
+            cq, Z = quadratic_enclosure(M, self.as_box)
+            if self.as_box:  # the hull's radius joins the remainder box
+                rad, Z = rad + Z, np.zeros((c.size, 0))
             i, j, kk = idx.T
             d = np.nextafter(r, np.inf)
             np.add.at(rad, i, np.where(j == kk, 0.5, 1.0) * Hr * d[j] * d[kk])
-            # rounding of the quadratic map: a few ulps per term of its magnitude
-            rad = rad + 8 * eps * Z.shape[1] * (np.abs(cq) + np.abs(Z).sum(axis=1))
-            rad = np.nextafter(rad * (1 + 8 * eps * len(i)), np.inf)
-        if self.as_box:
-            rad, Z = rad + np.abs(Z).sum(axis=1), Z[:, :0]
+            # rounding of the quadratic map (sums of about n^2 terms): a relative margin
+            mag = np.abs(cq) + np.abs(Z).sum(axis=1) + rad
+            rad = np.nextafter(rad + 8 * eps * (c.size ** 2 + len(i)) * mag, np.inf)
         if not (np.all(np.isfinite(rad)) and np.all(np.isfinite(J)) and np.all(np.isfinite(Z))):
             raise Diverged("non-finite linearisation", step=k)
         return J, fc + cq - J @ c, np.hstack([Z, _box_generators(rad)])
@@ -157,14 +166,14 @@ class MeanValuePrediction:
         return Jm, d, _box_generators(rem)
 
 
-def prediction_for(system, reduce, strategy: str = "lagrange", remainder: str = "box"):
+def prediction_for(system, reduction, strategy: str = "lagrange", remainder: str = "box"):
     """The prediction strategy of ``system``: exact for linear systems, else ``strategy``
     (``"lagrange"``: :class:`ConservativeLinearisation` with ``remainder`` ``"box"`` or
-    ``"zonotope"``; ``"mean-value"``: :class:`MeanValuePrediction`).  ``reduce(G, order)``
-    is the observer's order reduction."""
+    ``"zonotope"``; ``"mean-value"``: :class:`MeanValuePrediction`).  ``reduction`` is the
+    observer's order-reduction strategy (:mod:`observers.sets.reduction`)."""
     if getattr(system, "is_linear", True):
         return LinearPrediction(np.asarray(system.A, dtype=float),
                                 np.asarray(system.B, dtype=float))
     if strategy == "mean-value":
         return MeanValuePrediction(system)
-    return ConservativeLinearisation(system, reduce, remainder)
+    return ConservativeLinearisation(system, reduction, remainder)

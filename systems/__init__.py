@@ -4,16 +4,15 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 """
 
 from .alamo import alamo2d
-from .errors import ModelError
 from .derivatives import SYMBOLIC
-from .errors import DomainError
+from .errors import DomainError, ModelError
 from .model import LinearSystem, NonlinearSystem, observability_matrix
 from .rotating import rotating_target
 from .scenarios import Scenario, register_scenario, scenario, scenario_names
 from .simulate import NOISE_MODELS, Simulation, simulate
 from .tank import tank, tank_input
-from .vanderpol import vanderpol
 from .training import Training, offline_experiment
+from .vanderpol import vanderpol
 from .vehicle import lane_change_input, vehicle
 
 __all__ = [

@@ -26,8 +26,8 @@ from .model import LinearSystem
 from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
 from .tank import tank, tank_input
-from .vanderpol import vanderpol
 from .training import offline_experiment
+from .vanderpol import vanderpol
 from .vehicle import STATES as VEHICLE_STATES
 from .vehicle import W_RADII, lane_change_input, vehicle
 
@@ -216,7 +216,7 @@ def tank_nonlinear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 2
 
 def tank6_nonlinear_cora() -> Scenario:
     """CORA's 20-step record of the nonlinear 6-tank system (unit test, no true states)."""
-    d = _yaml("tank6_nonlin_cora_short.yaml")
+    d = _yaml("tank6_nonlin_cora_u_y.yaml")
     return _make(
         name="tank6-nonlinear-cora", system=tank(6, linear=False), u=np.array(d["u"]).T,
         y=np.array(d["y"]).T, x_true=None, options={"order": 100, "reduction": "pca"},
@@ -301,8 +301,8 @@ _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
 _LISTED = [
     "vehicle2d-cora", "vehicle6d-cora", "tank30-linear-cora", "tank6-linear", "alamo2d",
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
-    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "tank12-nonlinear", "tank30-nonlinear",
-    "tank6-nonlinear-cora", "vanderpol-sim", "rotating-target",
+    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "tank12-nonlinear",
+    "tank30-nonlinear", "tank6-nonlinear-cora", "vanderpol-sim", "rotating-target",
 ]
 
 
