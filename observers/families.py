@@ -119,9 +119,16 @@ class LinearModelObserver(Observer):
 
     def design(self) -> None:
         s = self.system
-        if not getattr(s, "is_linear", True) and not self.NONLINEAR:
-            raise Unsupported(f"{self.name or type(self).__name__} needs a linear system "
-                              "(its gain is designed offline for fixed A, B)")
+        linear = getattr(s, "is_linear", True)
+        who = self.name or type(self).__name__
+        if not linear and not self.NONLINEAR:
+            raise Unsupported(f"{who} needs a linear system (its gain is designed offline for "
+                              "fixed A, B)")
+        need = ("A", "B") if linear else ("f", "jacobian", "hessian")
+        missing = [a for a in need if not hasattr(s, a)]
+        if missing:
+            raise Unsupported(f"{who} needs a {'linear' if linear else 'nonlinear'} system with "
+                              f"attributes {', '.join(need)}; missing: {', '.join(missing)}")
         self.prediction = prediction_for(
             s, get_reduction(self.options.get("reduction", "girard")),
             self.LINEARISATION, self.options.get("remainder", "box"))
