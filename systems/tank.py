@@ -11,6 +11,17 @@ Tanks in a cascade with Torricelli outflow, explicit Euler with ``h = 0.5`` s,
 Measured tanks and inflow tanks follow ARCH Table 2 (indices beyond n ignored).  For n > 30
 the pattern of tanks 25-30 repeats every 6 tanks (our extension; no published model).
 
+The paper's text differs from these equations (it states ``k = 0.015`` for every tank and
+``(B u + w)_i / A_i``); CORA's published numbers come from the code, so we follow it.
+
+The nonlinear model (``linear=False``) ships hand-derived derivatives: the Jacobian
+(diagonal ``1 - c_i / (2 sqrt(x_i))``, sub-diagonal ``c_i / (2 sqrt(x_{i-1}))``, with ``c_i``
+the coefficient of tank i's square-root difference) and the non-zero second derivatives
+``d^2 f_i / dx_i^2 = c_i x_i^(-3/2) / 4`` and ``d^2 f_i / dx_{i-1}^2 = -c_i x_{i-1}^(-3/2) / 4``,
+bounded over a box with outward rounding; ``tests/test_nonlinear.py`` checks them against
+the symbolic derivation of ``f`` (:mod:`systems.derivatives`).  Its domain is ``x > 0``: an
+estimate whose box reaches a non-positive level is refused (``DomainError``).
+
 The linear model is the Jacobian at ``x = 20`` (the centre of X0), rounded to 3 decimals as in
 CORA's printed matrices; it acts on deviations (``X0`` is centred at 0 with radius 4).
 """
