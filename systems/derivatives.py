@@ -96,13 +96,14 @@ class SymbolicDerivatives:
         self._ju = sympy.lambdify((xs, us), Ju, modules="numpy")
         # second derivatives in x (u enters with dz_u = 0): keep the non-zero ones, j <= k
         entries, exprs2 = [], []
+        pos = {x: j for j, x in enumerate(xs)}
         for i, e in enumerate(exprs):
-            for j in range(n):
+            for j in sorted(pos[x] for x in e.free_symbols if x in pos):
                 dj = sympy.diff(e, xs[j])
-                if dj.is_constant():
-                    continue
-                for k in range(j, n):
-                    h = sympy.simplify(sympy.diff(dj, xs[k]))
+                for k in sorted(pos[x] for x in dj.free_symbols if x in pos):
+                    if k < j:
+                        continue
+                    h = sympy.diff(dj, xs[k])
                     if h != 0:
                         entries.append((i, j, k))
                         exprs2.append(h)
