@@ -154,8 +154,8 @@ class Linearised:
         Nonlinear systems only: append the interval hull of CORA's enclosure of the
         second-order remainder (n generators, default: on CORA's 20-step tank record the final
         hulls stay within 1.6e-2 of CORA's, at a third of the cost on 30 tanks) or the zonotope
-        itself (``n (n+1)/2 + n`` generators, CORA's choice: FRad-A/C within 1e-11, FRad-B
-        within 1.1e-4 of CORA's results).
+        itself (``n (n+1)/2 + n`` generators, CORA's choice: within 1e-9 of CORA's stored
+        results for FRad-A/B/C).
     """
 
     NONLINEAR = True

@@ -43,6 +43,10 @@ class LinearPrediction:
     def __call__(self, c, G, u, k):
         return self.A, self.B @ u, self._none
 
+    def jacobian(self, c: np.ndarray) -> np.ndarray:
+        """State matrix at ``c``: ``A``."""
+        return self.A
+
 
 def _box_generators(r: np.ndarray) -> np.ndarray:
     """Generators ``diag(r)`` of the non-zero radii ``r``."""
@@ -101,6 +105,12 @@ class ConservativeLinearisation:
         self.system = system
         self.reduction = reduction
         self.as_box = remainder == "box"
+        self._u = np.zeros(system.nu)
+
+    def jacobian(self, c: np.ndarray) -> np.ndarray:
+        """``df/dx`` at ``c`` with the input of the latest prediction (FRad-B's and CZN-B's
+        gain: CORA takes the Jacobian at the predicted centre)."""
+        return self.system.jacobian(c, self._u)[0]
 
     def _order_one(self, G: np.ndarray) -> np.ndarray:
         """Order-1 enclosure of ``G`` (CORA's error order 1): with the PCA strategy all
@@ -112,6 +122,7 @@ class ConservativeLinearisation:
         return U * np.abs(U.T @ G).sum(axis=1)
 
     def __call__(self, c, G, u, k):
+        self._u = u
         r = np.abs(G).sum(axis=1)
         lo, hi = np.nextafter(c - r, -np.inf), np.nextafter(c + r, np.inf)
         try:
@@ -148,8 +159,12 @@ class MeanValuePrediction:
 
     def __init__(self, system):
         self.system = system
+        self._u = np.zeros(system.nu)
+
+    jacobian = ConservativeLinearisation.jacobian
 
     def __call__(self, c, G, u, k):
+        self._u = u
         r = np.abs(G).sum(axis=1)
         lo, hi = np.nextafter(c - r, -np.inf), np.nextafter(c + r, np.inf)
         try:

@@ -164,7 +164,7 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
     """
 
     def intersect(self, c, G, A, b, y):
-        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(G))
+        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(c, G))
 
 
 @register(

@@ -33,9 +33,11 @@ class WangGainVariant:
 
     OPTIONS = {"variant": Choice("cora", ("cora", "textbook"))}
 
-    def wang_gain(self, G: np.ndarray) -> np.ndarray:
-        """Gain (n x m) for the predicted set's generators ``G``."""
-        A = self.A if self.options["variant"] == "cora" else None
+    def wang_gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """Gain (n x m) for the predicted set ``(c, G)``; for a nonlinear system ``A`` is the
+        Jacobian at the predicted centre ``c`` (as CORA, whose stored results this reproduces
+        to 1e-9)."""
+        A = self.prediction.jacobian(c) if self.options["variant"] == "cora" else None
         return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
 
 
@@ -53,7 +55,7 @@ class FRadB(Linearised, WangGainVariant, AllStripsObserver):
     """
 
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
-        return self.wang_gain(G)
+        return self.wang_gain(c, G)
 
 
 @register(
