@@ -23,10 +23,10 @@ $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,dask]'
 	@touch $(STAMP)
 
-install: $(STAMP)  ## create .venv and install the project with its test extras
+install: $(STAMP)  ## create .venv and install the project with its test and dask extras
 
 test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests

@@ -15,11 +15,14 @@ One failed job never stops the others.
 ``dask``
     a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
     ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
-    loopback interface started for the run.  A task whose workers died is reported by the
-    scheduler (``KilledWorker``) and becomes that job's ``error``.
+    loopback interface started for the run.  A task whose worker died (the scheduler's
+    ``KilledWorker``) may only have shared the worker with the culprit: after the other jobs,
+    each such task runs again alone on the cluster, and if its worker dies again it becomes
+    that job's ``error``.
 
-Workers are started with the ``spawn`` method: they import the harness afresh (no state
-inherited from threads of the parent) with the parent's environment, hence the same BLAS
+Local workers are forked from a clean server process that preloaded the harness (the
+``forkserver`` method; ``spawn`` where there is none), never from the parent itself (whose
+threads a fork would not carry over), and have the parent's environment, hence the same BLAS
 settings (see :mod:`benchmarks`).
 """
 
@@ -37,6 +40,7 @@ from typing import Any
 from .errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
+_KILLED = object()  # a Dask task whose worker died
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,7 @@ def _worker_loop(conn) -> None:  # pragma: no cover - runs in the worker process
         if msg is None:
             return
         fn, job = msg
+        conn.send(("started", None))  # the budget counts from here (not the worker start)
         try:
             out = ("ok", fn(job))
         except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
@@ -105,10 +110,10 @@ class _Worker:
         self.proc.start()
         child.close()
         self.index: int | None = None
-        self.started = 0.0
+        self.started: float | None = None
 
     def give(self, fn, index: int, job) -> None:
-        self.index, self.started = index, time.monotonic()
+        self.index, self.started = index, None
         self.conn.send((fn, job))
 
     def end(self, kill: bool = False) -> None:
@@ -132,6 +137,16 @@ def _exit_reason(code: int | None) -> str:
     return f"exit code {code}"
 
 
+def _context():
+    """``forkserver`` with the harness preloaded where available (a new worker is then a fork
+    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["benchmarks.runner"])
+        return ctx
+    return mp.get_context("spawn")
+
+
 class ProcessExecutor:
     """A pool of ``jobs`` local worker processes, one job per worker at a time.
 
@@ -153,7 +168,7 @@ class ProcessExecutor:
             raise ConfigError(f"the job time budget must be positive, got {timeout!r}")
         self.workers = jobs
         self.timeout = timeout
-        self._ctx = mp.get_context("spawn")
+        self._ctx = _context()
         self._idle: list[_Worker] = []
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
@@ -173,13 +188,17 @@ class ProcessExecutor:
                         continue
                     busy[w.conn] = w
                 wait_s = None
-                if self.timeout is not None and busy:
-                    now = time.monotonic()
-                    wait_s = max(0.0, min(w.started + self.timeout - now for w in busy.values()))
+                running = [w.started for w in busy.values() if w.started is not None]
+                if self.timeout is not None and running:
+                    wait_s = max(0.0, min(running) + self.timeout - time.monotonic())
                 for conn in wait(list(busy), timeout=wait_s):
                     w = busy.pop(conn)
                     try:
                         kind, value = conn.recv()
+                        if kind == "started":
+                            w.started = time.monotonic()
+                            busy[conn] = w
+                            continue
                     except (EOFError, OSError):
                         w.proc.join(timeout=5)
                         reason = _exit_reason(w.proc.exitcode)
@@ -194,7 +213,7 @@ class ProcessExecutor:
                 if self.timeout is not None:
                     now = time.monotonic()
                     for conn, w in list(busy.items()):
-                        if now - w.started >= self.timeout:
+                        if w.started is not None and now - w.started >= self.timeout:
                             del busy[conn]
                             w.end(kill=True)
                             yield w.index, JobFailure(
@@ -233,8 +252,10 @@ class DaskExecutor:
         self.cluster = None
         if address is None:
             self.workers = jobs or default_jobs()
-            # a task whose worker died is not retried on a second one: report it at once
-            with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+            # one task per worker thread at a time (no queued tasks on a worker that dies),
+            # and a task whose worker died is not retried on another one: reported at once
+            with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                                  "distributed.scheduler.worker-saturation": 1.0}):
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
                     host="127.0.0.1", dashboard_address=None, silence_logs=40)
@@ -252,20 +273,38 @@ class DaskExecutor:
         from distributed import as_completed
 
         futures = {self.client.submit(fn, job, pure=False): i for i, job in enumerate(jobs)}
+        suspects = []
         try:
             for fut in as_completed(futures):
-                i = futures[fut]
-                try:
-                    out = fut.result()
-                except ConfigError:
-                    raise
-                except Exception as exc:
-                    died = type(exc).__name__ == "KilledWorker"
-                    out = JobFailure("error", f"worker process died while running this job "
-                                              f"({exc})" if died else _describe(exc))
-                yield i, out
+                i = futures.pop(fut)
+                out = self._outcome(fut)
+                if out is _KILLED:
+                    suspects.append(i)
+                else:
+                    yield i, out
+            # a task may only have shared its worker with the one that killed it: run each
+            # suspect again, alone on the cluster; one that kills its worker then is the cause
+            for i in suspects:
+                fut = self.client.submit(fn, jobs[i], pure=False)
+                futures[fut] = i
+                out = self._outcome(fut)
+                del futures[fut]
+                yield i, (out if out is not _KILLED else JobFailure(
+                    "error", "worker process died while running this job (twice, the second "
+                             "time alone on the cluster)"))
         finally:
             self.client.cancel(list(futures))
+
+    @staticmethod
+    def _outcome(fut):
+        try:
+            return fut.result()
+        except ConfigError:
+            raise
+        except Exception as exc:
+            if type(exc).__name__ == "KilledWorker":
+                return _KILLED
+            return JobFailure("error", _describe(exc))
 
     def close(self) -> None:
         """Close the client (and the local cluster if this executor started it)."""
