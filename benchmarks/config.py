@@ -25,12 +25,11 @@ grid options, e.g. ``order=20``), and the report aggregates over the seeds.
 
 from __future__ import annotations
 
+import itertools
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import itertools
-import json
 
 import yaml
 

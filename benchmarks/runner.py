@@ -30,8 +30,8 @@ from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import Progress
 from .specs import build_scenario
 
-RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi", "radius", "x_true",
-               "contained", "in_set"]
+RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
+               "radius", "x_true", "contained", "in_set"]
 
 
 @dataclass
