@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline audit clean
+.PHONY: help install test lint bench bench-quick report check baseline audit scaling clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -35,17 +35,21 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) and reports/<config>.md
+bench: $(STAMP)  ## every config -> results/<config>/, reports/<config>.md; then make scaling
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
+	$(MAKE) scaling
 
 bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
+
+scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
+	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
 
 check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
 	$(PY) -m benchmarks check

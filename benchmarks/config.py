@@ -100,14 +100,18 @@ def _yaml_error(path: Path, exc: yaml.YAMLError) -> ConfigError:
     return ConfigError(f"{path}: malformed YAML{where}: {problem}")
 
 
+def _check_keys(value: Any, allowed: set[str], where: str, shape: str) -> None:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a mapping {shape}")
+    unknown = set(value) - allowed
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} "
+                          f"(allowed: {', '.join(sorted(allowed))})")
+
+
 def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     """Validate a config mapping (as loaded from YAML) and build its scenarios."""
-    if not isinstance(raw, dict):
-        raise ConfigError(f"config '{name}' must be a mapping at the top level")
-    unknown = set(raw) - TOP_KEYS
-    if unknown:
-        raise ConfigError(f"config '{name}': unknown key(s) {sorted(unknown)} "
-                          f"(allowed: {', '.join(sorted(TOP_KEYS))})")
+    _check_keys(raw, TOP_KEYS, f"config '{name}'", "at the top level")
     scen = raw.get("scenarios")
     if not isinstance(scen, list) or not scen:
         raise ConfigError(f"config '{name}': 'scenarios' must be a non-empty list")
@@ -195,12 +199,7 @@ def _parse_sweep(sweep: Any, name: str, names: list[str]):
     if sweep is None:
         return None, None, {}
     where = f"config '{name}': sweep"
-    if not isinstance(sweep, dict):
-        raise ConfigError(f"{where} must be a mapping with keys {sorted(SWEEP_KEYS)}")
-    unknown = set(sweep) - SWEEP_KEYS
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} (allowed: "
-                          f"{', '.join(sorted(SWEEP_KEYS))})")
+    _check_keys(sweep, SWEEP_KEYS, where, f"with keys {sorted(SWEEP_KEYS)}")
     seeds = _int_list(sweep["seeds"], f"{where}: seeds", 0) if "seeds" in sweep else None
     sizes = _int_list(sweep["sizes"], f"{where}: sizes", 1) if "sizes" in sweep else None
     grid = sweep.get("grid") or {}

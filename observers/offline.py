@@ -46,6 +46,9 @@ from .options import Matrix
 
 # -- design cache ---------------------------------------------------------------------------
 _FAILED = "__design_failed__"
+#: designs of this process loaded from the cache instead of computed, per kind (so that a
+#: design time can be told apart from a cache read, e.g. by the scaling study)
+CACHE_LOADS: dict[str, int] = {}
 
 
 def cache_dir() -> Path | None:
@@ -98,12 +101,16 @@ def cached_design(
         return compute()
     path = folder / f"{kind}-{design_key(kind, version, arrays, params)}.npz"
     result = _load(path)
-    if result is None:
+    if result is not None:
+        CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
+    else:
         # one writer per key: concurrent workers wanting the same design wait for the first
         # one and then load its result instead of solving the same SDP again
         with _key_lock(path):
             result = _load(path)
-            if result is None:
+            if result is not None:
+                CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
+            else:
                 try:
                     result = compute()
                 except DesignFailed as exc:
