@@ -73,6 +73,10 @@ class BenchConfig:
     variants: dict[str, list[tuple[str, dict[str, Any]]]] = field(default_factory=dict)
     base: Path | None = None
 
+    def __post_init__(self):
+        if not self.instances:  # built in code from scenario values: their names as entries
+            self.instances = [Instance(sc, {"name": sc.name}) for sc in self.scenarios]
+
     def variants_of(self, observer: str) -> list[tuple[str, dict[str, Any]]]:
         """The sweep variants of ``observer`` (``[("", {})]`` if the grid has none)."""
         return self.variants.get(observer) or [("", {})]

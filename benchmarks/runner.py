@@ -227,7 +227,7 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
     jobs = []
     for inst in cfg.instances:
         key = json.dumps([inst.spec, base], sort_keys=True, default=str)
-        _SCENARIOS.setdefault(key, inst.scenario)  # this process needs not rebuild it
+        _SCENARIOS[key] = inst.scenario  # this process needs not rebuild it
         for name in cfg.observers:
             for label, opts in cfg.variants_of(name):
                 jobs.append(Job(inst.spec, base, name, observers.get(name).cls.__module__,
