@@ -174,3 +174,16 @@ def test_design_is_computed_once_by_concurrent_processes(tmp_path):
     assert results == [[0.0, 1.0, 2.0, 3.0]] * 3
     assert log.read_text().count("computed") == 1
     assert not list((tmp_path / "cache").glob("*.tmp"))
+
+
+def test_bad_option_value_in_a_worker_ends_the_run_without_results(tmp_path, capsys):
+    """Bad input found in a worker is a one-line error (exit 2), and no partial results."""
+    cfg = {"name": "bad", "scenarios": [{"name": "alamo2d-sim", "steps": 5}],
+           "observers": ["FRad-A", "FRad-C"], "options": {"order": -3}}
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "bad"
+    assert main(["run", str(path), "--out", str(out), "--no-progress", "--jobs", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "order" in err
+    assert not (out / "summary.csv").exists() and not (out / "runs.csv").exists()
