@@ -26,6 +26,7 @@ read, marked ``cached``).  The real-time limit is the sampling time of the tank 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -43,7 +44,13 @@ from observers.registry import table_order  # noqa: E402
 from systems import ModelError  # noqa: E402
 
 from ..executors import JobFailure, ProcessExecutor  # noqa: E402
-from ..io import atomic_savefig, atomic_write_csv, atomic_write_text, environment  # noqa: E402
+from ..io import (  # noqa: E402
+    atomic_savefig,
+    atomic_write_csv,
+    atomic_write_json,
+    atomic_write_text,
+    environment,
+)
 from ..metrics import add_relative_rms  # noqa: E402
 from ..runner import Job, design_observer, execute_job  # noqa: E402
 from ..specs import build_scenario  # noqa: E402
@@ -234,13 +241,24 @@ def _table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
                 value = _fmt(r.design_s) + (" (cached)" if r.design_cached else "")
             else:
                 value = _fmt(r.rel_rms)
-            if what == "design" and r.status != "ok" and pd.notna(r.design_s):
-                value = f"{r.status} ({_fmt(r.design_s)} s)"
-                cells.append(value)
-                continue
             cells.append(_cell(r, value))
         lines.append("| " + " | ".join(cells) + " |")
     return lines
+
+
+def failures(g: pd.DataFrame) -> list[str]:
+    """Markdown list: per observer, each status other than ok with its sizes and the message
+    (of the smallest size)."""
+    bad = g[g["status"] != "ok"]
+    if not len(bad):
+        return []
+    out = ["What did not run, and why:", ""]
+    for name in table_order(bad["observer"].unique()):
+        h = bad[bad["observer"] == name]
+        for status, k in h.groupby("status", sort=False):
+            sizes = ", ".join(str(n) for n in k["n"])
+            out.append(f"- {name}, {status} at n = {sizes}: {k['message'].iloc[0]}")
+    return out + [""]
 
 
 def figure(df: pd.DataFrame, path: Path, variants=VARIANTS) -> Path:
@@ -249,17 +267,24 @@ def figure(df: pd.DataFrame, path: Path, variants=VARIANTS) -> Path:
     fig, axes = plt.subplots(1, len(variants), figsize=(6.5 * len(variants), 5), squeeze=False)
     for ax, variant in zip(axes[0], variants, strict=True):
         g = df[(df["variant"] == variant) & (df["status"] == "ok")]
-        for name in table_order(g["observer"].unique()):
+        colors = plt.get_cmap("tab20").colors
+        for k, name in enumerate(table_order(g["observer"].unique())):
             h = g[g["observer"] == name].sort_values("n")
-            ax.loglog(h["n"], h["total_ms"], marker="o", label=name)
+            ax.loglog(h["n"], h["total_ms"], marker="osD^v"[k % 5], color=colors[k % 20],
+                      label=name)
+        if not len(g):
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlim(min(df["n"]), max(df["n"]))
+            ax.text(0.5, 0.4, "no observer ran (see the report)", ha="center",
+                    transform=ax.transAxes)
         ax.axhline(REALTIME_MS, color="k", linestyle="--", linewidth=1.2,
                    label=f"real time ({REALTIME_MS:g} ms)")
         ax.set_title(f"{variant} n-tank")
         ax.set_xlabel("states n")
         ax.set_ylabel("step + hull time per step [ms]")
         ax.grid(True, which="both", alpha=0.3)
-        if len(g):
-            ax.legend(fontsize=7, ncol=2)
+        ax.legend(fontsize=7, ncol=2, loc="lower right")
     fig.tight_layout()
     atomic_savefig(fig, path, dpi=110)
     plt.close(fig)
@@ -296,27 +321,25 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budge
         e = exp[exp["variant"] == variant]
         for name in table_order(e["observer"].unique()):
             r = next(e[e["observer"] == name].itertuples(index=False))
+            if pd.isna(r.largest_n):
+                continue  # never ran: see the tables below
             parts.append(f"| {name} | {variant} | {_fmt(r.step_exponent)} | "
                          f"{_fmt(r.design_exponent)} | {_fmt(r.largest_n)} | "
                          f"{_fmt(r.largest_realtime_n)} |")
     parts.append("")
     for variant in df["variant"].unique():
         g = df[df["variant"] == variant]
-        if not len(g):
+        if len(g) and (g["status"] == g["status"].iloc[0]).all() and g["status"].iloc[0] != "ok":
+            r = g.iloc[0]
+            parts += [f"## {variant} n-tank", "", f"No observer ran: every one is "
+                      f"`{r['status']}` at every size, e.g. {r['observer']}: {r['message']}", ""]
             continue
         parts += [f"## {variant} n-tank", "", "Per-step time, `step()` + interval hull (ms, "
                   "medians):", ""] + _table(df, variant, sizes, "time") + [
             "", "Offline design time (s):", ""] + _table(df, variant, sizes, "design") + [
             "", "Relative RMS radius (mean over the states, against the best observer at the "
             "same n):", ""] + _table(df, variant, sizes, "rms") + [""]
-        bad = g[g["status"] != "ok"]
-        if len(bad):
-            parts += ["What did not run, and why:", ""]
-            for (status, message), h in bad.groupby(["status", "message"], sort=False):
-                who = ", ".join(f"{o} (n={n})" for o, n in zip(h["observer"], h["n"],
-                                                                  strict=True))
-                parts.append(f"- {status}: {message}: {who}")
-            parts.append("")
+        parts += failures(g)
     parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), ""]
     return "\n".join(parts)
 
@@ -333,6 +356,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--run-budget", type=float, default=RUN_BUDGET_S, metavar="S")
     p.add_argument("--out", default="reports/scaling.md", help="Markdown report")
     p.add_argument("--results", default="results/scaling", help="folder of scaling.csv")
+    p.add_argument("--report-only", action="store_true",
+                   help="rewrite the report and figure from the results of an earlier run")
     args = p.parse_args(argv)
     if min(args.sizes) < 2 or args.steps < 2 or args.design_budget <= 0 or args.run_budget <= 0:
         print("error: sizes must be >= 2, steps >= 2 and the budgets positive", file=sys.stderr)
@@ -342,16 +367,26 @@ def main(argv: list[str] | None = None) -> int:
     except (observers.UnknownObserver, ModelError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    t0 = time.perf_counter()
-    df = run_study(args.sizes, names, args.variants, args.steps, args.design_budget,
-                   args.run_budget, log=lambda m: print(m, file=sys.stderr))
-    elapsed = time.perf_counter() - t0
+    results = Path(args.results)
+    if args.report_only:  # rewrite the report from an earlier run's table
+        try:
+            df = pd.read_csv(results / "scaling.csv", keep_default_na=False,
+                             na_values=[""]).fillna({"message": ""})
+            run = json.loads((results / "scaling.json").read_text())
+        except (OSError, ValueError) as exc:
+            print(f"error: no earlier study in {results}: {exc}", file=sys.stderr)
+            return 2
+    else:
+        t0 = time.perf_counter()
+        df = run_study(args.sizes, names, args.variants, args.steps, args.design_budget,
+                       args.run_budget, log=lambda m: print(m, file=sys.stderr))
+        run = {"sizes": args.sizes, "steps": args.steps, "design_budget": args.design_budget,
+               "run_budget": args.run_budget, "elapsed": time.perf_counter() - t0}
+        atomic_write_csv(results / "scaling.csv", df)
+        atomic_write_json(results / "scaling.json", run)
     out = Path(args.out)
-    atomic_write_csv(Path(args.results) / "scaling.csv", df)
-    fig = figure(df, out.with_suffix(".png"), args.variants)
-    atomic_write_text(out, report(df, fig, out, sizes=args.sizes, steps=args.steps,
-                                  design_budget=args.design_budget, run_budget=args.run_budget,
-                                  elapsed=elapsed))
+    fig = figure(df, out.with_suffix(".png"), list(df["variant"].unique()))
+    atomic_write_text(out, report(df, fig, out, **run))
     print(f"wrote {out}, {fig} and {Path(args.results) / 'scaling.csv'}")
     return 0
 
