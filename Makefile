@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline audit clean
+.PHONY: help install test lint bench bench-quick report check baseline audit speed clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -42,6 +42,10 @@ bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) a
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
+	$(PY) -m benchmarks speed
+
+speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
+	$(PY) -m benchmarks speed
 
 bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick

@@ -1,4 +1,4 @@
-"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit,time} ...``.
+"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit,time,speed} ...``.
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
 (``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
@@ -17,7 +17,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, regression, timing
+from . import audit, regression, speed, timing
 from .config import load_config
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json
@@ -127,11 +127,18 @@ def _cmd_audit(args) -> int:
 
 
 def _cmd_time(args) -> int:
-    sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup)
+    sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup,
+                                             args.steps)
     print(timing.format_table(sc, args.repeat, warmup, rows))
     if args.json:
         atomic_write_json(args.json, timing.to_json(sc, args.repeat, warmup, rows))
         print(f"wrote {args.json}")
+    return 0
+
+
+def _cmd_speed(args) -> int:
+    path = speed.write_speed_report(args.out, args.json)
+    print(f"wrote {path} and {args.json}")
     return 0
 
 
@@ -154,7 +161,7 @@ def _cmd_list(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (sub-commands run, report, list, check, baseline, audit, time)."""
+    """The argument parser (sub-commands run, report, list, check, baseline, audit, time, speed)."""
     p = argparse.ArgumentParser(prog="python -m benchmarks",
                                 description="Guaranteed state estimator benchmarks")
     sub = p.add_subparsers(dest="command", required=True)
@@ -215,8 +222,18 @@ def build_parser() -> argparse.ArgumentParser:
     ti.add_argument("--warmup", type=int, metavar="K",
                     help="steps of each run not timed (default: as summary.csv, "
                          "min(5, N // 10))")
+    ti.add_argument("--steps", type=int, metavar="M",
+                    help="run only the first M steps of the record (default: all)")
     ti.add_argument("--json", metavar="F", help="also write every number to this JSON file")
     ti.set_defaults(func=_cmd_time)
+    sp = sub.add_parser("speed", help="time the cases of the speed table -> reports/speed.md",
+                        description=speed.__doc__.splitlines()[0])
+    sp.add_argument("--out", default=str(speed.DEFAULT_REPORT),
+                    help=f"Markdown report (default {speed.DEFAULT_REPORT})")
+    sp.add_argument("--json", default=str(speed.DEFAULT_JSON),
+                    help=f"previous measurement, overwritten with this one "
+                         f"(default {speed.DEFAULT_JSON})")
+    sp.set_defaults(func=_cmd_speed)
     return p
 
 

@@ -46,19 +46,46 @@ def split_generators(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarra
     Zero columns are dropped first.  The to-be-reduced block is returned sorted by the metric
     ``||g||_1 - ||g||_inf`` (stable), the unreduced block in the original column order.
     """
+    keep, red, _ = _split(G, order)
+    return keep, red
+
+
+def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`split_generators` plus ``|red|`` (``None`` if nothing is reduced).
+
+    One pass of ``|G|`` serves the zero-column test (a column is zero iff its 1-norm is), the
+    metric and the box of the reduced generators; a matrix without zero columns is not copied.
+    """
     check_order(order)
-    G = G[:, np.any(G != 0.0, axis=0)]
+    absG = np.abs(G)
+    norm1 = absG.sum(axis=0)
+    nonzero = norm1 != 0.0
+    if not nonzero.all():
+        G, absG, norm1 = G[:, nonzero], absG[:, nonzero], norm1[nonzero]
     n, r = G.shape
     if r <= n * order:
-        return G, G[:, :0]
+        return G, G[:, :0], None
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    absG = np.abs(G)
-    h = absG.sum(axis=0) - absG.max(axis=0)
-    picked = np.argsort(h, kind="stable")[:n_reduced]
-    keep = np.ones(r, dtype=bool)
-    keep[picked] = False
-    return G[:, keep], G[:, picked]
+    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced)
+    return G[:, kept], G[:, picked], absG[:, picked]
+
+
+def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the ``k`` smallest entries of ``h`` in the order of a stable sort, and the
+    other indices in increasing order: ``argsort(h, kind="stable")`` split at ``k``, found
+    with a partition and a sort of the ``k`` picked entries only (``k`` is usually small)."""
+    if k >= h.size:
+        return np.argsort(h, kind="stable"), np.arange(0)
+    thr = np.partition(h, k - 1)[k - 1]  # the k-th smallest value
+    if thr != thr:  # NaN among the k smallest: the plain stable sort decides
+        ranked = np.argsort(h, kind="stable")
+        return ranked[:k], np.sort(ranked[k:])
+    sel = h < thr
+    ties = np.flatnonzero(h == thr)  # equal values go by index, as in a stable sort
+    sel[ties[: k - np.count_nonzero(sel)]] = True
+    picked = np.flatnonzero(sel)
+    return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
 
 
 def check_order(order: float) -> None:
@@ -75,10 +102,14 @@ class Girard:
     name = "girard"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        keep, red = split_generators(G, order)
-        if red.shape[1] == 0:
+        keep, red, abs_red = _split(G, order)
+        if abs_red is None:
             return keep
-        return np.hstack([keep, np.diag(np.abs(red).sum(axis=1))])
+        n, k = keep.shape
+        out = np.zeros((n, k + n))
+        out[:, :k] = keep
+        out[:, k:].flat[:: n + 1] = abs_red.sum(axis=1)  # the diagonal box
+        return out
 
 
 class PCA:
@@ -87,8 +118,8 @@ class PCA:
     name = "pca"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        keep, red = split_generators(G, order)
-        if red.shape[1] == 0:
+        keep, red, abs_red = _split(G, order)
+        if abs_red is None:
             return keep
         # covariance of [red, -red] is proportional to red @ red.T (zero mean by symmetry)
         U, _, _ = np.linalg.svd(red @ red.T)
