@@ -35,7 +35,8 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) and reports/<config>.md
+bench: $(STAMP)  ## run every config into results/<config>/ and reports/<config>.md, then reports/speed.md
+	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \

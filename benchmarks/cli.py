@@ -1,4 +1,5 @@
-"""Command line: ``python -m benchmarks {run,report,list,check,baseline,audit,time,speed} ...``.
+"""Command line: ``python -m benchmarks COMMAND ...`` (run, report, list, check, baseline, audit,
+time, speed, designs).
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
 (``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
@@ -17,7 +18,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, regression, speed, timing
+from . import audit, designs, regression, speed, timing
 from .config import load_config
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json
@@ -136,6 +137,20 @@ def _cmd_time(args) -> int:
     return 0
 
 
+def _cmd_designs(args) -> int:
+    jobs = args.jobs if args.jobs is not None else audit.default_jobs()
+    t0 = time.perf_counter()
+    done = designs.prewarm(args.configs, jobs, progress=False if args.no_progress else None)
+    if not done:
+        print("no design to compute (none of these observers has a cached offline design, "
+              "or SETOBS_CACHE_DIR=off)")
+        return 0
+    failed = sum(status != "ok" for _, _, status, _ in done)
+    print(f"{len(done)} designs in the cache ({failed} failed, reported by the runs) in "
+          f"{time.perf_counter() - t0:.0f} s with {jobs} worker(s)")
+    return 0
+
+
 def _cmd_speed(args) -> int:
     path = speed.write_speed_report(args.out, args.json)
     print(f"wrote {path} and {args.json}")
@@ -161,7 +176,8 @@ def _cmd_list(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (sub-commands run, report, list, check, baseline, audit, time, speed)."""
+    """The argument parser (sub-commands run, report, list, check, baseline, audit, time, speed,
+    designs)."""
     p = argparse.ArgumentParser(prog="python -m benchmarks",
                                 description="Guaranteed state estimator benchmarks")
     sub = p.add_subparsers(dest="command", required=True)
@@ -226,6 +242,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run only the first M steps of the record (default: all)")
     ti.add_argument("--json", metavar="F", help="also write every number to this JSON file")
     ti.set_defaults(func=_cmd_time)
+    de = sub.add_parser("designs", help="compute the offline designs of configs in parallel "
+                        "into the design cache", description=designs.__doc__.splitlines()[0])
+    de.add_argument("configs", nargs="+", metavar="CONFIG", help="YAML configs")
+    de.add_argument("--jobs", type=int, help="worker processes (default: cores, at most 2)")
+    de.add_argument("--no-progress", action="store_true", help="no progress bar")
+    de.set_defaults(func=_cmd_designs)
     sp = sub.add_parser("speed", help="time the cases of the speed table -> reports/speed.md",
                         description=speed.__doc__.splitlines()[0])
     sp.add_argument("--out", default=str(speed.DEFAULT_REPORT),

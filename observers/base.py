@@ -141,7 +141,7 @@ class Observer(ABC):
         if y.shape[0] != ny:
             raise MeasurementError(
                 f"{self.name}: measurement has {y.shape[0]} entries, expected {ny}")
-        if not np.all(np.isfinite(y)):
+        if not np.isfinite(y).all():
             raise MeasurementError(f"{self.name}: non-finite measurement at step {self.k}")
         return y
 
@@ -152,7 +152,7 @@ class Observer(ABC):
         u = np.asarray(u, dtype=float).reshape(-1)
         if u.shape[0] != nu:
             raise MeasurementError(f"{self.name}: input has {u.shape[0]} entries, expected {nu}")
-        if not np.all(np.isfinite(u)):
+        if not np.isfinite(u).all():
             raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
         return u
 

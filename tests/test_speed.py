@@ -133,3 +133,26 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
         assert prad["value"] is None
         assert rows["FRad-A, 2-D vehicle/PRad-A"][3].strip() == prad["status"]
     assert "`make bench` from a cold design cache" in text
+
+
+def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkeypatch, capsys):
+    import observers
+    import systems
+    from benchmarks import designs
+
+    cfg = tmp_path / "small.yaml"
+    cfg.write_text("name: small\ntitle: small\nscenarios: [vehicle2d-cora]\n"
+                   "observers: [FRad-A, Nom-G, PRad-B]\n")
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path / "cache"))
+    tasks = designs.design_tasks([cfg])
+    assert [t[2] for t in tasks] == ["Nom-G", "PRad-B"]  # FRad-A has no offline design
+    assert main(["designs", str(cfg), "--jobs", "2", "--no-progress"]) == 0
+    assert "2 designs in the cache (0 failed" in capsys.readouterr().out
+    assert len(list((tmp_path / "cache").glob("*.npz"))) == 2
+    system = systems.scenario("vehicle2d-cora").system
+    cached = {n: observers.create(n, system).L for n in ("Nom-G", "PRad-B")}
+    monkeypatch.setenv("SETOBS_CACHE_DIR", "off")
+    for name, L in cached.items():
+        assert np.array_equal(observers.create(name, system).L, L)
+    assert main(["designs", str(cfg), "--jobs", "0"]) == 2
+    assert capsys.readouterr().err.startswith("error: --jobs must be at least 1")
