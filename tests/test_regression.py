@@ -44,6 +44,18 @@ def gate(tmp_path, command: str, cfg: Path, *extra: str) -> int:
     return main(argv)
 
 
+def perturb_frad_a(monkeypatch) -> None:
+    """Make FRad-A's strip intersection 1 % wider (its generators times 1.01), as a changed
+    algorithm would."""
+    original = frad.alamo_frad_strips
+
+    def wider(*args):
+        c, G = original(*args)
+        return c, 1.01 * G
+
+    monkeypatch.setattr(frad, "alamo_frad_strips", wider)
+
+
 def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys, monkeypatch):
     cfg = subset(tmp_path)
     assert gate(tmp_path, "baseline", cfg, "--update") == 0
@@ -52,8 +64,8 @@ def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys
     assert gate(tmp_path, "check", cfg) == 0
     assert "check passed" in capsys.readouterr().out
 
-    original = frad.alamo_frad_gain
-    monkeypatch.setattr(frad, "alamo_frad_gain", lambda *a: 1.01 * original(*a))
+    original = frad.alamo_frad_strips
+    perturb_frad_a(monkeypatch)
     assert gate(tmp_path, "check", cfg) == 1
     captured = capsys.readouterr()
     table = captured.out
@@ -69,7 +81,7 @@ def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys
     assert set(diff.loc[~diff["ok"] & (diff["metric"] == "rms_radius"), "observer"]) == {
         "FRad-A"}
 
-    monkeypatch.setattr(frad, "alamo_frad_gain", original)
+    monkeypatch.setattr(frad, "alamo_frad_strips", original)
     assert gate(tmp_path, "check", cfg) == 0
 
 
@@ -218,8 +230,7 @@ def test_a_failing_check_names_environment_differences_from_the_baseline(tmp_pat
     meta_path.write_text(json.dumps(meta))
     assert gate(tmp_path, "check", cfg) == 0  # equal results: no note needed
     capsys.readouterr()
-    original = frad.alamo_frad_gain
-    monkeypatch.setattr(frad, "alamo_frad_gain", lambda *a: 1.01 * original(*a))
+    perturb_frad_a(monkeypatch)
     assert gate(tmp_path, "check", cfg) == 1
     err = capsys.readouterr().err
     assert "environment differs from the baseline's (blas_coretype: SkylakeX -> " in err
