@@ -156,3 +156,14 @@ def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkey
         assert np.array_equal(observers.create(name, system).L, L)
     assert main(["designs", str(cfg), "--jobs", "0"]) == 2
     assert capsys.readouterr().err.startswith("error: --jobs must be at least 1")
+
+
+@pytest.mark.parametrize("n, m", [(6, 2), (4, 4)])  # both ways of applying I - L C
+def test_frad_strips_with_few_and_many_strips(n, m):
+    rng = np.random.default_rng(n + m)
+    c, G = rng.standard_normal(n), rng.standard_normal((n, 30))
+    C, y, sigma = rng.standard_normal((m, n)), rng.standard_normal(m), rng.random(m) + 0.1
+    c1, G1 = strip_by_strip(c, G, C, y, sigma)
+    c2, G2 = alamo_frad_strips(c, G, C, y, sigma)
+    np.testing.assert_allclose(c2, c1, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(G2, G1, rtol=1e-10, atol=1e-12)

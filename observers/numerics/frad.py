@@ -46,30 +46,35 @@ def alamo_frad_strips(
     of :func:`alamo_frad_gain` (FRad-A), computed on ``P = G G'`` instead of ``G``.
 
     Strip ``i`` with row ``c_i``, ``p = P c_i`` and ``s = c_i' p + sigma_i^2`` has the gain
-    ``lambda = p / s``; the update ``G <- [(I - lambda c_i') G, sigma_i lambda]`` of
-    :func:`observers.families.strip_update` changes ``P`` into ``P - p p' / s``.  So the loop
-    runs on n x n matrices: it accumulates ``T = prod (I - lambda c_i')`` and the new columns
-    ``sigma_i lambda`` (each multiplied by the later factors), and touches the n x r generator
-    matrix once, ``[T G, new columns]``.  Mathematically the same set as applying
-    :func:`alamo_frad_gain` and the strip update strip by strip (equal up to rounding).
+    ``lambda_i = p / s``; the update ``G <- [(I - lambda_i c_i') G, sigma_i lambda_i]`` of
+    :func:`observers.families.strip_update` changes ``P`` into ``P - p p' / s``.  The product
+    of the factors is ``prod_i (I - lambda_i c_i') = I - L C`` with the n x m matrix ``L``
+    whose column ``i`` is ``lambda_i`` multiplied by the later factors (``L <- [(I - lambda_i
+    c_i') L, lambda_i]``), and the added generators are ``L diag(sigma)``.  So the loop runs on
+    n x n and n x m matrices and touches the n x r generators once: ``[(I - L C) G,
+    L diag(sigma)]`` (as ``G - L (C G)`` when m < n / 2: fewer flops).  Mathematically the
+    same set as applying :func:`alamo_frad_gain` and the strip update strip by strip (equal up
+    to rounding).
     """
-    n, m = G.shape[0], C.shape[0]
+    n, m, r = G.shape[0], C.shape[0], G.shape[1]
     P = G @ G.T
-    T = np.eye(n)
-    new = np.empty((n, m))
+    L = np.empty((n, m))
     for i in range(m):
         ci = C[i]
         p = P @ ci
         s = ci @ p + sigma[i] ** 2
         lam = p / s
         c = c + lam * (y[i] - ci @ c)
-        # (I - lam ci') X = X - lam (ci' X) for X = T and the columns added so far
-        T -= np.outer(lam, ci @ T)
-        if i:
-            new[:, :i] -= np.outer(lam, ci @ new[:, :i])
-        new[:, i] = lam * sigma[i]
-        P -= np.outer(p, p / s)
-    out = np.empty((n, G.shape[1] + m))
-    np.matmul(T, G, out=out[:, : G.shape[1]])
-    out[:, G.shape[1]:] = new
+        if i:  # (I - lam ci') applied to the columns of the earlier strips
+            L[:, :i] -= np.outer(lam, ci @ L[:, :i])
+        L[:, i] = lam
+        P -= np.outer(p, lam)
+    out = np.empty((n, r + m))
+    if 2 * m < n:  # G - L (C G): 2 m n r flops
+        np.subtract(G, L @ (C @ G), out=out[:, :r])
+    else:  # (I - L C) G: n^2 r flops
+        T = -(L @ C)
+        T.flat[:: n + 1] += 1.0
+        np.matmul(T, G, out=out[:, :r])
+    np.multiply(L, sigma, out=out[:, r:])
     return c, out
