@@ -83,7 +83,8 @@ CASES: tuple[Case, ...] = (
 #: rows of the issue's table this command does not measure, with the reason
 NOT_MEASURED = (
     ("VolMin-B and CZN-A/B, 200 tanks", "<= 500 ms",
-     "not run: too slow for this report (the CZN hulls take 10-20 s per step already at 100 tanks, 2n HiGHS LPs)"),
+     "not run: too slow for this report (the CZN hulls take 10-20 s per step already at "
+     "100 tanks, 2n HiGHS LPs)"),
     ("`make bench` from a cold design cache", "<= 20 min",
      "not measured here: time `rm -rf ~/.cache/setobs-bench && make bench`"),
 )
