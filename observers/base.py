@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from .errors import Diverged, MeasurementError, OptionError, Unsupported
+from .errors import DesignFailed, Diverged, MeasurementError, OptionError, Unsupported
 from .options import OptionSpec, as_spec
 from .sets.errors import EmptySet
 
@@ -62,7 +62,15 @@ class Observer(ABC):
         self._check_options()
         self.validate_options()
         t0 = perf_counter()
-        self.design()
+        try:
+            self.design()
+        except DesignFailed as exc:  # name a zero-width noise set, the likely cause
+            note = zero_width_note(system)
+            if not note:
+                raise
+            who = self.name or type(self).__name__
+            msg = str(exc) if str(exc).startswith(who) else f"{who}: {exc}"
+            raise DesignFailed(f"{msg} (zero-width noise: {note})") from None
         self.design_time = perf_counter() - t0
         self.reset()
 
@@ -159,6 +167,24 @@ class Observer(ABC):
         if not np.all(np.isfinite(u)):
             raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
         return u
+
+
+def zero_width_note(system: Any) -> str:
+    """Which noise sets of ``system`` have zero width (``W = {0}``: no process noise; a zero
+    component of ``V``: an exact sensor), e.g. ``"W is a single point"``; ``""`` if none."""
+    notes = []
+    for key in ("W", "V"):
+        S = getattr(system, key, None)
+        if S is None or not hasattr(S, "interval"):
+            continue
+        I = S.interval()
+        r = 0.5 * (np.asarray(I.hi, float) - np.asarray(I.lo, float))
+        if not np.any(r > 0):
+            notes.append(f"{key} is a single point")
+        elif np.any(r == 0):
+            zero = ", ".join(str(i + 1) for i in np.flatnonzero(r == 0))
+            notes.append(f"{key} has zero width in component {zero}")
+    return "; ".join(notes)
 
 
 @dataclass
