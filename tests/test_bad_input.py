@@ -344,8 +344,9 @@ def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
                                           Gamma=Zonotope.box([0.001, 0.001]))
     tester = MembershipTester()
     for info in observers.available():
-        opts = {"training": training} if "training" in info.option_defaults() else {}
-        if "max_subsets" in info.option_defaults():
+        accepted = info.cls.option_defaults()
+        opts = {"training": training} if "training" in accepted else {}
+        if "max_subsets" in accepted:
             opts["order"] = 4  # VolMin-A: keep its LP enumeration small
         with warnings.catch_warnings():
             warnings.simplefilter("error")
@@ -360,3 +361,20 @@ def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
             for k, S in enumerate(res.sets):
                 m = tester.test(S, sim.x_true[k], 1e-9)
                 assert m.inside is not False, (label, info.name, k, m.distance)
+
+
+@pytest.mark.parametrize("name", ["FRad-A", "FRad-B", "FRad-C", "CZN-B"])
+def test_frad_gains_handle_exact_models(name):
+    """No noise at all: FRad-A's strip gain was 0/0, FRad-C's (and FRad-B's, CZN-B's)
+    innovation matrix C P C' + F F' singular; the F-radius gains are exact there."""
+    from benchmarks.membership import MembershipTester
+
+    s = ZERO_WIDTH["W=V={0}"]
+    sim = systems.simulate(s, 0.1 * np.sin(np.arange(25)).reshape(-1, 1), seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = observers.run(observers.create(name, s), sim.u, sim.y)
+    assert res.status == "ok", res.message
+    tester = MembershipTester()
+    assert all(tester.test(S, x, 1e-9).inside for S, x in zip(res.sets, sim.x_true,
+                                                               strict=True))
