@@ -133,7 +133,7 @@ def check_output_dir(out: str | Path) -> Path:
         With a one-line reason if the results could not be written there.
     """
     what = f"output folder {out}"
-    out = Path(os.path.abspath(out))
+    out = Path(os.path.realpath(out))  # a symlinked folder: work beside its target
     if out.parent == out:
         raise ConfigError(f"{what}: the root folder cannot be a results folder")
     node = out

@@ -221,6 +221,8 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
     else:
         y = _check_record(_array(spec["y"], f"{where}: y", base), f"{where}: y", system.ny)
         N = y.shape[0]
+        if N == 0:
+            raise ConfigError(f"{where}: y is empty (0 steps)")
         u = (np.zeros((N, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u",
                                 system.nu, N))

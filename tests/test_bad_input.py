@@ -135,6 +135,7 @@ BAD_CONFIGS = [
     ("named steps beyond memory",
      cfg_with(cfg__scenarios=[{"name": "vehicle2d-sim", "steps": 10**12}]),
      r"scenario 'vehicle2d-sim': 1000000000000 steps need at least .* GiB of memory"),
+    ("empty y", cfg_with(scen__simulate=None, scen__y=[]), r"scenario 'toy': y is empty"),
     ("inline steps beyond memory", cfg_with(scen__simulate={"steps": 10**12}),
      "steps need at least .* GiB of memory"),
     ("unknown scenario key", cfg_with(scen__colour="red"), r"unknown key\(s\) \['colour'\]"),
