@@ -379,3 +379,29 @@ def test_frad_gains_handle_exact_models(name):
     tester = MembershipTester()
     assert all(tester.test(S, x, 1e-9).inside for S, x in zip(res.sets, sim.x_true,
                                                                strict=True))
+
+
+def test_memory_estimates_before_simulating_and_before_running(tmp_path, monkeypatch):
+    """A record or a run that would not fit is refused with its estimate, before the arrays
+    are allocated (here with 1 MiB and 64 KiB of "available" memory)."""
+    import sys
+
+    import benchmarks.runner
+
+    monkeypatch.setattr(sys.modules["systems.simulate"], "available_memory", lambda: 2**20)
+    s = systems.tank(50)
+    with pytest.raises(systems.ModelError, match=r"simulating 2000 steps of this 50-state "
+                                                 r"system needs about .* GiB"):
+        systems.simulate(s, np.zeros((2000, s.nu)))
+    monkeypatch.undo()
+    monkeypatch.setattr(benchmarks.runner, "available_memory", lambda: 2**16)
+    cfg = load_config(_write(tmp_path, cfg_with(cfg__scenarios=["tank6-linear"],
+                                                cfg__observers=["FRad-A", "FRad-B"])))
+    with pytest.raises(benchmarks.errors.ConfigError, match="results need about"):
+        benchmarks.runner.run_config(cfg, progress=False)
+
+
+def _write(tmp_path, cfg) -> str:
+    path = tmp_path / "cfg.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return str(path)
