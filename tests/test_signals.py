@@ -340,3 +340,36 @@ def test_check_output_dir_messages(tmp_path):
         bio.check_output_dir(tmp_path / "file" / "x")
     assert bio.check_output_dir(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
     assert not (tmp_path / "new").exists()  # checking writes nothing
+
+
+class BoxOnly:
+    """A plugin's set with nothing but ``interval()``."""
+
+    def __init__(self, lo, hi):
+        self.box = Interval(lo, hi)
+
+    def interval(self):
+        return self.box
+
+
+class PlainBoxes(Plain):
+    def step(self, u_prev, y):
+        I = super().step(u_prev, y)
+        return BoxOnly(I.lo, I.hi)
+
+
+def test_a_set_without_contains_is_undecided_not_contained(tmp_path):
+    from benchmarks.membership import MembershipTester
+
+    tester = MembershipTester()
+    S = BoxOnly(np.zeros(2), np.ones(2))
+    assert tester.test(S, np.array([0.5, 0.5]), 1e-9).inside is None
+    assert tester.test(S, np.array([2.0, 0.5]), 1e-9).inside is False
+    observers.register("Test-BoxOnly", family="strip", set_type="box",
+                       ready_for_control=False)(PlainBoxes)
+    try:
+        cfg = write_cfg(tmp_path, ["Test-BoxOnly"])
+        assert main(["run", str(cfg), "--out", str(tmp_path / "r"), "--no-progress"]) == 0
+        assert set(literal(tmp_path / "r" / "summary.csv")["contained"]) == {"n/a"}
+    finally:
+        registry._REGISTRY.pop("Test-BoxOnly")
