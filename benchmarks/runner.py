@@ -146,11 +146,12 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     if res.error is not None:  # a plugin bug: reported, and the benchmark goes on
         print(f"warning: {name} failed on {sc.name}: {res.message}", file=sys.stderr)
         traceback.print_exception(res.error, limit=3, file=sys.stderr)
-    if res.lo.shape[1] != sc.system.n and res.status == "ok":
+    same_dim = res.lo.shape[1] == sc.system.n
+    if not same_dim and res.status == "ok":
         res.status, res.failed_step = "error", 0
         res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
     run = ObserverRun(sc, info, res, res.status, res.message)
-    if run.status != "error" and sc.x_true is not None and len(res.sets):
+    if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
         run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
     if not keep_sets:

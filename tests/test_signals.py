@@ -148,6 +148,9 @@ def test_crash_exits_3_after_the_others_with_its_step(tmp_path, capsys, plugins)
     assert (s.loc["Test-Crash", "failed_step"] == 5).all()
     assert "RuntimeError: boom" in s.loc["Test-Crash", "message"].iloc[0]
     assert (s.loc["FRad-A", "status"] == "ok").all()  # the run went on
+    lit = literal(out / "summary.csv").set_index("observer")
+    assert (lit.loc["Test-Crash", "contained"] == "n/a").all()  # checked only up to step 4
+    assert (lit.loc["Test-Crash", "violations"] == 0).all()
     # a containment violation weighs more than a crash
     cfg = write_cfg(tmp_path, ["Test-Crash", "Test-Half"], name="both.yaml")
     assert main(["run", str(cfg), "--out", str(tmp_path / "b"), "--no-progress"]) == 1
