@@ -181,6 +181,34 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(err, os.strerror(err), str(b))
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # pragma: no cover - another user's process
+        return True
+    return True
+
+
+def remove_stale_generations(out: Path) -> list[Path]:
+    """Remove the temporary folders beside ``out`` left by writers that were killed (their
+    process no longer exists); a writer still running keeps its folder.
+
+    Returns
+    -------
+    list of Path
+        The folders removed.
+    """
+    removed = []
+    for tmp in out.parent.glob(f".{out.name}.new-*-*"):
+        pid = tmp.name[len(f".{out.name}.new-"):].split("-")[0]
+        if tmp.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(tmp, ignore_errors=True)
+            removed.append(tmp)
+    return removed
+
+
 def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) -> str:
     """Write ``runs.csv``, ``summary.csv`` and ``meta.json`` to folder ``out`` as one generation.
 
@@ -188,7 +216,8 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
     (size and SHA-256 of each CSV). The files are written into a temporary folder beside
     ``out``; other entries of an existing ``out`` (reports, figures) are moved into it, and
     the folder is then swapped in atomically, so that a kill at any moment leaves either the
-    old or the new generation in ``out``.
+    old or the new generation in ``out``. Temporary folders of killed writers are removed
+    the next time (:func:`remove_stale_generations`).
 
     Parameters
     ----------
@@ -206,8 +235,9 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
     """
     out = check_output_dir(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_generations(out)
     run_id = new_run_id()
-    tmp = out.parent / f".{out.name}.new-{run_id}"
+    tmp = out.parent / f".{out.name}.new-{os.getpid()}-{run_id}"
     tmp.mkdir()
     try:
         files = {}
@@ -234,7 +264,7 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
                     os.rename(tmp / name, out / name)
             raise
         if not swapped:  # pragma: no cover - no renameat2: two renames
-            old = out.parent / f".{out.name}.old-{run_id}"
+            old = out.parent / f".{out.name}.old-{os.getpid()}-{run_id}"
             os.rename(out, old)
             os.rename(tmp, out)
             tmp = old

@@ -376,3 +376,15 @@ def test_a_set_without_contains_is_undecided_not_contained(tmp_path):
         assert set(literal(tmp_path / "r" / "summary.csv")["contained"]) == {"n/a"}
     finally:
         registry._REGISTRY.pop("Test-BoxOnly")
+
+
+def test_temporary_folders_of_killed_writers_are_removed(tmp_path):
+    """A writer killed by SIGKILL leaves its temporary folder; the next write removes it,
+    but never the folder of a writer that is still running."""
+    dead = tmp_path / ".r.new-999999999-0123456789ab"  # no such process
+    running = tmp_path / f".r.new-{os.getpid()}-0123456789ab"
+    for d in (dead, running):
+        d.mkdir()
+        (d / "runs.csv").write_text("half")
+    _run(tmp_path, tmp_path / "r")
+    assert not dead.exists() and running.is_dir()
