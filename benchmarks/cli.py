@@ -1,9 +1,10 @@
 """Command line: ``python -m benchmarks COMMAND ...`` (run, report, list, check, baseline, audit,
 time, speed, designs).
 
-Bad input ends with a one-line ``error: ...`` on stderr and exit code 2; a regression
-(``check``) or a containment violation of a guaranteed observer (``run``, ``audit``) with
-exit code 1.
+Bad input ends with a one-line ``error: ...`` on stderr and exit code 2 (nothing is
+written); a regression (``check``) or a containment violation of a guaranteed observer
+(``run``, ``audit``) with exit code 1; an observer that crashed (``run``: status ``error``,
+after the other observers ran) with exit code 3 (:mod:`benchmarks.verdicts`).
 """
 
 from __future__ import annotations
@@ -18,10 +19,10 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, designs, regression, speed, timing
+from . import audit, designs, regression, speed, timing, verdicts
 from .config import load_config
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json
+from .io import atomic_write_csv, atomic_write_json, check_output_dir
 from .report import write_report
 from .runner import run_config
 
@@ -29,24 +30,21 @@ USER_ERRORS = (ConfigError, ModelError, ObserverError, SetError)
 
 
 def _cmd_run(args) -> int:
+    if args.out:
+        check_output_dir(args.out)  # before any work (again in run_config for the default)
     cfg = load_config(args.config)
     out = Path(args.out) if args.out else Path("results") / cfg.name
     _, summary = run_config(cfg, out, progress=False if args.no_progress else None)
-    # a guaranteed observer fails if the true state left a set, or if a set became empty
-    bad = summary[((summary["violations"].fillna(0) > 0) | (summary["status"] == "empty"))
-                  & summary["guaranteed"].astype(bool)]
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
     pairs = summary.drop_duplicates(["scenario", "observer"])
     for r in pairs[pairs["status"] != "ok"].itertuples(index=False):
         print(f"note: {r.observer} on {r.scenario}: {r.status}: {r.message}", file=sys.stderr)
     statuses = pairs["status"].value_counts()
     print("status: " + ", ".join(f"{k} {v}" for k, v in statuses.items()))
-    if len(bad):
-        names = sorted(set(zip(bad["scenario"], bad["observer"], strict=True)))
-        print("CONTAINMENT VIOLATIONS: " + ", ".join(f"{o} on {s}" for s, o in names),
-              file=sys.stderr)
-        return 1
-    return 0
+    code, lines = verdicts.exit_code(summary)
+    for line in lines:
+        print(line, file=sys.stderr)
+    return code
 
 
 def _cmd_check(args) -> int:
@@ -181,7 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m benchmarks",
                                 description="Guaranteed state estimator benchmarks")
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("run", help="run a YAML benchmark config")
+    r = sub.add_parser("run", help="run a YAML benchmark config", epilog=verdicts.EXIT_CODES_HELP,
+                       description="Run every observer of a config on its scenarios and write "
+                                   "runs.csv, summary.csv and meta.json (one generation).")
     r.add_argument("config", help="path to a YAML config (see benchmarks/configs/)")
     r.add_argument("--out", help="output folder (default results/<config name>)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -260,7 +260,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit code (2 for bad input)."""
+    """Entry point; returns the exit code (2 for bad input; see
+    :data:`benchmarks.verdicts.EXIT_CODES_HELP`)."""
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

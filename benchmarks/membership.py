@@ -26,6 +26,8 @@ Anything with ``distance(x)`` (e.g. ``Ellipsoid``)
     that distance (Euclidean for ellipsoids), compared with ``tol``.
 Any other set
     its own ``contains(x, tol)``; the distance is then the distance to its interval hull.
+    A set without ``contains`` (a plugin's set with only ``interval()``) is undecided unless
+    its hull already excludes the point.
 """
 
 from __future__ import annotations
@@ -84,6 +86,8 @@ class MembershipTester:
         d = hull_distance(lo, hi, x)
         if d > tol:
             return self._count(Membership(False, d, "hull"))
+        if not hasattr(S, "contains"):  # a plugin's set with only interval(): undecided
+            return self._count(Membership(None, 0.0, "hull"))
         inside = bool(S.contains(x, tol))
         return self._count(Membership(inside, 0.0 if inside else d, "contains"))
 

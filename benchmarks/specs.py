@@ -26,7 +26,15 @@ from typing import Any
 import numpy as np
 
 from observers.sets import Interval, SetError, Zonotope
-from systems import NOISE_MODELS, LinearSystem, ModelError, Scenario, scenario, simulate
+from systems import (
+    NOISE_MODELS,
+    LinearSystem,
+    ModelError,
+    Scenario,
+    check_steps,
+    scenario,
+    simulate,
+)
 
 from .errors import ConfigError
 
@@ -198,6 +206,10 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         sim = {"steps": 100, "seed": 0, "noise": "uniform",
                **simulation_kwargs(sim, f"{where}: simulate")}
         steps = sim["steps"]
+        try:
+            check_steps(name, steps)
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
         u = (np.zeros((steps, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u", system.nu))
         try:
@@ -209,6 +221,8 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
     else:
         y = _check_record(_array(spec["y"], f"{where}: y", base), f"{where}: y", system.ny)
         N = y.shape[0]
+        if N == 0:
+            raise ConfigError(f"{where}: y is empty (0 steps)")
         u = (np.zeros((N, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u",
                                 system.nu, N))
