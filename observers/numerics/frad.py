@@ -43,7 +43,6 @@ def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -
     return A @ psd_solve(S, C @ P).T
 
 
-
 def alamo_frad_strips(
     c: np.ndarray, G: np.ndarray, C: np.ndarray, y: np.ndarray, sigma: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -59,7 +58,8 @@ def alamo_frad_strips(
     n x n and n x m matrices and touches the n x r generators once: ``[(I - L C) G,
     L diag(sigma)]`` (as ``G - L (C G)`` when m < n / 2: fewer flops).  Mathematically the
     same set as applying :func:`alamo_frad_gain` and the strip update strip by strip (equal up
-    to rounding).
+    to rounding).  A strip with ``s = 0`` (the set is flat along ``c_i`` and the strip exact)
+    gets the zero gain, as in :func:`alamo_frad_gain`.
     """
     n, m, r = G.shape[0], C.shape[0], G.shape[1]
     P = G @ G.T
@@ -68,7 +68,7 @@ def alamo_frad_strips(
         ci = C[i]
         p = P @ ci
         s = ci @ p + sigma[i] ** 2
-        lam = p / s
+        lam = p / s if s > 0 else np.zeros(n)
         c = c + lam * (y[i] - ci @ c)
         if i:  # (I - lam ci') applied to the columns of the earlier strips
             L[:, :i] -= np.outer(lam, ci @ L[:, :i])
