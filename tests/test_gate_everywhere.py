@@ -298,3 +298,5 @@ def test_packaging_metadata_uses_an_spdx_license_string():
     tomllib = pytest.importorskip("tomllib")
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     assert isinstance(project["license"], str) and project["license"] == "BSD-3-Clause"
+    build = tomllib.loads((ROOT / "pyproject.toml").read_text())["build-system"]["requires"]
+    assert "setuptools>=77" in build  # the first setuptools that reads an SPDX string
