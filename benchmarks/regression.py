@@ -494,12 +494,6 @@ def _consequential(diff: pd.DataFrame) -> pd.Series:
                       for r in diff.itertuples(index=False)], index=diff.index, dtype=bool)
 
 
-def changed_observers(diff: pd.DataFrame) -> list[str]:
-    """Observers with a failing value of their own (not only a shifted ratio)."""
-    own = diff[~diff["ok"] & ~_consequential(diff)]
-    return list(dict.fromkeys(own["observer"]))
-
-
 def _where(rows: pd.DataFrame) -> str:
     if rows.empty:
         return "none"

@@ -215,11 +215,10 @@ def test_frad_c_radii_on_the_tank_do_not_depend_on_the_blas_kernel():
 
 
 GATE_FRAD_C = """
-import sys
 from benchmarks import regression
 from observers.builtin import frad
 from observers.sets import Zonotope
-base, _ = regression.load_baseline(sys.argv[1])
+base, _ = regression.load_baseline("results/baseline")
 base = base[base["observer"] == "FRad-C"]
 cfg = regression.subset_config()
 cfg.observers = ["FRad-C"]
