@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline audit speed clean
+.PHONY: help install test lint bench bench-quick report check baseline audit audit-short speed clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -55,11 +55,14 @@ bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
 	$(PY) -m benchmarks check
 
-baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
+baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
 	$(PY) -m benchmarks baseline --update
 
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
+
+audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
+	$(PY) -m benchmarks audit --short --no-progress
 
 report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \

@@ -334,21 +334,50 @@ def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
     return summary.drop(columns="run_id"), meta
 
 
+#: symbols of OpenBLAS builds that return the kernel family in use
+_CORENAME_SYMBOLS = ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename",
+                     "openblas_get_corename64_", "openblas_get_corename")
+
+
+def blas_corename() -> str:
+    """The OpenBLAS kernel family numpy runs here (``"Haswell"``, ``"SkylakeX"``, ...), as
+    OpenBLAS chose it (by CPU, or by ``OPENBLAS_CORETYPE``); ``"unknown"`` for another BLAS."""
+    import ctypes
+    import glob
+
+    import numpy as np
+
+    root = Path(np.__file__).resolve().parent
+    for lib in sorted(glob.glob(str(root.parent / "numpy.libs" / "*openblas*"))):
+        try:
+            handle = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        for symbol in _CORENAME_SYMBOLS:
+            fn = getattr(handle, symbol, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                return fn().decode().strip()
+    return "unknown"
+
+
 #: packages whose versions :func:`environment` records
 ENVIRONMENT_PACKAGES = ("numpy", "scipy", "cvxpy", "clarabel", "highspy", "pandas")
+
+
 def environment() -> dict[str, str]:
     """Versions and platform of this process, as recorded in ``meta.json`` (``versions``).
 
     Returns
     -------
     dict of str to str
-        ``python`` (version), ``platform``, ``blas_coretype`` (the OpenBLAS kernel family,
-        ``OPENBLAS_CORETYPE``, pinned in :mod:`benchmarks`; ``"auto"`` if unset), the version
+        ``python`` (version), ``platform``, ``blas_coretype`` (the OpenBLAS kernel family in
+        use, :func:`blas_corename`), the version
         of each of :data:`ENVIRONMENT_PACKAGES` (``"missing"`` if not installed) and ``git``
         (the short commit of this checkout, ``""`` outside a git checkout).
     """
     out = {"python": sys.version.split()[0], "platform": platform.platform(),
-           "blas_coretype": os.environ.get("OPENBLAS_CORETYPE", "auto")}
+           "blas_coretype": blas_corename()}
     for pkg in ENVIRONMENT_PACKAGES:
         try:
             out[pkg] = metadata.version(pkg)

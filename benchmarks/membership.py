@@ -38,6 +38,7 @@ import highspy
 import numpy as np
 
 from observers.sets import ConZonotope, Interval, Zonotope
+from observers.sets.highs import new_highs
 
 _EPS = np.finfo(float).eps
 #: relative feasibility tolerance of the LP (HiGHS's default is 1e-7)
@@ -229,8 +230,7 @@ class MembershipTester:
 
     def _solver(self) -> highspy.Highs:
         if self._highs is None:
-            h = highspy.Highs()
-            h.setOptionValue("output_flag", False)
+            h = new_highs()
             h.setOptionValue("primal_feasibility_tolerance", LP_TOL)
             h.setOptionValue("dual_feasibility_tolerance", LP_TOL)
             _set_options(h, FAST_LP)
