@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .verdicts import reference_rows
+
 
 def rms_radius(radius: np.ndarray) -> np.ndarray:
     """RMS over time of the interval radius, per state (``radius`` is N x n)."""
@@ -30,11 +32,12 @@ def median_ms(times: np.ndarray) -> float:
 
 def add_relative_rms(summary: pd.DataFrame) -> pd.DataFrame:
     """Add ``rel_rms`` (eq. 9): each state's RMS radius divided by the smallest one among the
-    successful guaranteed observers (and option variants) of the same scenario and seed."""
+    successful guaranteed observers (and option variants) of the same scenario and seed that do
+    not violate containment (:func:`benchmarks.verdicts.reference_rows`)."""
     keys = ["scenario", "state"] + (["seed"] if "seed" in summary.columns else [])
     tmp = summary.assign(**{k: summary[k].astype(object).where(summary[k].notna(), "")
                             for k in keys})
-    ok = (tmp["status"] == "ok") & tmp["guaranteed"].astype(bool)
+    ok = reference_rows(summary)
     best = tmp[ok].groupby(keys)["rms_radius"].min().rename("_best")
     best = tmp.join(best, on=keys)["_best"].to_numpy(float)
     out = summary.copy()

@@ -15,10 +15,12 @@ from benchmarks import load_config
 from benchmarks.cli import main
 from benchmarks.errors import ConfigError
 from benchmarks.executors import JobFailure, ProcessExecutor, SerialExecutor, from_args
+from benchmarks.verdicts import EXIT_CRASH
 from observers import registry
 from observers.offline import cached_design
 
 TIMING = ["step_ms", "hull_ms", "design_s", "timed"]
+RUN_ID = ["run_id"]  # the identifier of each run's generation of result files
 SWEEP = {
     "name": "sweep",
     "scenarios": [{"name": "alamo2d-sim", "steps": 12}, {"name": "tank{n}-linear", "steps": 15}],
@@ -41,11 +43,11 @@ def cluster():
         yield c
 
 
-def _run(tmp_path, name, cfg, *extra) -> pd.DataFrame:
+def _run(tmp_path, name, cfg, *extra, code=0) -> pd.DataFrame:
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(cfg))
     out = tmp_path / name
-    assert main(["run", str(path), "--out", str(out), "--no-progress", *extra]) == 0
+    assert main(["run", str(path), "--out", str(out), "--no-progress", *extra]) == code
     return pd.read_csv(out / "summary.csv")
 
 
@@ -59,9 +61,12 @@ def test_serial_jobs2_and_dask_give_the_identical_summary(tmp_path):
     jobs2 = _run(tmp_path, "jobs2", SWEEP, "--jobs", "2")
     dask = _run(tmp_path, "dask", SWEEP, "--executor", "dask", "--jobs", "2")  # LocalCluster
     assert (jobs2["timed"] == "parallel").all() and (dask["timed"] == "parallel").all()
-    pd.testing.assert_frame_equal(serial.drop(columns=TIMING), jobs2.drop(columns=TIMING))
-    pd.testing.assert_frame_equal(serial.drop(columns=TIMING), dask.drop(columns=TIMING))
-    runs = [pd.read_csv(tmp_path / d / "runs.csv") for d in ("serial", "jobs2", "dask")]
+    pd.testing.assert_frame_equal(serial.drop(columns=TIMING + RUN_ID),
+                                  jobs2.drop(columns=TIMING + RUN_ID))
+    pd.testing.assert_frame_equal(serial.drop(columns=TIMING + RUN_ID),
+                                  dask.drop(columns=TIMING + RUN_ID))
+    runs = [pd.read_csv(tmp_path / d / "runs.csv").drop(columns=RUN_ID, errors="ignore")
+            for d in ("serial", "jobs2", "dask")]
     pd.testing.assert_frame_equal(runs[0], runs[1])
     pd.testing.assert_frame_equal(runs[0], runs[2])
 
@@ -85,7 +90,7 @@ def test_a_worker_that_dies_is_that_jobs_error_and_the_run_completes(
     cfg = {"name": "crash", "scenarios": [{"name": "alamo2d-sim", "steps": 10}],
            "observers": ["FRad-A", crash_observer, "FRad-C"], "containment": "hull",
            "sweep": {"seeds": [0, 1]}}
-    summary = _run(tmp_path, "crash", cfg, *args)
+    summary = _run(tmp_path, "crash", cfg, *args, code=EXIT_CRASH)  # complete, one crashed
     jobs = summary.drop_duplicates(["seed", "observer"]).set_index(["observer", "seed"])
     assert len(jobs) == 6
     crashed = jobs.loc[crash_observer]

@@ -8,6 +8,7 @@ import pytest
 
 from benchmarks import parse_config, write_report
 from benchmarks.aggregate import aggregate_seeds, is_sweep
+from benchmarks.io import write_results
 from benchmarks.runner import make_jobs
 
 
@@ -61,7 +62,9 @@ def test_aggregation_over_seeds_by_hand():
 def test_report_of_a_sweep_aggregates(tmp_path):
     rows = [("s", seed, "FRad-A", "order=5", st, 1.0 + seed, 0.1, 0.01, 0.0, "ok", 0, True)
             for seed in (0, 1) for st in (0, 1)]
-    _summary(rows).to_csv(tmp_path / "summary.csv", index=False)
-    text = write_report(tmp_path, figures=False).read_text()
+    out = tmp_path / "res"
+    write_results(out, {"runs.csv": pd.DataFrame(columns=["scenario"]),
+                        "summary.csv": _summary(rows)}, {"config": {"title": "sweep"}})
+    text = write_report(out, figures=False).read_text()
     assert "## s (2 seeds)" in text
     assert "| FRad-A | order=5 | 2 (2) | 1.5 | 0.7071 | 1 | 2 |" in text
