@@ -64,7 +64,10 @@ def strip_update(
     ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]``.
     """
     c_new = c + Lam @ (y - C @ c)
-    G_new = np.hstack([G - Lam @ (C @ G), Lam * sigma])
+    r = G.shape[1]
+    G_new = np.empty((G.shape[0], r + Lam.shape[1]))  # one allocation, no hstack copy
+    np.subtract(G, Lam @ (C @ G), out=G_new[:, :r])
+    np.multiply(Lam, sigma, out=G_new[:, r:])
     return c_new, G_new
 
 def propagate(
@@ -88,7 +91,14 @@ def propagate(
     cW, GW = W
     M = A - L @ C
     c_new = M @ c + d + L @ (y - cV) + cW
-    G_new = np.hstack([M @ G, -L @ GV, GW] + ([] if R is None else [R]))
+    r, rv, rw = G.shape[1], GV.shape[1], GW.shape[1]
+    rr = 0 if R is None else R.shape[1]
+    G_new = np.empty((G.shape[0], r + rv + rw + rr))  # one allocation, no hstack copy
+    np.matmul(M, G, out=G_new[:, :r])
+    np.matmul(-L, GV, out=G_new[:, r : r + rv])
+    G_new[:, r + rv : r + rv + rw] = GW
+    if rr:
+        G_new[:, r + rv + rw :] = R
     return c_new, G_new
 
 
@@ -199,7 +209,12 @@ class StripBasedObserver(ZonotopeObserver):
             u = self._input(u_prev)
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
-            G = np.hstack([self.A @ self._G, self.E, R])
+            r, re = self._G.shape[1], self.E.shape[1]
+            # [A G, E, R] without hstack (R: remainder generators, none for a linear system)
+            G = np.empty((self.A.shape[0], r + re + R.shape[1]))
+            np.matmul(self.A, self._G, out=G[:, :r])
+            G[:, r : r + re] = self.E
+            G[:, r + re :] = R
             c, G = self.intersect(c, G, y)
             G = self._reduce(G, self.order)
         self._c, self._G = c, G
