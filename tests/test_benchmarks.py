@@ -160,7 +160,7 @@ def test_nonlinear_capable_observers_run_on_nonlinear_systems(tmp_path):
                                            "containment": "hull"}))
     _, summary = run_config(cfg, progress=False)
     assert set(summary["status"]) == {"ok"}
-    assert (summary["contained"] == "yes").all() and (summary["violations"] == 0).all()
+    assert (summary["contained_hull"] == "yes").all() and (summary["violations"] == 0).all()
 
 
 def test_paper_relative_uses_only_the_observers_the_paper_compares():
