@@ -80,9 +80,16 @@ from typing import Any
 import numpy as np
 
 from ..families import AllStripsObserver, PerStripObserver
-from ..numerics.prad import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
+from ..numerics.lmi import cora_bisection_end
+from ..numerics.prad import (
+    centre_gain,
+    le_gain,
+    wang_c1_gain,
+    wang_c2_gain,
+    wang_d_gain,
+)
 from ..offline import OfflineGain
-from ..options import Number
+from ..options import Choice, Number
 from ..registry import register
 
 
@@ -147,12 +154,30 @@ class PRadB(_BetaTol, _ConstantAllStrips):
     "PRad-C-I", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
-class PRadCI(_ConstantAllStrips):
-    """All strips at once; offline gain of least asymptotic radius bound, P >= I."""
+class PRadCI(_BetaTol, _ConstantAllStrips):
+    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
-    DESIGN_VERSION = "1"
+    Options
+    -------
+    design : {"centre", "radius-bound"}
+        ``centre`` (default): the analytic centre of CORA's PRad-C cone at its final
+        ``beta = 0.9921875``, normalised by ``tr P = 1``
+        (:func:`~observers.numerics.prad.centre_gain`, one solve); it reproduces the PRad-C rows of
+        ARCH 2021 Table 3 and the Automatica table.  ``radius-bound``: the gain of least
+        certified asymptotic radius bound with ``P >= I`` and a line search on ``beta``
+        (:func:`~observers.numerics.prad.wang_c1_gain`, 17-22 SDP solves).
+    beta_tol : float
+        Tolerance of CORA's bisection on ``beta`` (``centre`` only).
+    """
+
+    OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
+        if self.options["design"] == "centre":
+            return centre_gain(self.A, self.C, self.E, self.F,
+                               cora_bisection_end(0.0, 1.0, self.options["beta_tol"]),
+                               what=self.name).L
         return wang_c1_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -160,12 +185,28 @@ class PRadCI(_ConstantAllStrips):
     "PRad-C-II", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Alamo, Puig, Cembrano, CDC 2018",
 )
-class PRadCII(_ConstantAllStrips):
-    """All strips at once; offline gain of least bounding ellipsoid (trace of P^-1)."""
+class PRadCII(_BetaTol, _ConstantAllStrips):
+    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
-    DESIGN_VERSION = "1"
+    Options
+    -------
+    design : {"centre", "ellipsoid-trace"}
+        ``centre`` (default): as PRad-C-I's default (CORA has one PRad-C; ARCH 2021 Table 3
+        reports one row for both).  ``ellipsoid-trace``: the gain of least bounding ellipsoid
+        (trace of ``P^-1``) with a line search on ``beta``
+        (:func:`~observers.numerics.prad.wang_c2_gain`).
+    beta_tol : float
+        Tolerance of CORA's bisection on ``beta`` (``centre`` only).
+    """
+
+    OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
+        if self.options["design"] == "centre":
+            return centre_gain(self.A, self.C, self.E, self.F,
+                               cora_bisection_end(0.0, 1.0, self.options["beta_tol"]),
+                               what=self.name).L
         return wang_c2_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -178,17 +219,27 @@ class PRadD(_ConstantAllStrips):
 
     Options
     -------
+    design : {"centre", "max-gamma"}
+        ``centre`` (default): the analytic centre of the cone of CORA's PRad-D inequality
+        (:func:`~observers.numerics.prad.centre_gain`, one solve; ``beta`` drops out); it
+        reproduces the PRad-D row of ARCH 2021 Table 3.  ``max-gamma``: the largest
+        ``P >= gamma^2 I`` (least certified radius bound,
+        :func:`~observers.numerics.prad.wang_d_gain`).
     alpha : float or None
-        Decay weight in (0, 1); ``None`` (default) chooses it by a line search on the radius
-        bound.
+        Decay weight in (0, 1); ``None`` (default): ``centre`` uses CORA's end-of-bisection
+        rate 0.9921875, ``max-gamma`` a line search on the radius bound.
     beta : float
         Split of the noise weight between disturbance and measurement noise, in (0, 1).
     """
 
-    OPTIONS = {"alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
+    OPTIONS = {"design": Choice("centre", ("centre", "max-gamma")),
+               "alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
-    DESIGN_VERSION = "1"
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
-        return wang_d_gain(self.A, self.C, self.E, self.F, alpha=self.options["alpha"],
-                           beta=self.options["beta"]).L
+        o = self.options
+        if o["design"] == "centre":
+            rate = cora_bisection_end() if o["alpha"] is None else o["alpha"]
+            return centre_gain(self.A, self.C, self.E, self.F, rate, what=self.name).L
+        return wang_d_gain(self.A, self.C, self.E, self.F, alpha=o["alpha"], beta=o["beta"]).L
