@@ -47,6 +47,7 @@ import observers
 import systems
 from systems import ModelError, Scenario
 
+from . import freshness
 from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_text, environment
@@ -356,7 +357,9 @@ def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: in
     csv_path = Path(out) / "soundness.csv"
     atomic_write_csv(csv_path, df)
     report = Path(report)
-    atomic_write_text(report, soundness_report(df, count, elapsed, jobs))
+    text = soundness_report(df, count, elapsed, jobs).rstrip("\n")
+    command = f"python -m benchmarks audit --realisations {count} --report {report}"
+    atomic_write_text(report, f"{text}\n\n{freshness.stamp(command)}\n")
     return csv_path, report
 
 

@@ -16,6 +16,7 @@ import pandas as pd  # noqa: E402
 
 from observers.registry import table_order  # noqa: E402
 
+from . import freshness  # noqa: E402
 from .errors import ConfigError  # noqa: E402
 from .io import atomic_savefig, atomic_write_text  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
@@ -197,5 +198,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     if versions:
         parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
             f"{k} {v}" for k, v in versions.items()), ""]
-    atomic_write_text(out, "\n".join(parts))
+    config = freshness.config_of(meta.get("config", {}).get("name"))
+    parts.append(freshness.stamp(freshness.report_command(config, out), config))
+    atomic_write_text(out, "\n".join(parts) + "\n")
     return out
