@@ -11,6 +11,13 @@
     observer_options:                    # optional, per observer
       FRad-B: {variant: textbook}
     containment: exact                   # exact (LP membership) | hull (interval hull only)
+    variants:                            # optional: an observer again, other options, own label
+      ESO-C[cora]: {observer: ESO-C, options: {variant: cora}, guaranteed: false}
+
+A variant runs beside the listed observers under its label (``NAME[tag]``), with the scenario
+and global options and its own ``options`` (not the observer's ``observer_options``);
+``guaranteed: false`` (default: the observer's) reports it as not guaranteed: excluded from the
+eq. (9) minima, its containment violations counted but not failing the run.
 
 Everything is validated when the file is loaded, before any observer runs.
 """
@@ -30,7 +37,7 @@ from .errors import ConfigError
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
-            "containment", "description"}
+            "containment", "description", "variants"}
 
 
 @dataclass
@@ -46,18 +53,31 @@ class BenchConfig:
     containment: str = "exact"
     description: str = ""
     raw: dict = field(default_factory=dict, repr=False)
+    #: label -> (observer name, options, guaranteed) of the labelled variants
+    variants: dict[str, tuple[str, dict[str, Any], bool]] = field(default_factory=dict)
+
+    def observer_of(self, label: str) -> str:
+        """The registered observer behind a label (a variant's, or the name itself)."""
+        return self.variants[label][0] if label in self.variants else label
+
+    def guaranteed(self, label: str) -> bool:
+        """Whether the observer run under ``label`` is reported as guaranteed."""
+        if label in self.variants:
+            return self.variants[label][2]
+        return observers.get(label).guaranteed
 
     def options_for(self, observer: str, scenario: Scenario) -> dict[str, Any]:
         """Scenario defaults < config options < per-observer options, restricted to the
         options the observer accepts (scenario and global ones) or all (per-observer ones);
         scenario defaults only for the options listed in the observer's ``SCENARIO_OPTIONS``;
         observers with a ``training`` option also get the scenario's offline experiment."""
-        cls = observers.get(observer).cls
+        cls = observers.get(self.observer_of(observer)).cls
         accepted = cls.option_defaults()
         from_scenario = accepted if cls.SCENARIO_OPTIONS is None else cls.SCENARIO_OPTIONS
         merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
         merged.update({k: v for k, v in self.options.items() if k in accepted})
-        merged.update(self.observer_options.get(observer, {}))
+        merged.update(self.variants[observer][1] if observer in self.variants
+                      else self.observer_options.get(observer, {}))
         if "training" in accepted and "training" not in merged and scenario.training is not None:
             merged["training"] = scenario.training  # offline data for data-driven observers
         return merged
@@ -130,12 +150,50 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     seen = [s.name for s in scenarios]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"config '{name}': a scenario name appears twice: {seen}")
+    variants = _variants(raw.get("variants"), name)
+    clash = [v for v in variants if v in names]
+    if clash:
+        raise ConfigError(f"config '{name}': variant label(s) {clash} are observer names")
     return BenchConfig(
+        variants=variants,
         name=str(raw.get("name", name)), title=str(raw.get("title", name)),
-        scenarios=scenarios, observers=names, options=options,
+        scenarios=scenarios, observers=names + list(variants), options=options,
         observer_options={str(k): dict(v) for k, v in per.items()},
         containment=containment, description=str(raw.get("description", "")), raw=raw,
     )
+
+
+def _variants(raw: Any, name: str) -> dict[str, tuple[str, dict[str, Any], bool]]:
+    """Validate the ``variants`` mapping: label -> {observer, options, guaranteed}."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"config '{name}': 'variants' must be a mapping label -> "
+                          "{observer, options, guaranteed}")
+    out = {}
+    for label, spec in raw.items():
+        where = f"config '{name}': variant {label}"
+        if not isinstance(spec, dict) or "observer" not in spec:
+            raise ConfigError(f"{where} must be a mapping with an 'observer' key")
+        bad = set(spec) - {"observer", "options", "guaranteed"}
+        if bad:
+            raise ConfigError(f"{where}: unknown key(s) {sorted(bad)} "
+                              "(allowed: guaranteed, observer, options)")
+        try:
+            info = observers.get(str(spec["observer"]))
+        except observers.UnknownObserver as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        opts = spec.get("options") or {}
+        if not isinstance(opts, dict):
+            raise ConfigError(f"{where}: 'options' must be a mapping")
+        unknown = set(opts) - set(info.cls.option_defaults())
+        if unknown:
+            raise ConfigError(f"{where}: {info.name} has no option(s) {sorted(unknown)}")
+        guaranteed = spec.get("guaranteed", info.guaranteed)
+        if not isinstance(guaranteed, bool):
+            raise ConfigError(f"{where}: 'guaranteed' must be true or false")
+        out[str(label)] = (info.name, dict(opts), guaranteed)
+    return out
 
 
 def load_config(path: str | Path) -> BenchConfig:

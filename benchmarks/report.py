@@ -41,6 +41,9 @@ def _pair(ours, paper) -> str:
 
 def _status_cell(g: pd.DataFrame) -> str:
     status = g["status"].iloc[0]
+    if not bool(g["guaranteed"].iloc[0]) and status == "ok":
+        viol = g["violations"].iloc[0]
+        return "not guaranteed" + ("" if pd.isna(viol) else f": {int(viol)} violations")
     if status == "ok":
         viol = g["violations"].iloc[0]
         if pd.isna(viol):
@@ -80,7 +83,7 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
     df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"])
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
-        p = paper.get(obs)
+        p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
         rel = g["_rel"].to_numpy(float)
         cells = [obs]
         for i in show:

@@ -3,6 +3,7 @@ and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (atomica
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import traceback
 from dataclasses import dataclass
@@ -195,7 +196,12 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     runs, summaries = [], []
     with Progress(len(pairs), cfg.name, enabled=progress) as bar:
         for sc, name in pairs:
-            run = run_observer(name, sc, cfg.options_for(name, sc), cfg.containment)
+            run = run_observer(cfg.observer_of(name), sc, cfg.options_for(name, sc),
+                               cfg.containment)
+            if name != run.info.name or cfg.guaranteed(name) != run.info.guaranteed:
+                # a labelled variant: its rows carry the label and its own guarantee
+                run.info = dataclasses.replace(run.info, name=name,
+                                               guaranteed=cfg.guaranteed(name))
             if run.result is not None:
                 runs.append(_rows_runs(run))
             else:
