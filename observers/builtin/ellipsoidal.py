@@ -243,11 +243,12 @@ class ESOC(InvariantSetObserver):
         Probability of the Gaussian confidence ellipsoid identified with W when choosing the
         weight ``Q`` (``chi2inv(quantile, n)``; 0.999 as in CORA).
     variant : {"paper", "cora"}
-        ``"cora"``: CORA's semantics, the shape matrices ``Q`` of the (outer) ellipsoids of W
-        and V used where generator matrices are meant (in the design and in the bound of the
-        noise), which reproduces the ESO-C row of ARCH 2021 Table 3 but is **not guaranteed**
-        (the true state leaves its set on the 6-state vehicle record); benchmark
-        configurations list it as the labelled variant ``ESO-C[cora]``, not guaranteed.
+        ``"cora"``: CORA's semantics, the shape matrices ``Q`` of the ellipsoids of W and V
+        (``inner:norm``, as CORA's tests convert them) used where generator matrices are
+        meant (in the design and in the bound of the noise), which reproduces the ESO-C row
+        of ARCH 2021 Table 3 but is **not guaranteed** (the true state leaves its set on the
+        6-state vehicle record); benchmark configurations list it as the labelled variant
+        ``ESO-C[cora]``, not guaranteed.
     """
 
     OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True),
@@ -256,7 +257,7 @@ class ESOC(InvariantSetObserver):
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         if self.options["variant"] != "cora":
             return super().noise_matrices(W, V)
-        return tuple(np.array(Ellipsoid.from_zonotope(S, "outer:norm").Q) for S in (W, V))
+        return tuple(np.array(Ellipsoid.from_zonotope(S, "inner:norm").Q) for S in (W, V))
 
     def compute_design(self, A, C, E, F) -> dict:
         if self.options["variant"] == "cora":
