@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report reports check baseline audit clean
+.PHONY: help install test lint bench bench-quick report reports check baseline audit audit-short speed clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -35,13 +35,18 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) and reports/<config>.md
+bench: $(STAMP)  ## run every config into results/<config>/ and reports/<config>.md, then reports/speed.md
+	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
+	$(PY) -m benchmarks speed
+
+speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
+	$(PY) -m benchmarks speed
 
 bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
@@ -50,7 +55,7 @@ bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 check: $(STAMP)  ## CI gate: committed reports fresh (content hashes), regression subset vs results/baseline/
 	$(PY) -m benchmarks check --reports reports
 
-baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
+baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
 	$(PY) -m benchmarks baseline --update
 
 reports: bench audit  ## regenerate every committed report (bench, audit, data-driven study)
@@ -58,6 +63,9 @@ reports: bench audit  ## regenerate every committed report (bench, audit, data-d
 
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
+
+audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
+	$(PY) -m benchmarks audit --short --no-progress
 
 report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \
