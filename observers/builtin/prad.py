@@ -151,13 +151,23 @@ class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     reference="Le, Stoica, Alamo, Camacho, Dumur, ISIC 2013",
 )
 class PRadB(_BetaTol, _ConstantAllStrips):
-    """All strips at once with the offline P-radius gain of Le et al. (CORA's SDP)."""
+    """All strips at once with the offline P-radius gain of Le et al. (CORA's SDP).
 
+    Options
+    -------
+    solver : {"clarabel", "clarabel-1e-6", "scs"}
+        SDP solver strategy (:data:`observers.numerics.lmi.SOLVERS`).  The SDP's optimum is
+        degenerate on the 6-tank system (it pins only the smallest eigenvalue of P): solvers
+        and tolerances return different optimal gains, whose radii the tank tables list as
+        labelled variants ``PRad-B[scs]``, ``PRad-B[clarabel-1e-6]`` to show the spread.
+    """
+
+    OPTIONS = {"solver": Choice("clarabel", ("clarabel", "clarabel-1e-6", "scs"))}
     DESIGN_VERSION = "1"
 
     def design_gain(self) -> np.ndarray:
         return le_gain(self.A, self.C, self.E, self.F, cora_epsilon(self.W, self.sigma),
-                       self.options["beta_tol"]).L
+                       self.options["beta_tol"], solver=self.options["solver"]).L
 
 
 @register(

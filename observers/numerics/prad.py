@@ -34,6 +34,7 @@ from .lmi import (
     psd_constraint,
     require_pd,
     require_psd,
+    solve,
     solved,
 )
 
@@ -134,7 +135,8 @@ def _variables(n: int, m: int):
 
 
 # -- PRad-B (and PRad-A per output): Le et al., ISIC 2013 ----------------------------------------
-def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B") -> GainDesign:
+def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B",
+            solver: str | None = None) -> GainDesign:
     """P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
 
     Weights ``Wx = beta P``, ``Ww = E'E``, ``Wv = F'F`` (fixed, which pins the scale of P);
@@ -155,8 +157,7 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
     Ww, Wv = E.T @ E, F.T @ F
     cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
             (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
-    if not solved(cp.Problem(cp.Maximize(tau), cons)):
-        raise DesignFailed(f"{what}: the P-radius SDP could not be solved at beta={beta}")
+    solve(cp.Problem(cp.Maximize(tau), cons), f"{what} (beta={beta})", solver)
     Pv = 0.5 * (P.value + P.value.T)
     L = gain_from(Pv, Y.value, what)
     verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
