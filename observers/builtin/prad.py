@@ -191,7 +191,7 @@ class PRadCI(_BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
-    DESIGN_VERSION = "2"
+    DESIGN_VERSION = "3"
 
     def design_gain(self) -> np.ndarray:
         if self.options["design"] == "centre":
@@ -220,7 +220,7 @@ class PRadCII(_BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
-    DESIGN_VERSION = "2"
+    DESIGN_VERSION = "3"
 
     def design_gain(self) -> np.ndarray:
         if self.options["design"] == "centre":
@@ -255,7 +255,7 @@ class PRadD(_ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "max-gamma")),
                "alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
-    DESIGN_VERSION = "2"
+    DESIGN_VERSION = "3"
 
     def design_gain(self) -> np.ndarray:
         o = self.options

@@ -306,6 +306,12 @@ def wang_d_gain(
 
 
 # -- analytic centre of CORA's PRad-C/PRad-D cone (the published rows) ----------------------------
+#: Clarabel settings tried in turn by :func:`centre_gain` until one converges
+CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
+                  {"static_regularization_enable": False, "equilibrate_enable": False},
+                  {"equilibrate_enable": False})
+
+
 def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     """Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
 
@@ -352,11 +358,18 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     D0 = bmat([[rate * P, M1.T], [M1, P]])
     problem = cp.Problem(cp.Maximize(cp.log_det((D0 + D0.T) / 2) + cp.log_det(P)),
                          [cp.trace(P) == 1])
-    solve(problem, f"{what} (rate {rate})")
-    if problem.status != "optimal" or min_eig(D0.value) <= 0:
-        # Clarabel's static regularisation stalls at the thin interior of the vehicle models'
-        # cone (its widest slack is ~6e-5); without it the iterates converge (slower: a retry)
-        solve(problem, f"{what} (rate {rate})", static_regularization_enable=False)
+    # Clarabel's default settings stall at the thin interior of the vehicle models' cone (its
+    # widest slack is ~6e-5), depending on the BLAS kernels; without static regularisation,
+    # then also without equilibration, the iterates converge (retries: one solve if all is well)
+    for k, settings in enumerate(CENTRE_RETRIES):
+        try:
+            solve(problem, f"{what} (rate {rate})", **settings)
+        except DesignFailed:
+            if k == len(CENTRE_RETRIES) - 1:
+                raise
+            continue
+        if problem.status == "optimal" and min_eig(D0.value) > 0:
+            break
     Pv = sym(P.value)
     L = gain_from(Pv, Y.value, what)
     # least common noise weight g that certifies (*) at (P, L)
