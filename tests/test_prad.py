@@ -257,3 +257,24 @@ def test_design_option_selects_the_certified_bound_designs(vehicle2d):
     assert np.abs(a.L - b.L).max() > 1e-2 * np.abs(b.L).max()
     with pytest.raises(observers.OptionError, match="design must be one of"):
         observers.create("PRad-D", sc.system, design="gamma")
+
+
+def test_centre_design_is_solved_once_for_c1_c2_and_d(tmp_path, monkeypatch):
+    from observers.builtin import prad
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    calls = []
+    real = prad.centre_gain
+
+    def counting(*args, **kw):
+        calls.append(kw.get("what"))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(prad, "centre_gain", counting)
+    sc = systems.scenario("vehicle2d-cora")
+    gains = [observers.create(n, sc.system, **sc.options).L
+             for n in ("PRad-C-I", "PRad-C-II", "PRad-D")]
+    assert len(calls) == 1
+    np.testing.assert_array_equal(gains[0], gains[2])
+    observers.create("PRad-D", sc.system, alpha=0.9, **sc.options)  # another rate: new design
+    assert len(calls) == 2

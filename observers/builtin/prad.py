@@ -142,6 +142,22 @@ class PRadA(_BetaTol, OfflineGain, PerStripObserver):
 class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     """Method II with the offline gain."""
 
+
+class _Centre:
+    """PRad-C-I, PRad-C-II and PRad-D with ``design: centre`` share one design (the analytic
+    centre of CORA's cone at ``centre_rate()``): one cache entry, solved once per system."""
+
+    def centre_rate(self) -> float:
+        raise NotImplementedError
+
+    def design_kind(self) -> str:
+        return "PRad-centre" if self.options["design"] == "centre" else self.name
+
+    def design_params(self) -> dict[str, Any]:
+        if self.options["design"] == "centre":
+            return {"design": "centre", "rate": self.centre_rate()}
+        return super().design_params()
+
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.L
 
@@ -174,7 +190,7 @@ class PRadB(_BetaTol, _ConstantAllStrips):
     "PRad-C-I", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
-class PRadCI(_BetaTol, _ConstantAllStrips):
+class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
     Options
@@ -193,10 +209,12 @@ class PRadCI(_BetaTol, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
     DESIGN_VERSION = "3"
 
+    def centre_rate(self) -> float:
+        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
+
     def design_gain(self) -> np.ndarray:
         if self.options["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F,
-                               cora_bisection_end(0.0, 1.0, self.options["beta_tol"]),
+            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
                                what=self.name).L
         return wang_c1_gain(self.A, self.C, self.E, self.F).L
 
@@ -205,7 +223,7 @@ class PRadCI(_BetaTol, _ConstantAllStrips):
     "PRad-C-II", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Alamo, Puig, Cembrano, CDC 2018",
 )
-class PRadCII(_BetaTol, _ConstantAllStrips):
+class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
     Options
@@ -222,10 +240,12 @@ class PRadCII(_BetaTol, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
     DESIGN_VERSION = "3"
 
+    def centre_rate(self) -> float:
+        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
+
     def design_gain(self) -> np.ndarray:
         if self.options["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F,
-                               cora_bisection_end(0.0, 1.0, self.options["beta_tol"]),
+            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
                                what=self.name).L
         return wang_c2_gain(self.A, self.C, self.E, self.F).L
 
@@ -234,7 +254,7 @@ class PRadCII(_BetaTol, _ConstantAllStrips):
     "PRad-D", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Wang, Puig, Cembrano, IEEE TAC 64(5), 2019",
 )
-class PRadD(_ConstantAllStrips):
+class PRadD(_Centre, _ConstantAllStrips):
     """All strips at once; offline gain maximising P >= gamma^2 I for fixed noise weights.
 
     Options
@@ -257,9 +277,13 @@ class PRadD(_ConstantAllStrips):
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
     DESIGN_VERSION = "3"
 
+    def centre_rate(self) -> float:
+        alpha = self.options["alpha"]
+        return cora_bisection_end() if alpha is None else float(alpha)
+
     def design_gain(self) -> np.ndarray:
         o = self.options
         if o["design"] == "centre":
-            rate = cora_bisection_end() if o["alpha"] is None else o["alpha"]
-            return centre_gain(self.A, self.C, self.E, self.F, rate, what=self.name).L
+            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
+                               what=self.name).L
         return wang_d_gain(self.A, self.C, self.E, self.F, alpha=o["alpha"], beta=o["beta"]).L
