@@ -142,6 +142,9 @@ class PRadA(_BetaTol, OfflineGain, PerStripObserver):
 class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     """Method II with the offline gain."""
 
+    def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
+        return self.L
+
 
 class _Centre:
     """PRad-C-I, PRad-C-II and PRad-D with ``design: centre`` share one design (the analytic
@@ -157,9 +160,6 @@ class _Centre:
         if self.options["design"] == "centre":
             return {"design": "centre", "rate": self.centre_rate()}
         return super().design_params()
-
-    def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
-        return self.L
 
 
 @register(
