@@ -151,7 +151,18 @@ class _Centre:
     centre of CORA's cone at ``centre_rate()``): one cache entry, solved once per system."""
 
     def centre_rate(self) -> float:
+        """The decay rate of the centre: where CORA's bisection on beta ends."""
+        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
+
+    def bound_gain(self) -> np.ndarray:
+        """The gain of the certified-bound design (the other ``design`` choice)."""
         raise NotImplementedError
+
+    def design_gain(self) -> np.ndarray:
+        if self.options["design"] == "centre":
+            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
+                               what=self.name).L
+        return self.bound_gain()
 
     def design_kind(self) -> str:
         return "PRad-centre" if self.options["design"] == "centre" else self.name
@@ -209,13 +220,7 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
     DESIGN_VERSION = "3"
 
-    def centre_rate(self) -> float:
-        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
-
-    def design_gain(self) -> np.ndarray:
-        if self.options["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
-                               what=self.name).L
+    def bound_gain(self) -> np.ndarray:
         return wang_c1_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -240,13 +245,7 @@ class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
     DESIGN_VERSION = "3"
 
-    def centre_rate(self) -> float:
-        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
-
-    def design_gain(self) -> np.ndarray:
-        if self.options["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
-                               what=self.name).L
+    def bound_gain(self) -> np.ndarray:
         return wang_c2_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -281,9 +280,6 @@ class PRadD(_Centre, _ConstantAllStrips):
         alpha = self.options["alpha"]
         return cora_bisection_end() if alpha is None else float(alpha)
 
-    def design_gain(self) -> np.ndarray:
+    def bound_gain(self) -> np.ndarray:
         o = self.options
-        if o["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
-                               what=self.name).L
         return wang_d_gain(self.A, self.C, self.E, self.F, alpha=o["alpha"], beta=o["beta"]).L
