@@ -52,6 +52,7 @@ import observers
 import systems
 from systems import ModelError, Scenario
 
+from . import freshness
 from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_text, environment
@@ -379,7 +380,9 @@ def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: in
     csv_path = Path(out) / "soundness.csv"
     atomic_write_csv(csv_path, df)
     report = Path(report)
-    atomic_write_text(report, soundness_report(df, count, elapsed, jobs, command))
+    text = soundness_report(df, count, elapsed, jobs, command).rstrip("\n")
+    regen = command or f"python -m benchmarks audit --realisations {count} --report {report}"
+    atomic_write_text(report, f"{text}\n\n{freshness.stamp(regen)}\n")
     return csv_path, report
 
 

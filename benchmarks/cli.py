@@ -19,7 +19,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, designs, executors, regression, speed, timing, verdicts
+from . import audit, designs, executors, freshness, regression, speed, timing, verdicts
 from .config import load_config
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json, blas_corename, check_output_dir
@@ -53,6 +53,18 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_check(args) -> int:
+    stale = freshness.stale_reports(args.reports) if args.reports else []
+    if stale:  # cheap (hashes only): reported first, and the regression subset still runs
+        print(freshness.format_stale(stale), file=sys.stderr)
+    status = _check_regression(args)
+    if stale:
+        print(f"check FAILED: {len(stale)} committed report(s) in {args.reports} are stale "
+              "(see above)", file=sys.stderr)
+        return 1
+    return status
+
+
+def _check_regression(args) -> int:
     cfg = regression.subset_config(args.config)
     base, meta = regression.load_baseline(args.baseline)
     if regression.config_changed(cfg, meta):
@@ -246,6 +258,9 @@ def build_parser() -> argparse.ArgumentParser:
     ch.add_argument("--out", default=str(Path("results") / "check"),
                     help="where to write this run and diff.csv (default results/check)")
     ch.add_argument("--all", action="store_true", help="print every compared value")
+    ch.add_argument("--reports", metavar="DIR",
+                    help="also fail if a report in DIR is stale (its content-hash stamp differs "
+                         "from the current code, data and configuration; make check: reports)")
     ch.add_argument("--strict", action="store_true",
                     help="fail on installed third-party plugins that are not in the baseline "
                          "(default: list them)")

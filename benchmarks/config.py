@@ -16,6 +16,13 @@
       sizes: [6, 12, 30]                 # substituted for {n} in scenario names (tank{n}-linear)
       grid:                              # per observer: every combination of these values
         FRad-A: {order: [20, 50]}
+    variants:                            # optional: an observer again, other options, own label
+      ESO-C[cora]: {observer: ESO-C, options: {variant: cora}, guaranteed: false}
+
+A labelled variant runs beside the listed observers under its label (``NAME[tag]``), with the
+scenario and global options and its own ``options`` (not the observer's ``observer_options``);
+``guaranteed: false`` (default: the observer's) reports it as not guaranteed: excluded from the
+eq. (9) minima, its containment violations counted but not failing the run.
 
 Everything is validated when the file is loaded, before any observer runs.  A sweep runs
 every scenario x size x seed x observer x option combination; ``summary.csv`` then has one row
@@ -40,7 +47,8 @@ from .errors import ConfigError
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
-            "containment", "description", "sweep"}
+            "containment", "description", "sweep",
+            "variants"}
 SWEEP_KEYS = {"seeds", "sizes", "grid"}
 
 
@@ -80,18 +88,31 @@ class BenchConfig:
     def variants_of(self, observer: str) -> list[tuple[str, dict[str, Any]]]:
         """The sweep variants of ``observer`` (``[("", {})]`` if the grid has none)."""
         return self.variants.get(observer) or [("", {})]
+    #: label -> (observer name, options, guaranteed) of the labelled variants
+    labelled: dict[str, tuple[str, dict[str, Any], bool]] = field(default_factory=dict)
+
+    def observer_of(self, label: str) -> str:
+        """The registered observer behind a label (a variant's, or the name itself)."""
+        return self.labelled[label][0] if label in self.labelled else label
+
+    def guaranteed(self, label: str) -> bool:
+        """Whether the observer run under ``label`` is reported as guaranteed."""
+        if label in self.labelled:
+            return self.labelled[label][2]
+        return observers.get(label).guaranteed
 
     def options_for(self, observer: str, scenario: Scenario) -> dict[str, Any]:
         """Scenario defaults < config options < per-observer options, restricted to the
         options the observer accepts (scenario and global ones) or all (per-observer ones);
         scenario defaults only for the options listed in the observer's ``SCENARIO_OPTIONS``;
         observers with a ``training`` option also get the scenario's offline experiment."""
-        info = observers.get(observer)
+        info = observers.get(self.observer_of(observer))
         accepted = info.option_defaults()
         from_scenario = accepted if info.scenario_options is None else info.scenario_options
         merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
         merged.update({k: v for k, v in self.options.items() if k in accepted})
-        merged.update(self.observer_options.get(observer, {}))
+        merged.update(self.labelled[observer][1] if observer in self.labelled
+                      else self.observer_options.get(observer, {}))
         if "training" in accepted and "training" not in merged and scenario.training is not None:
             merged["training"] = scenario.training  # offline data for data-driven observers
         return merged
@@ -187,13 +208,52 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     if len(set(seen)) != len(seen):
         raise ConfigError(f"config '{name}': a scenario appears twice with the same seed: "
                           f"{[s for s, _ in seen]}")
+    labelled = _variants(raw.get("variants"), name)
+    clash = [v for v in labelled if v in names]
+    if clash:
+        raise ConfigError(f"config '{name}': variant label(s) {clash} are observer names")
     return BenchConfig(
+        labelled=labelled,
         name=str(raw.get("name", name)), title=str(raw.get("title", name)),
-        scenarios=[i.scenario for i in instances], observers=names, options=options,
+        scenarios=[i.scenario for i in instances], observers=names + list(labelled),
+        options=options,
         observer_options={str(k): dict(v) for k, v in per.items()},
         containment=containment, description=str(raw.get("description", "")), raw=raw,
         instances=instances, variants=variants, base=base,
     )
+
+
+def _variants(raw: Any, name: str) -> dict[str, tuple[str, dict[str, Any], bool]]:
+    """Validate the ``variants`` mapping: label -> {observer, options, guaranteed}."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"config '{name}': 'variants' must be a mapping label -> "
+                          "{observer, options, guaranteed}")
+    out = {}
+    for label, spec in raw.items():
+        where = f"config '{name}': variant {label}"
+        if not isinstance(spec, dict) or "observer" not in spec:
+            raise ConfigError(f"{where} must be a mapping with an 'observer' key")
+        bad = set(spec) - {"observer", "options", "guaranteed"}
+        if bad:
+            raise ConfigError(f"{where}: unknown key(s) {sorted(bad)} "
+                              "(allowed: guaranteed, observer, options)")
+        try:
+            info = observers.get(str(spec["observer"]))
+        except observers.UnknownObserver as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        opts = spec.get("options") or {}
+        if not isinstance(opts, dict):
+            raise ConfigError(f"{where}: 'options' must be a mapping")
+        unknown = set(opts) - set(info.cls.option_defaults())
+        if unknown:
+            raise ConfigError(f"{where}: {info.name} has no option(s) {sorted(unknown)}")
+        guaranteed = spec.get("guaranteed", info.guaranteed)
+        if not isinstance(guaranteed, bool):
+            raise ConfigError(f"{where}: 'guaranteed' must be true or false")
+        out[str(label)] = (info.name, dict(opts), guaranteed)
+    return out
 
 
 def _int_list(value: Any, what: str, minimum: int) -> list[int]:

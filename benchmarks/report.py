@@ -15,6 +15,7 @@ import pandas as pd  # noqa: E402
 
 from observers.registry import table_order  # noqa: E402
 
+from . import freshness  # noqa: E402
 from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
@@ -45,8 +46,12 @@ def _contained_col(df: pd.DataFrame) -> str:
 
 def _status_cell(g: pd.DataFrame) -> str:
     """The ``contained`` cell: ``yes``, ``n/a`` (nothing to check it against, or not
-    checked to the end), the number of violations, or the failure status."""
+    checked to the end), the number of violations, or the failure status; a row that is not
+    guaranteed (a labelled CORA variant) says so, with its violations counted."""
     status, verdict = g["status"].iloc[0], g[_contained_col(g)].iloc[0]
+    if not bool(g["guaranteed"].iloc[0]) and status == "ok":
+        viol = g["violations"].iloc[0]
+        return "not guaranteed" + ("" if pd.isna(viol) else f": {int(viol)} violations")
     if verdict == NO:
         return f"**no: {int(g['violations'].iloc[0])} violations**"
     if status == "ok":
@@ -87,7 +92,7 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
                    _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
-        p = paper.get(obs)
+        p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
         rel = g["_rel"].to_numpy(float)
         cells = [f"**{obs}** (unsound)" if g["_bad"].any() else obs]
         for i in show:
@@ -215,5 +220,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     if versions:
         parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
             f"{k} {v}" for k, v in versions.items()), ""]
-    atomic_write_text(out, "\n".join(parts))
+    config = freshness.config_of(meta.get("config", {}).get("name"))
+    parts.append(freshness.stamp(freshness.report_command(config, out), config))
+    atomic_write_text(out, "\n".join(parts) + "\n")
     return out

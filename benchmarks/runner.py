@@ -6,6 +6,7 @@ The work is a list of independent :class:`Job` values run by an executor
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import sys
@@ -263,6 +264,9 @@ class Job:
     containment: str
     seed: int | None = None
     variant: str = ""
+    #: a labelled variant of the config (``ESO-C[cora]``): its label and guarantee
+    label: str = ""
+    guaranteed: bool = True
 
 
 _SCENARIOS: dict[str, Scenario] = {}
@@ -283,10 +287,13 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
         key = json.dumps([inst.spec, base], sort_keys=True, default=str)
         _SCENARIOS[key] = inst.scenario  # this process needs not rebuild it
         for name in cfg.observers:
-            for label, opts in cfg.variants_of(name):
-                jobs.append(Job(inst.spec, base, name, observers.get(name).cls.__module__,
-                                cfg.options, {**cfg.observer_options.get(name, {}), **opts},
-                                cfg.containment, inst.seed, label))
+            obs = cfg.observer_of(name)  # a labelled variant runs its observer
+            per = cfg.labelled[name][1] if name in cfg.labelled else cfg.observer_options.get(
+                name, {})
+            for label, opts in cfg.variants_of(obs):
+                jobs.append(Job(inst.spec, base, obs, observers.get(obs).cls.__module__,
+                                cfg.options, {**per, **opts}, cfg.containment, inst.seed, label,
+                                name if name != obs else "", cfg.guaranteed(name)))
     return jobs
 
 
@@ -318,13 +325,18 @@ def execute_job(job: Job):
     importlib.import_module(job.module)
     sc = _scenario(job)
     run = run_observer(job.observer, sc, _job_options(job, sc), job.containment)
+    if job.label:  # its rows carry the label and its own guarantee
+        run.info = dataclasses.replace(run.info, name=job.label, guaranteed=job.guaranteed)
     return _job_frames(job, sc, run)
 
 
 def failed_job(job: Job, failure: JobFailure):
     """The rows of a job that produced no result (its worker died, it raised, timed out)."""
     sc = _scenario(job)
-    run = ObserverRun(sc, observers.get(job.observer), None, failure.status, failure.message)
+    info = observers.get(job.observer)
+    if job.label:
+        info = dataclasses.replace(info, name=job.label, guaranteed=job.guaranteed)
+    run = ObserverRun(sc, info, None, failure.status, failure.message)
     return _job_frames(job, sc, run)
 
 

@@ -183,6 +183,11 @@ class OfflineGain:
         """Parameters the design depends on besides the system (part of the cache key)."""
         return {k: v for k, v in self.options.items() if k not in ("gain", "order", "reduction")}
 
+    def design_kind(self) -> str:
+        """Name of the design in the cache key (default: the observer's name); observers that
+        share one design return the same kind and parameters, so it is solved once."""
+        return self.name
+
     def design_arrays(self) -> dict[str, np.ndarray]:
         """Arrays the design depends on (part of the cache key)."""
         s = self.system
@@ -201,7 +206,7 @@ class OfflineGain:
                 raise OptionError(f"{self.name}: gain must have shape ({n}, {ny}), got {L.shape}")
             self.L = L
             return
-        result = cached_design(self.name, self.DESIGN_VERSION, self.design_arrays(),
+        result = cached_design(self.design_kind(), self.DESIGN_VERSION, self.design_arrays(),
                                self.design_params(), lambda: {"gain": self.design_gain()})
         L = np.asarray(result["gain"], dtype=float)
         if L.shape != (n, ny) or not np.all(np.isfinite(L)):

@@ -143,11 +143,12 @@ def _load_plugins() -> None:
 
 def table_order(names) -> list[str]:
     """``names`` sorted in the papers' table order (:data:`CANONICAL_ORDER`), others
-    alphabetically after them; the one row order of every table and listing."""
+    alphabetically after them; the one row order of every table and listing.  A labelled
+    variant ``NAME[tag]`` of a benchmark configuration follows ``NAME``."""
 
     def key(name: str) -> tuple[int, str]:
         try:
-            return (CANONICAL_ORDER.index(name), name)
+            return (CANONICAL_ORDER.index(name.split("[")[0]), name)
         except ValueError:
             return (len(CANONICAL_ORDER), name.lower())
 

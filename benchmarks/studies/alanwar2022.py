@@ -39,6 +39,7 @@ from observers.sets.planar import polygon, set_area  # noqa: E402
 from systems.rotating import INPUT_SET, rotating_target  # noqa: E402
 from systems.training import offline_experiment  # noqa: E402
 
+from .. import freshness  # noqa: E402
 from ..io import atomic_savefig, atomic_write_text  # noqa: E402
 from ..metrics import median_ms  # noqa: E402
 from ..paper import load_table  # noqa: E402
@@ -298,7 +299,8 @@ PCA), the constrained-zonotope observers order 5 (lifted).
 
 {chr(10).join(others)}
 """
-    atomic_write_text(out, text)
+    command = f"python -m benchmarks.studies.alanwar2022 --out {out}"
+    atomic_write_text(out, f"{text}\n{freshness.stamp(command)}\n")
     return out
 
 

@@ -43,6 +43,7 @@ from observers import offline  # noqa: E402
 from observers.registry import table_order  # noqa: E402
 from systems import ModelError  # noqa: E402
 
+from .. import freshness  # noqa: E402
 from ..executors import JobFailure, ProcessExecutor  # noqa: E402
 from ..io import (  # noqa: E402
     atomic_savefig,
@@ -386,7 +387,9 @@ def main(argv: list[str] | None = None) -> int:
         atomic_write_json(results / "scaling.json", run)
     out = Path(args.out)
     fig = figure(df, out.with_suffix(".png"), list(df["variant"].unique()))
-    atomic_write_text(out, report(df, fig, out, **run))
+    text = report(df, fig, out, **run).rstrip("\n")
+    regen = f"python -m benchmarks.studies.scaling --out {out} --results results/scaling"
+    atomic_write_text(out, f"{text}\n\n{freshness.stamp(regen)}\n")
     print(f"wrote {out}, {fig} and {Path(args.results) / 'scaling.csv'}")
     return 0
 

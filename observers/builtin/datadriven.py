@@ -99,7 +99,9 @@ class DataDrivenObserver(Observer):
     state_bound : float
         ``M >= ||x||`` for the null space of rank-deficient experiment sensors (paper).
     order, reduction
-        Order reduction of the estimates (the paper: 5, Girard).
+        Order reduction of the estimates (the paper: 5, Girard).  The zonotope observers
+        (DD-Z-A1/A2) take the scenario's (5, Girard on the rotating target); the constrained
+        ones keep 5 (lifted), since their hull LPs grow with the order.
     sensors : list of int, optional
         Number of outputs of each sensor (default: split wherever no noise generator couples
         outputs).
@@ -170,7 +172,12 @@ class DataDrivenObserver(Observer):
 
 
 class ZonotopeDD(DataDrivenObserver):
-    """Zonotope estimates."""
+    """Zonotope estimates, reduced to the scenario's order and method (``order: 5``, Girard,
+    on the paper's rotating target; order 100, PCA, on the model-based benchmarks): the
+    paper's order 5 was chosen for a 2-state system and boxes away almost everything on the
+    6-tank system (DD-Z-A1 RMS radius of the last tank 9.4e7 with order 5, 27.6 with 100)."""
+
+    SCENARIO_OPTIONS = ("order", "reduction")
 
     def initial_set(self) -> Zonotope:
         return self.X0

@@ -52,6 +52,10 @@ Relation to CORA and to the papers
     the outputs cannot correct decays more slowly than ``sqrt(0.5)`` per step (e.g. the
     unobserved last tank of the n-tank systems).
 
+  These certified-bound designs are the ``design`` options ``radius-bound`` (C-I),
+  ``ellipsoid-trace`` (C-II) and ``max-gamma`` (D); the default, ``centre``, reproduces the
+  published rows (see "Known behaviour").
+
   Every design is verified in numpy (``P > 0`` and the decay inequality at ``Y = P Lambda``
   for the returned ``Lambda``); an infeasible or unverifiable design raises
   :class:`~observers.errors.DesignFailed` (table status ``noGain``).  The estimates are sound
@@ -63,14 +67,15 @@ Known behaviour
   single point (the 6-tank system), gains optimal to 1e-6 give RMS radii from 0.6x to 1.1x
   those of ARCH 2021 Table 3; Clarabel returns the limit of its central path, another solver
   (the table's) another optimal point.  On the 2-D vehicle the optimum is unique.
-* A mode the outputs cannot correct bounds every decay rate from below (the unmeasured last
-  tank, eigenvalue 0.996, forces ``beta >= 0.992``).  The single P-radius bound is then
-  governed by that mode, and PRad-C-I/C-II/D trade the measured states for it: on the 6-tank
-  their radii of the measured tanks are about ten times those of PRad-B (ARCH's PRad-C/D rows
-  are SDPT3 iterates of the ill-posed problems, with radii near the best observers').  On the
-  vehicle models they are comparable with PRad-B (average relative RMS radius on the 6-state
-  CORA record: C-I 1.44, C-II 1.49, D 2.07, B 2.07; on the 2-state one: 2.33, 2.05, 1.39,
-  1.18).
+* **Default design of PRad-C-I/C-II/D (``design: centre``)**: the analytic centre of CORA's
+  cone at its final rate 0.9921875 (:func:`~observers.numerics.prad.centre_gain`, one
+  solve).  It reproduces the published rows: 6-tank average 1.336 (ARCH 2021 Table 3: PRad-C
+  1.326, PRad-D 1.298), absolute radii within 4 % of the published ones on every tank.  The
+  three observers share this gain (CORA has one PRad-C; the noise weights that distinguish
+  CORA's PRad-D drop out of the centre).  The certified-bound designs (``radius-bound``,
+  ``ellipsoid-trace``, ``max-gamma``) minimise one P-radius bound, which the unmeasured last
+  tank (eigenvalue 0.996, forcing ``beta >= 0.992``) dominates: their radii of the measured
+  tanks are about ten times the centre's (6-tank averages 5.9, 7.1, 7.3).
 """
 
 from __future__ import annotations
@@ -81,9 +86,16 @@ import numpy as np
 
 from ..errors import DesignFailed
 from ..families import AllStripsObserver, PerStripObserver
-from ..numerics.prad import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
+from ..numerics.lmi import cora_bisection_end
+from ..numerics.prad import (
+    centre_gain,
+    le_gain,
+    wang_c1_gain,
+    wang_c2_gain,
+    wang_d_gain,
+)
 from ..offline import OfflineGain
-from ..options import Number
+from ..options import Choice, Number
 from ..registry import register
 
 
@@ -134,30 +146,81 @@ class _ConstantAllStrips(OfflineGain, AllStripsObserver):
         return self.L
 
 
+class _Centre:
+    """PRad-C-I, PRad-C-II and PRad-D with ``design: centre`` share one design (the analytic
+    centre of CORA's cone at ``centre_rate()``): one cache entry, solved once per system."""
+
+    def centre_rate(self) -> float:
+        """The decay rate of the centre: where CORA's bisection on beta ends."""
+        return cora_bisection_end(0.0, 1.0, self.options["beta_tol"])
+
+    def bound_gain(self) -> np.ndarray:
+        """The gain of the certified-bound design (the other ``design`` choice)."""
+        raise NotImplementedError
+
+    def design_gain(self) -> np.ndarray:
+        if self.options["design"] == "centre":
+            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
+                               what=self.name).L
+        return self.bound_gain()
+
+    def design_kind(self) -> str:
+        return "PRad-centre" if self.options["design"] == "centre" else self.name
+
+    def design_params(self) -> dict[str, Any]:
+        if self.options["design"] == "centre":
+            return {"design": "centre", "rate": self.centre_rate()}
+        return super().design_params()
+
+
 @register(
     "PRad-B", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Le, Stoica, Alamo, Camacho, Dumur, ISIC 2013",
 )
 class PRadB(_BetaTol, _ConstantAllStrips):
-    """All strips at once with the offline P-radius gain of Le et al. (CORA's SDP)."""
+    """All strips at once with the offline P-radius gain of Le et al. (CORA's SDP).
 
+    Options
+    -------
+    solver : {"clarabel", "clarabel-1e-6", "scs"}
+        SDP solver strategy (:data:`observers.numerics.lmi.SOLVERS`).  The SDP's optimum is
+        degenerate on the 6-tank system (it pins only the smallest eigenvalue of P): solvers
+        and tolerances return different optimal gains, whose radii the tank tables list as
+        labelled variants ``PRad-B[scs]``, ``PRad-B[clarabel-1e-6]`` to show the spread.
+    """
+
+    OPTIONS = {"solver": Choice("clarabel", ("clarabel", "clarabel-1e-6", "scs"))}
     DESIGN_VERSION = "1"
 
     def design_gain(self) -> np.ndarray:
         return le_gain(self.A, self.C, self.E, self.F, cora_epsilon(self.W, self.sigma),
-                       self.options["beta_tol"]).L
+                       self.options["beta_tol"], solver=self.options["solver"]).L
 
 
 @register(
     "PRad-C-I", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
-class PRadCI(_ConstantAllStrips):
-    """All strips at once; offline gain of least asymptotic radius bound, P >= I."""
+class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
+    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
-    DESIGN_VERSION = "1"
+    Options
+    -------
+    design : {"centre", "radius-bound"}
+        ``centre`` (default): the analytic centre of CORA's PRad-C cone at its final
+        ``beta = 0.9921875``, normalised by ``tr P = 1``
+        (:func:`~observers.numerics.prad.centre_gain`, one solve); it reproduces the PRad-C rows of
+        ARCH 2021 Table 3 and the Automatica table.  ``radius-bound``: the gain of least
+        certified asymptotic radius bound with ``P >= I`` and a line search on ``beta``
+        (:func:`~observers.numerics.prad.wang_c1_gain`, 17-22 SDP solves).
+    beta_tol : float
+        Tolerance of CORA's bisection on ``beta`` (``centre`` only).
+    """
 
-    def design_gain(self) -> np.ndarray:
+    OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
+    DESIGN_VERSION = "3"
+
+    def bound_gain(self) -> np.ndarray:
         return wang_c1_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -165,12 +228,24 @@ class PRadCI(_ConstantAllStrips):
     "PRad-C-II", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Alamo, Puig, Cembrano, CDC 2018",
 )
-class PRadCII(_ConstantAllStrips):
-    """All strips at once; offline gain of least bounding ellipsoid (trace of P^-1)."""
+class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
+    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
 
-    DESIGN_VERSION = "1"
+    Options
+    -------
+    design : {"centre", "ellipsoid-trace"}
+        ``centre`` (default): as PRad-C-I's default (CORA has one PRad-C; ARCH 2021 Table 3
+        reports one row for both).  ``ellipsoid-trace``: the gain of least bounding ellipsoid
+        (trace of ``P^-1``) with a line search on ``beta``
+        (:func:`~observers.numerics.prad.wang_c2_gain`).
+    beta_tol : float
+        Tolerance of CORA's bisection on ``beta`` (``centre`` only).
+    """
 
-    def design_gain(self) -> np.ndarray:
+    OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
+    DESIGN_VERSION = "3"
+
+    def bound_gain(self) -> np.ndarray:
         return wang_c2_gain(self.A, self.C, self.E, self.F).L
 
 
@@ -178,22 +253,33 @@ class PRadCII(_ConstantAllStrips):
     "PRad-D", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Wang, Puig, Cembrano, IEEE TAC 64(5), 2019",
 )
-class PRadD(_ConstantAllStrips):
+class PRadD(_Centre, _ConstantAllStrips):
     """All strips at once; offline gain maximising P >= gamma^2 I for fixed noise weights.
 
     Options
     -------
+    design : {"centre", "max-gamma"}
+        ``centre`` (default): the analytic centre of the cone of CORA's PRad-D inequality
+        (:func:`~observers.numerics.prad.centre_gain`, one solve; ``beta`` drops out); it
+        reproduces the PRad-D row of ARCH 2021 Table 3.  ``max-gamma``: the largest
+        ``P >= gamma^2 I`` (least certified radius bound,
+        :func:`~observers.numerics.prad.wang_d_gain`).
     alpha : float or None
-        Decay weight in (0, 1); ``None`` (default) chooses it by a line search on the radius
-        bound.
+        Decay weight in (0, 1); ``None`` (default): ``centre`` uses CORA's end-of-bisection
+        rate 0.9921875, ``max-gamma`` a line search on the radius bound.
     beta : float
         Split of the noise weight between disturbance and measurement noise, in (0, 1).
     """
 
-    OPTIONS = {"alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
+    OPTIONS = {"design": Choice("centre", ("centre", "max-gamma")),
+               "alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
-    DESIGN_VERSION = "1"
+    DESIGN_VERSION = "3"
 
-    def design_gain(self) -> np.ndarray:
-        return wang_d_gain(self.A, self.C, self.E, self.F, alpha=self.options["alpha"],
-                           beta=self.options["beta"]).L
+    def centre_rate(self) -> float:
+        alpha = self.options["alpha"]
+        return cora_bisection_end() if alpha is None else float(alpha)
+
+    def bound_gain(self) -> np.ndarray:
+        o = self.options
+        return wang_d_gain(self.A, self.C, self.E, self.F, alpha=o["alpha"], beta=o["beta"]).L

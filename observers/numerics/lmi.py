@@ -55,8 +55,19 @@ class GainDesign:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-def solve(problem, what: str, **solver_options) -> str:
+#: solver settings of the named SDP solver strategies (PRad-B's ``solver`` option: the
+#: spread of its degenerate optimum over solvers and tolerances)
+SOLVERS = {
+    "clarabel": {},
+    "clarabel-1e-6": {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-6},
+    "scs": {"solver": "SCS", "eps": 1e-9, "max_iters": 100000},
+}
+
+
+def solve(problem, what: str, solver: str | None = None, **solver_options) -> str:
     """Solve a cvxpy problem with Clarabel; return the status or raise :class:`DesignFailed`.
+
+    ``solver`` names a strategy of :data:`SOLVERS` (default Clarabel with its defaults).
 
     A solver exception or a status outside :data:`ACCEPTED` is a failed design.  cvxpy's
     "solution may be inaccurate" warning is silenced: the numpy verification that follows every
@@ -67,7 +78,8 @@ def solve(problem, what: str, **solver_options) -> str:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **solver_options)
+            opts = dict(SOLVERS[solver or "clarabel"], **solver_options)
+            problem.solve(solver=opts.pop("solver", cp.CLARABEL), **opts)
     except (cp.error.SolverError, ArithmeticError, ValueError) as exc:
         raise DesignFailed(f"{what}: solver failed ({exc})") from None
     status = problem.status
