@@ -30,7 +30,9 @@ Method (the dual of these LPs is the least-absolute-deviations problem
   problem (HiGHS takes over);
 * the K problems run in lock step as batched numpy operations (the constraint matrix is
   shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
-  paid once for all of them; finished problems leave the working arrays;
+  paid once for all of them; finished problems leave the working arrays.  With numba the
+  same iterations run compiled, problem by problem (:mod:`._dual_simplex_jit`, same pivots;
+  ``SETOBS_NUMBA=0`` or :func:`set_compiled` selects the numpy iterations);
 * the costs are perturbed (relative 1e-11, away from zero) against stalling on the highly
   degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
   duals of the exact costs are evaluated; problems whose optimality gap (dual objective
