@@ -53,7 +53,7 @@ def _iterate_py(M, MT, b, up, colnorm2, key_mask, primal_tol, pivot_tol, refacto
     xB = np.empty(p)
     rho = np.empty(p)
     colq = np.empty(p)
-    w = np.empty(N)
+    w = np.zeros(N)
     keys = np.empty(N, dtype=np.uint64)
     flips = np.empty(N, dtype=np.int64)
     ratio = np.empty(1)
@@ -107,16 +107,15 @@ def _iterate_py(M, MT, b, up, colnorm2, key_mask, primal_tol, pivot_tol, refacto
                 rho[j] = Bk[rr, j]
             # ratio test with bound flipping: candidates w_j = z_j alpha_j > 0, ordered by
             # keys holding the high bits of D_j / w_j and the column index in the low bits
+            # alpha = rho' M row by row (contiguous, vectorised), times -sgn z
+            w[:] = 0.0
+            for i in range(p):
+                ri = rho[i]
+                for j in range(N):
+                    w[j] += M[i, j] * ri
             nc = 0
             for j in range(N):
-                zj = zk[j]
-                if zj == 0.0:
-                    w[j] = 0.0
-                    continue
-                a = 0.0
-                for i in range(p):
-                    a += MT[j, i] * rho[i]
-                wj = -sgn * a * zj
+                wj = -sgn * w[j] * zk[j]
                 w[j] = wj
                 if wj > 0.0:
                     ratio[0] = Dk[j] / wj
