@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline audit speed clean
+.PHONY: help install test lint bench bench-quick report check baseline audit audit-short speed scaling clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -23,10 +23,10 @@ $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,dask]'
 	@touch $(STAMP)
 
-install: $(STAMP)  ## create .venv and install the project with its test extras
+install: $(STAMP)  ## create .venv and install the project with its test and dask extras
 
 test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
@@ -35,7 +35,7 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config into results/<config>/ and reports/<config>.md, then reports/speed.md
+bench: $(STAMP)  ## every config -> results/<config>/, reports/<config>.md; then speed.md, scaling.md
 	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
@@ -44,6 +44,7 @@ bench: $(STAMP)  ## run every config into results/<config>/ and reports/<config>
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
 	$(PY) -m benchmarks speed
+	$(MAKE) scaling
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
@@ -52,14 +53,20 @@ bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
 
+scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
+	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
+
 check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
 	$(PY) -m benchmarks check
 
-baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
+baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
 	$(PY) -m benchmarks baseline --update
 
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
+
+audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
+	$(PY) -m benchmarks audit --short --no-progress
 
 report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \

@@ -1,8 +1,13 @@
 """Run a benchmark configuration: every observer on every scenario, with containment checks
-and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (atomically)."""
+and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (one generation).
+
+The work is a list of independent :class:`Job` values run by an executor
+(:mod:`benchmarks.executors`: serial, local processes or Dask)."""
 
 from __future__ import annotations
 
+import importlib
+import json
 import sys
 import traceback
 from dataclasses import dataclass
@@ -13,18 +18,22 @@ import numpy as np
 import pandas as pd
 
 import observers
-from observers import DesignFailed, Diverged, OptionError, RunResult, Unsupported
-from systems import ModelError, Scenario
+from observers import DesignFailed, OptionError, RunResult, Unsupported
+from observers.sets import ConZonotope, Interval, Zonotope
+from systems import ModelError, Scenario, available_memory
 
 from .config import BenchConfig
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json, environment
+from .executors import JobFailure, SerialExecutor
+from .io import check_output_dir, environment, write_results
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import Progress
+from .specs import build_scenario
+from .verdicts import contained_column, containment_verdict
 
-RUN_COLUMNS = ["scenario", "observer", "step", "t", "state", "lo", "hi", "radius", "x_true",
-               "contained", "in_set"]
+RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
+               "radius", "x_true", "contained", "in_set"]
 
 
 @dataclass
@@ -37,7 +46,8 @@ class ObserverRun:
     status: str
     message: str = ""
     contained: np.ndarray | None = None  # N x n, hull containment (with tolerance)
-    in_set: np.ndarray | None = None  # N, exact set membership (or hull if not checked)
+    in_set: np.ndarray | None = None  # per set: exact membership (hull with `hull`)
+    decided: bool = True  # every set tested as the configuration asks (exact or hull)
 
     @property
     def violations(self) -> int:
@@ -45,23 +55,44 @@ class ObserverRun:
         return 0 if self.in_set is None else int(np.sum(~self.in_set))
 
 
+def _testable(S) -> bool:
+    """Whether :class:`MembershipTester` can test membership in ``S`` exactly."""
+    return isinstance(S, (Interval, Zonotope, ConZonotope)) or hasattr(S, "distance") or (
+        hasattr(S, "contains"))
+
+
 def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: bool):
-    """Hull containment per step and state, and exact set membership per step.
+    """Hull containment per step and state, set membership per step, and whether every
+    set was tested as asked.
 
     The exact test (:mod:`benchmarks.membership`: a membership certificate, else an LP) runs
     only where the hull test passes, since a point outside the interval hull is outside the set.
+    A set that offers no exact test (a plugin's set with only ``interval()``) leaves the run
+    undecided (``decided`` False) unless the hull already shows a violation.
+
+    Returns
+    -------
+    hull : ndarray of bool, shape (K, n)
+        Hull containment per produced set and state (with tolerance ``tol``).
+    in_set : ndarray of bool, shape (K,)
+        Membership per produced set (exact if ``exact``, else the hull test).
+    decided : bool
+        Whether every set passed through the test that was asked for.
     """
     N = len(res.sets)
     x = x_true[:N]
     hull = (x >= res.lo[:N] - tol) & (x <= res.hi[:N] + tol)
     in_set = hull.all(axis=1)
+    decided = True
     if exact:
         tester = MembershipTester()
         for k in np.flatnonzero(in_set):
             S = res.sets[k]
-            if hasattr(S, "contains"):
+            if _testable(S):
                 in_set[k] = tester.contains(S, x[k], tol, hull=(res.lo[k], res.hi[k]))
-    return hull, in_set
+            else:
+                decided = False
+    return hull, in_set, decided
 
 
 def design_observer(name: str, sc: Scenario, options: dict
@@ -118,21 +149,28 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     obs, status, message = design_observer(name, sc, options)
     if obs is None:
         return ObserverRun(sc, info, None, status, message)
-    try:
-        res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None)
-    except Diverged as exc:  # pragma: no cover - run() already converts these
-        return ObserverRun(sc, info, None, "diverged", str(exc))
-    except Exception as exc:
-        print(f"warning: {name} failed on {sc.name}: {exc}", file=sys.stderr)
-        traceback.print_exc(limit=3, file=sys.stderr)
-        return ObserverRun(sc, info, None, "error", f"{type(exc).__name__}: {exc}")
+    res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None, on_error="status")
+    if res.error is not None:  # a plugin bug: reported, and the benchmark goes on
+        print(f"warning: {name} failed on {sc.name}: {res.message}", file=sys.stderr)
+        traceback.print_exception(res.error, limit=3, file=sys.stderr)
+    same_dim = res.lo.shape[1] == sc.system.n
+    if not same_dim and res.status == "ok":
+        res.status, res.failed_step = "error", 0
+        res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
     run = ObserverRun(sc, info, res, res.status, res.message)
-    if sc.x_true is not None and len(res.sets):
-        run.contained, run.in_set = check_containment(
+    if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
+        run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
+
+
+def _bounds(res: RunResult, N: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The run's bounds as N x n arrays (NaN where a failed run produced none)."""
+    if res.lo.shape == (N, n):
+        return res.lo, res.hi
+    return np.full((N, n), np.nan), np.full((N, n), np.nan)
 
 
 def _rows_runs(run: ObserverRun) -> pd.DataFrame:
@@ -140,8 +178,7 @@ def _rows_runs(run: ObserverRun) -> pd.DataFrame:
     N, n = sc.N, sc.system.n
     step = np.repeat(np.arange(N), n)
     state = np.tile(np.arange(n), N)
-    lo = res.lo.reshape(-1)
-    hi = res.hi.reshape(-1)
+    lo, hi = (b.reshape(-1) for b in _bounds(res, N, n))
     xt = sc.x_true.reshape(-1) if sc.x_true is not None else np.full(N * n, np.nan)
     contained = np.full((N, n), np.nan)
     in_set = np.full(N, np.nan)
@@ -156,9 +193,10 @@ def _rows_runs(run: ObserverRun) -> pd.DataFrame:
     })
 
 
-def _rows_summary(run: ObserverRun) -> pd.DataFrame:
+def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
     sc, res, info = run.scenario, run.result, run.info
     n = sc.system.n
+    verdict = containment_verdict(run.status, sc.N, run.in_set, run.decided)
     names = sc.state_names or tuple(f"x{i + 1}" for i in range(n))
     ok = run.status == "ok"
     first_violation = (int(np.argmax(~run.in_set)) if run.in_set is not None
@@ -172,7 +210,7 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
         "step_ms": median_ms(res.step_times) if res is not None else np.nan,
         "hull_ms": median_ms(res.hull_times) if res is not None else np.nan,
         "design_s": res.design_time if res is not None else np.nan,
-        "contained_all": (bool(run.contained.all()) if run.contained is not None else None),
+        contained_column(containment): verdict,
         "violations": run.violations if run.in_set is not None else None,
         "first_violation_step": first_violation if run.in_set is not None else None,
         "status": run.status,
@@ -185,44 +223,160 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
     })
 
 
-def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None):
-    """Run every (scenario, observer) pair of ``cfg``.
+#: bytes a run needs per scenario step, state and observer (the row of runs.csv as a data
+#: frame and as CSV text, the bounds and the kept sets; measured about 150, rounded up)
+BYTES_PER_ROW = 256
+
+
+def check_memory(cfg: BenchConfig) -> None:
+    """Refuse, before any work, a configuration whose results would not fit in memory.
+
+    Raises
+    ------
+    ConfigError
+        If the estimated size of the results (:data:`BYTES_PER_ROW` per step, state and
+        observer) exceeds the memory available.
+    """
+    need = BYTES_PER_ROW * sum(len(cfg.variants_of(o)) for o in cfg.observers) * sum(
+        sc.N * sc.system.n for sc in cfg.scenarios)
+    have = available_memory()
+    if have is not None and need > have:
+        raise ConfigError(f"config '{cfg.name}': its results need about {need / 2**30:.3g} GiB "
+                          f"of memory, {have / 2**30:.3g} GiB are available; use fewer steps, "
+                          "scenarios or observers")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One independent unit of a run: an observer (one option variant) on one scenario.
+
+    Picklable: the scenario travels as its config entry and is rebuilt (once per process) in
+    a worker; ``module`` is imported there so that plugin observers are registered.
+    """
+
+    spec: dict
+    base: str | None
+    observer: str
+    module: str
+    options: dict
+    observer_options: dict
+    containment: str
+    seed: int | None = None
+    variant: str = ""
+
+
+_SCENARIOS: dict[str, Scenario] = {}
+
+
+def _scenario(job: Job) -> Scenario:
+    key = json.dumps([job.spec, job.base], sort_keys=True, default=str)
+    if key not in _SCENARIOS:
+        _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
+    return _SCENARIOS[key]
+
+
+def make_jobs(cfg: BenchConfig) -> list[Job]:
+    """The jobs of ``cfg``: every scenario instance x observer x option variant."""
+    base = str(cfg.base) if cfg.base is not None else None
+    jobs = []
+    for inst in cfg.instances:
+        key = json.dumps([inst.spec, base], sort_keys=True, default=str)
+        _SCENARIOS[key] = inst.scenario  # this process needs not rebuild it
+        for name in cfg.observers:
+            for label, opts in cfg.variants_of(name):
+                jobs.append(Job(inst.spec, base, name, observers.get(name).cls.__module__,
+                                cfg.options, {**cfg.observer_options.get(name, {}), **opts},
+                                cfg.containment, inst.seed, label))
+    return jobs
+
+
+def _job_options(job: Job, sc: Scenario) -> dict:
+    cfg = BenchConfig(name="job", title="job", scenarios=[sc], observers=[job.observer],
+                      options=job.options, observer_options={job.observer: job.observer_options})
+    return cfg.options_for(job.observer, sc)
+
+
+def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
+    """``(runs rows or None, summary rows)`` of a finished or failed job."""
+    runs = None
+    if run.result is not None:
+        runs = _rows_runs(run)
+    else:
+        run.result = RunResult(job.observer, np.full((sc.N, sc.system.n), np.nan),
+                               np.full((sc.N, sc.system.n), np.nan), [], np.full(sc.N, np.nan),
+                               np.full(sc.N, np.nan), np.nan, run.status, run.message)
+    summary = _rows_summary(run, job.containment)
+    for df in (runs, summary):
+        if df is not None:
+            df.insert(1, "seed", job.seed)
+            df.insert(3, "variant", job.variant)
+    return runs, summary
+
+
+def execute_job(job: Job):
+    """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
+    importlib.import_module(job.module)
+    sc = _scenario(job)
+    run = run_observer(job.observer, sc, _job_options(job, sc), job.containment)
+    return _job_frames(job, sc, run)
+
+
+def failed_job(job: Job, failure: JobFailure):
+    """The rows of a job that produced no result (its worker died, it raised, timed out)."""
+    sc = _scenario(job)
+    run = ObserverRun(sc, observers.get(job.observer), None, failure.status, failure.message)
+    return _job_frames(job, sc, run)
+
+
+def summary_columns(containment: str) -> list[str]:
+    """Columns of ``summary.csv`` (the containment column is named by the check made)."""
+    return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
+            "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
+            "violations", "first_violation_step", "status", "failed_step", "message", "family",
+            "set_type", "timing", "guaranteed"]
+
+
+def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None,
+               executor=None):
+    """Run every job of ``cfg`` (scenario x observer x option variant).
 
     Returns ``(runs, summary)`` data frames; with ``out`` they are also written there
-    (``runs.csv``, ``summary.csv``, ``meta.json``), each file atomically.
+    (``runs.csv``, ``summary.csv``, ``meta.json``) as one generation
+    (:func:`benchmarks.io.write_results`), only once every job has finished. The output folder
+    and the memory needed are checked before any job runs (:class:`ConfigError`).
+    ``executor`` (:mod:`benchmarks.executors`, default serial) runs the
+    jobs; a job it could not run (worker died, timeout) is a row with that status.  Timing
+    columns of jobs run concurrently are marked ``timed = parallel`` (indicative only).
     """
-    pairs = [(sc, name) for sc in cfg.scenarios for name in cfg.observers]
-    runs, summaries = [], []
-    with Progress(len(pairs), cfg.name, enabled=progress) as bar:
-        for sc, name in pairs:
-            run = run_observer(name, sc, cfg.options_for(name, sc), cfg.containment)
-            if run.result is not None:
-                runs.append(_rows_runs(run))
-            else:
-                res = RunResult(name, np.full((sc.N, sc.system.n), np.nan),
-                                np.full((sc.N, sc.system.n), np.nan), [], np.full(sc.N, np.nan),
-                                np.full(sc.N, np.nan), np.nan, run.status, run.message)
-                run.result = res
-            summaries.append(_rows_summary(run))
-            bar.advance(f"{sc.name}: {name} {run.status}")
-    runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
-    summary = add_relative_rms(pd.concat(summaries, ignore_index=True))
-    cols = ["scenario", "observer", "state", "state_name", "rms_radius", "rel_rms", "step_ms",
-            "hull_ms", "design_s", "contained_all", "violations", "first_violation_step",
-            "status", "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
-    summary = summary[cols]
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_csv(out / "runs.csv", runs_df)
-        atomic_write_csv(out / "summary.csv", summary)
-        atomic_write_json(out / "meta.json", {
-            "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw},
+        check_output_dir(out)
+    check_memory(cfg)
+    executor = executor or SerialExecutor()
+    jobs = make_jobs(cfg)
+    frames: list = [None] * len(jobs)
+    with Progress(len(jobs), cfg.name, enabled=progress) as bar:
+        for i, outcome in executor.map(execute_job, jobs):
+            if isinstance(outcome, JobFailure):
+                outcome = failed_job(jobs[i], outcome)
+            frames[i] = outcome
+            bar.advance(f"{jobs[i].spec['name']}: {jobs[i].observer} "
+                        f"{outcome[1]['status'].iloc[0]}")
+    runs = [r for r, _ in frames if r is not None]
+    runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
+    summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
+    summary["timed"] = "serial" if executor.workers == 1 else "parallel"
+    summary = summary[summary_columns(cfg.containment)]
+    if out is not None:
+        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, {
+            "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
+                       "containment": cfg.containment},
             "scenarios": {sc.name: {
                 "N": sc.N, "n": sc.system.n, "dt": sc.system.dt, "paper_table": sc.paper_table,
                 "description": sc.description, "source": sc.source,
                 "state_names": list(sc.state_names), "tolerance": sc.tolerance,
             } for sc in cfg.scenarios},
+            "executor": {"name": executor.name, "workers": executor.workers,
+                         "jobs": len(jobs)},
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "versions": environment(),
         })

@@ -9,12 +9,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from .linalg import psd_solve
+
 
 def alamo_frad_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray:
     """F-radius-minimising gain of one strip (Alamo et al. 2005, Sec. 6):
-    ``lambda = G G' c' / (c G G' c' + sigma^2)``."""
+    ``lambda = G G' c' / (c G G' c' + sigma^2)``; zero where the denominator is zero (the set
+    is flat along ``c`` and the strip exact: it cannot shrink the set, and any gain gives the
+    same set)."""
     Gc = G.T @ c_row
-    return (G @ Gc) / (Gc @ Gc + sigma**2)
+    den = Gc @ Gc + sigma**2
+    return (G @ Gc) / den if den > 0 else np.zeros(G.shape[0])
 
 
 def wang_frad_gain(
@@ -28,15 +33,14 @@ def wang_frad_gain(
     """
     R = P if A is None else A @ P @ A.T + E @ E.T
     S = C @ R @ C.T + F @ F.T
-    return np.linalg.solve(S, C @ R).T  # = R C' S^{-1}, S symmetric
+    return psd_solve(S, C @ R).T  # = R C' S^{-1}, S symmetric
 
 
 def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -> np.ndarray:
     """F-radius-minimising gain of the set-propagation observer (Combastel, Automatica 2015,
     Sec. 4.3): ``L = A P C' (C P C' + F F')^{-1}`` with ``P = G G'`` of the current set."""
     S = C @ P @ C.T + F @ F.T
-    return A @ np.linalg.solve(S, C @ P).T
-
+    return A @ psd_solve(S, C @ P).T
 
 
 def alamo_frad_strips(
@@ -54,7 +58,8 @@ def alamo_frad_strips(
     n x n and n x m matrices and touches the n x r generators once: ``[(I - L C) G,
     L diag(sigma)]`` (as ``G - L (C G)`` when m < n / 2: fewer flops).  Mathematically the
     same set as applying :func:`alamo_frad_gain` and the strip update strip by strip (equal up
-    to rounding).
+    to rounding).  A strip with ``s = 0`` (the set is flat along ``c_i`` and the strip exact)
+    gets the zero gain, as in :func:`alamo_frad_gain`.
     """
     n, m, r = G.shape[0], C.shape[0], G.shape[1]
     P = G @ G.T
@@ -63,7 +68,7 @@ def alamo_frad_strips(
         ci = C[i]
         p = P @ ci
         s = ci @ p + sigma[i] ** 2
-        lam = p / s
+        lam = p / s if s > 0 else np.zeros(n)
         c = c + lam * (y[i] - ci @ c)
         if i:  # (I - lam ci') applied to the columns of the earlier strips
             L[:, :i] -= np.outer(lam, ci @ L[:, :i])

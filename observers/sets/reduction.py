@@ -18,6 +18,23 @@ and ``pca``):
 ``girard`` encloses the reduced generators by an axis-aligned box (Girard, HSCC 2005);
 ``pca`` encloses them by a box aligned with the principal axes of ``[G_red, -G_red]``
 (Kopetzki et al., CDC 2017).
+
+Deterministic PCA basis.  The principal axes are the left singular vectors of ``G_red``.  Where
+singular values repeat (the boxes of ``W`` or ``X0`` give ties; a rank-deficient block gives a
+repeated zero) the singular vectors of that cluster are any orthonormal basis of its subspace,
+and LAPACK returns one that depends on the BLAS kernel (AVX2 and AVX-512 kernels pick
+different ones), while the box, and so the set, depends on the basis.  :func:`principal_axes`
+therefore makes the basis a function of the subspace only:
+
+1. the SVD is taken of ``G_red`` itself (not of ``G_red G_red'``, which squares the condition
+   number and leaves the axes of small singular values to rounding);
+2. singular values within ``CLUSTER_RTOL * s_max`` of their neighbour form a cluster;
+3. for each cluster, from its orthogonal projector ``P = V V'`` (independent of the basis
+   ``V``), the basis is built by pivoted Cholesky: take the coordinate ``j`` with the largest
+   ``P_jj`` (the lowest index among those within ``PIVOT_RTOL`` of the largest, so rounding
+   cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
+
+For a single singular value this only fixes the sign (largest component positive).
 """
 
 from __future__ import annotations
@@ -112,8 +129,40 @@ class Girard:
         return out
 
 
+#: singular values closer than this (relative to the largest) form one cluster (repeated)
+CLUSTER_RTOL = 1e-9
+#: pivot ties of the cluster basis: diagonal entries within this (relative) count as equal
+PIVOT_RTOL = 1e-6
+
+
+def _cluster_basis(V: np.ndarray) -> np.ndarray:
+    """A basis of ``span(V)`` (orthonormal columns ``V``) that depends only on the subspace."""
+    P = V @ V.T
+    out = np.empty_like(V)
+    for i in range(V.shape[1]):
+        d = np.diag(P)
+        j = int(np.flatnonzero(d >= (1.0 - PIVOT_RTOL) * d.max())[0])
+        axis = P[:, j] / math.sqrt(d[j])
+        out[:, i] = axis
+        P = P - np.outer(axis, axis)
+    return out
+
+
+def principal_axes(red: np.ndarray) -> np.ndarray:
+    """Principal axes (n x n, orthonormal) of the generators ``red``, in a deterministic basis
+    where singular values repeat (see the module docstring)."""
+    n = red.shape[0]
+    U, s, _ = np.linalg.svd(red, full_matrices=True)
+    s = np.concatenate([s, np.zeros(n - s.size)])
+    tol = CLUSTER_RTOL * s[0]
+    starts = np.flatnonzero(np.concatenate([[True], s[:-1] - s[1:] > tol]))
+    ends = np.append(starts[1:], n)
+    return np.hstack([_cluster_basis(U[:, a:b]) for a, b in zip(starts, ends, strict=True)])
+
+
 class PCA:
-    """Replace the reduced generators by a box aligned with their principal components."""
+    """Replace the reduced generators by a box aligned with their principal components
+    (:func:`principal_axes`: deterministic where singular values repeat)."""
 
     name = "pca"
 
@@ -121,8 +170,9 @@ class PCA:
         keep, red, abs_red = _split(G, order)
         if abs_red is None:
             return keep
-        # covariance of [red, -red] is proportional to red @ red.T (zero mean by symmetry)
-        U, _, _ = np.linalg.svd(red @ red.T)
+        # the covariance of [red, -red] is proportional to red @ red.T (zero mean by
+        # symmetry): its eigenvectors are the left singular vectors of red
+        U = principal_axes(red)
         box = np.abs(U.T @ red).sum(axis=1)
         return np.hstack([keep, U * box])
 
