@@ -23,9 +23,10 @@ then reduce), which the conformance tests use.
 
 Interval hulls: every returned set carries the observer's :class:`~observers.sets._lp.HullLP`,
 so the runner's ``S.interval()`` solves its 2n LPs together with the batched dual simplex of
-:mod:`observers.sets._dual_simplex` (HiGHS, kept alive across steps, only for an LP it does not
-finish); every bound is the weak-duality bound of a dual point, hence sound whatever the
-solver does.
+:mod:`observers.sets._dual_simplex` (compiled by numba when available; HiGHS, kept alive across
+steps, for an LP it does not finish and for sets with more than
+:data:`~observers.sets._lp.BATCHED_MAX_ROWS` constraints); every bound is the weak-duality
+bound of a dual point, hence sound whatever the solver does.
 """
 
 from __future__ import annotations

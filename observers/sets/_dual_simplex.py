@@ -30,7 +30,9 @@ Method (the dual of these LPs is the least-absolute-deviations problem
   problem (HiGHS takes over);
 * the K problems run in lock step as batched numpy operations (the constraint matrix is
   shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
-  paid once for all of them; finished problems leave the working arrays;
+  paid once for all of them; finished problems leave the working arrays.  With numba the
+  same iterations run compiled, problem by problem (:mod:`._dual_simplex_jit`, same pivots;
+  ``SETOBS_NUMBA=0`` or :func:`set_compiled` selects the numpy iterations);
 * the costs are perturbed (relative 1e-11, away from zero) against stalling on the highly
   degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
   duals of the exact costs are evaluated; problems whose optimality gap (dual objective
@@ -45,9 +47,10 @@ HiGHS (:class:`observers.sets._lp.HullLP`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
+
+from . import _dual_simplex_jit as _jit
 
 #: primal feasibility tolerance on the basic variables (xi lives in [-1, 1])
 PRIMAL_TOL = 1e-9
@@ -73,6 +76,22 @@ class DualSimplexResult:
     converged: np.ndarray
     iterations: int
     problem_iterations: int
+
+
+def use_compiled() -> bool:
+    """Whether :func:`solve` runs the compiled iterations (numba installed and not disabled
+    by ``SETOBS_NUMBA=0``; :func:`set_compiled` switches it for tests and timings)."""
+    return _jit.AVAILABLE and _USE_COMPILED[0]
+
+
+_USE_COMPILED = [True]
+
+
+def set_compiled(on: bool) -> bool:
+    """Use the compiled iterations (if available) or the numpy ones; returns the old setting."""
+    old = _USE_COMPILED[0]
+    _USE_COMPILED[0] = bool(on)
+    return old
 
 
 def max_iterations(p: int) -> int:
@@ -115,16 +134,22 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = N
     return DualSimplexResult(mu, good, its, lp.work)
 
 
-@lru_cache(maxsize=8)
-def _jitter_cached(shape: tuple[int, int], seed: int) -> np.ndarray:
-    out = 1.0 + np.random.default_rng(seed).random(shape)
-    out.setflags(write=False)
-    return out
+_STREAMS: dict[int, np.ndarray] = {}
 
 
 def _jitter(shape: tuple[int, ...], seed: int) -> np.ndarray:
-    """Fixed pseudo-random factors in [1, 2) (cached: the same shapes recur every step)."""
-    return _jitter_cached((int(shape[0]), int(shape[1])), int(seed))
+    """Fixed pseudo-random factors in [1, 2): ``1 + default_rng(seed).random(shape)``, taken
+    as a prefix of one cached stream per seed (a generator fills arrays in order, so the
+    numbers are the same; the shapes change every step, a cache per shape missed)."""
+    K, r = int(shape[0]), int(shape[1])
+    seed = int(seed)
+    stream = _STREAMS.get(seed)
+    if stream is None or stream.size < K * r:
+        size = max(K * r, 2 * (0 if stream is None else stream.size), 1 << 14)
+        stream = 1.0 + np.random.default_rng(seed).random(size)
+        stream.setflags(write=False)
+        _STREAMS[seed] = stream
+    return stream[:K * r].reshape(K, r)
 
 
 def crash_basis(M: np.ndarray, colnorm: np.ndarray, share: float = 0.5,
@@ -257,7 +282,12 @@ class _BatchLP:
         high bits (negative ratios, NaN and infinity sort after every candidate) and the flat
         index of the entry in the low bits.  Problems that are done are dropped from the
         working arrays once they are a third of them.
+
+        With numba (:data:`._dual_simplex_jit.AVAILABLE`) the same iterations run compiled,
+        problem by problem (:meth:`_iterate_compiled`).
         """
+        if _jit.AVAILABLE and use_compiled():
+            return self._iterate_compiled(max_iter)
         key_mask, up = self.key_mask, self.up
         M, MT, b = self.M, self.MT, self.b
         high = ~key_mask
@@ -335,6 +365,25 @@ class _BatchLP:
             self.updates += 1
         self._store(live, z, D, Binv, basis, uB, unbounded)
         return it
+
+    def _iterate_compiled(self, max_iter: int) -> int:
+        """:meth:`iterate` by the compiled kernel :func:`._dual_simplex_jit.iterate`, pausing
+        every ``REFACTOR_EVERY`` pivots for a numpy refactorisation (as the numpy path)."""
+        status = np.where(self.unbounded, _jit.UNBOUNDED, _jit.RUNNING).astype(np.int64)
+        its = np.zeros(self.K, np.int64)
+        colnorm2 = self.colnorm * self.colnorm
+        while True:
+            self.work += _jit.iterate(
+                self.M, self.MT, self.b, self.up, colnorm2, self.key_mask, PRIMAL_TOL, PIVOT_TOL,
+                REFACTOR_EVERY, self.z, self.D, self.Binv, self.basis, self.uB, status, its,
+                self.updates, max_iter)
+            if not np.any(status == _jit.PAUSED):
+                break
+            self.refactor()
+        self.unbounded = status == _jit.UNBOUNDED
+        self.any_unbounded = bool(self.unbounded.any())
+        self.updates = REFACTOR_EVERY  # pivots since the last refactorisation differ per problem
+        return int(its.max(initial=0))
 
     def _store(self, live, *arrays) -> None:
         """Write the working arrays of the problems ``live`` back into the full state."""

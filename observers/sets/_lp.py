@@ -244,13 +244,25 @@ class HullLP:
         return bounds
 
 
+#: most constraint rows for which the batched dual simplex is used (measured crossover, see
+#: :func:`batched_is_cheaper`)
+BATCHED_MAX_ROWS = 32
+
+
 def batched_is_cheaper(K: int, p: int) -> bool:
     """Whether the batched dual simplex is expected to beat K warm HiGHS runs on LPs with
     ``p`` rows.  Cost model from the CZN benchmarks (per LP, HiGHS: ~90 us plus ~1.2 p
     iterations of ~30 us; batched: ~2 p lock-step iterations of ~70 us plus ~8 us per LP):
     the batch pays off for many directions and few constraints (the 6-state vehicle: K = 12,
-    p = 8), HiGHS for few directions and many constraints (CORA's unbounded constraints)."""
-    return 2 * p * (70 + 8 * K) < K * (90 + 36 * p)
+    p = 8), HiGHS for few directions and many constraints (CORA's unbounded constraints).
+
+    Above :data:`BATCHED_MAX_ROWS` rows HiGHS wins whatever K (measured on the CZN-A hulls of
+    the tank benchmarks, CPU time per interval hull, compiled kernel / numpy / HiGHS: 18 tanks,
+    p = 22, K = 36: 3 / 6 / 13 ms; 30 tanks, p = 42, K = 60: 57 / 274 / 55 ms; 100 tanks,
+    p = 160, K = 200: 6.3 s / 5.0 s / 0.2 s): the dense pivots of the batched solver grow as
+    p N per iteration, HiGHS's sparse ones do not.
+    """
+    return p <= BATCHED_MAX_ROWS and 2 * p * (70 + 8 * K) < K * (90 + 36 * p)
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:

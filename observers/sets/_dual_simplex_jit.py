@@ -1,0 +1,220 @@
+"""Compiled (numba) iterations of the batched bounded dual simplex (:mod:`._dual_simplex`).
+
+:func:`iterate` runs the dual simplex iterations of :meth:`._dual_simplex._BatchLP.iterate`
+problem by problem in machine code instead of in lock step over numpy arrays: the same
+leaving-row rule (dual steepest edge), the same bound-flipping ratio test with the same
+integer sort keys (so ties break the same way), the same pivots and the same refactorisation
+points (every :data:`REFACTOR_EVERY` updates; the kernel pauses there and the caller
+refactorises with numpy, as the numpy path does).  The iterates are therefore the same; only
+rounding differs (summation order, and ``b - M z`` is updated with the changes of ``z`` instead
+of recomputed: 10 % of the kernel's time on the vehicle), far below every tolerance.
+
+numba is optional: :data:`AVAILABLE` is false when it is not installed or when the
+environment variable ``SETOBS_NUMBA=0`` disables it, and :mod:`._dual_simplex` then runs its
+numpy iterations.  Compiled functions are cached on disk (``cache=True``), so only the first
+process after a change pays the compilation (a few seconds).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+try:
+    if os.environ.get("SETOBS_NUMBA", "1").strip().lower() in ("0", "off", "false", "no"):
+        raise ImportError("disabled by SETOBS_NUMBA")
+    import numba
+except ImportError:  # pragma: no cover - depends on the installation
+    numba = None
+
+#: whether the compiled kernel is used (numba installed and not disabled by SETOBS_NUMBA=0)
+AVAILABLE = numba is not None
+
+#: status codes of a problem after :func:`iterate`
+RUNNING, OPTIMAL, UNBOUNDED, PAUSED, BUDGET = 0, 1, 2, 3, 4
+
+
+def _iterate_py(M, MT, b, up, colnorm2, key_mask, primal_tol, pivot_tol, refactor_every,
+                z, D, Binv, basis, uB, status, its, updates, max_iter):
+    """Iterations of every problem whose ``status`` is ``RUNNING`` or ``PAUSED`` (in place).
+
+    A problem stops when it is primal feasible (``OPTIMAL``), when its ratio test finds no
+    usable entering column (``UNBOUNDED``: empty set or a tiny pivot element, left to HiGHS),
+    when ``its[k]`` reaches ``max_iter`` (``BUDGET``) or when ``updates`` reaches
+    ``refactor_every`` (``PAUSED``: the caller refactorises ``Binv`` and calls again with
+    ``updates = 0``).  Returns the number of pivots (summed over the problems).
+    """
+    p, N = M.shape
+    K = z.shape[0]
+    high = ~key_mask
+    work = 0
+    t = np.empty(p)
+    xB = np.empty(p)
+    rho = np.empty(p)
+    colq = np.empty(p)
+    w = np.zeros(N)
+    keys = np.empty(N, dtype=np.uint64)
+    flips = np.empty(N, dtype=np.int64)
+    ratio = np.empty(1)
+    rbits = ratio.view(np.uint64)
+    for k in range(K):
+        if status[k] != RUNNING and status[k] != PAUSED:
+            continue
+        status[k] = RUNNING
+        upd = updates
+        zk, Dk, Bk, bk, uk = z[k], D[k], Binv[k], basis[k], uB[k]
+        # t = b - M z, updated with every change of z below
+        t[:] = b
+        for j in range(N):
+            zj = zk[j]
+            if zj != 0.0:
+                for i in range(p):
+                    t[i] -= MT[j, i] * zj
+        while True:
+            if its[k] >= max_iter:
+                status[k] = BUDGET
+                break
+            if upd >= refactor_every:
+                status[k] = PAUSED
+                break
+            # basic values xB = B^-1 t and the leaving row
+            rr = 0
+            best = -1.0
+            delta = 0.0
+            wrr = 0.0
+            for i in range(p):
+                s = 0.0
+                q2 = 0.0
+                for j in range(p):
+                    s += Bk[i, j] * t[j]
+                    q2 += Bk[i, j] * Bk[i, j]
+                xB[i] = s
+                v = abs(s) - uk[i]
+                if v < 0.0:
+                    v = 0.0
+                score = v * v / q2
+                if score > best:
+                    best = score
+                    rr = i
+                    delta = v
+                    wrr = q2
+            if not delta > primal_tol:
+                status[k] = OPTIMAL
+                break
+            sgn = 1.0 if xB[rr] > 0.0 else -1.0  # above the upper bound: leaves at it
+            for j in range(p):
+                rho[j] = Bk[rr, j]
+            # ratio test with bound flipping: candidates w_j = z_j alpha_j > 0, ordered by
+            # keys holding the high bits of D_j / w_j and the column index in the low bits
+            # alpha = rho' M row by row (contiguous, vectorised), times -sgn z
+            w[:] = 0.0
+            for i in range(p):
+                ri = rho[i]
+                for j in range(N):
+                    w[j] += M[i, j] * ri
+            nc = 0
+            for j in range(N):
+                wj = -sgn * w[j] * zk[j]
+                w[j] = wj
+                if wj > 0.0:
+                    ratio[0] = Dk[j] / wj
+                    keys[nc] = (rbits[0] & high) | np.uint64(j)
+                    nc += 1
+            its[k] += 1  # counted before the ratio test decides, as in the numpy path
+            work += 1
+            # pass the breakpoints in increasing order (a binary heap: usually only a prefix
+            # of them is passed) while the slope stays negative
+            _heapify(keys, nc)
+            passed = 0.0
+            found = False
+            kq = np.uint64(0)
+            q = np.int64(-1)
+            npass = 0
+            while nc > 0:
+                kq = keys[0]
+                nc -= 1
+                keys[0] = keys[nc]
+                _sift_down(keys, 0, nc)
+                q = np.int64(kq & key_mask)
+                passed += w[q]
+                if passed >= 0.5 * delta:  # slope lost per breakpoint: 2 w_j
+                    found = True
+                    break
+                flips[npass] = q
+                npass += 1
+            if found:
+                wq = w[q]
+                found = wq * wq >= pivot_tol * pivot_tol * wrr * colnorm2[q]
+            if not found:  # dual unbounded (empty set) or trouble: HiGHS takes over
+                status[k] = UNBOUNDED
+                break
+            tq = Dk[q] / w[q]
+            # dual step; the breakpoints passed flip to their other bound
+            for j in range(N):
+                Dk[j] = abs(Dk[j] - tq * w[j])
+            for f in range(npass):
+                j = flips[f]
+                zj = zk[j]
+                for i in range(p):
+                    t[i] += 2.0 * MT[j, i] * zj
+                zk[j] = -zj
+            la = bk[rr]
+            zla = sgn * uk[rr]
+            zq = zk[q]
+            for i in range(p):
+                t[i] += MT[q, i] * zq - MT[la, i] * zla
+            zk[la] = zla
+            zk[q] = 0.0
+            Dk[la] = tq
+            Dk[q] = 0.0
+            bk[rr] = q
+            uk[rr] = up[q]
+            # product-form update of B^-1
+            for i in range(p):
+                s = 0.0
+                for j in range(p):
+                    s += Bk[i, j] * M[j, q]
+                colq[i] = s
+            piv = colq[rr]
+            for j in range(p):
+                rho[j] = rho[j] / piv
+            for i in range(p):
+                if i != rr:
+                    c = colq[i]
+                    for j in range(p):
+                        Bk[i, j] -= c * rho[j]
+            for j in range(p):
+                Bk[rr, j] = rho[j]
+            upd += 1
+    return work
+
+
+def _sift_down(h, i, n):
+    """Restore the min-heap order of ``h[:n]`` below position ``i``."""
+    x = h[i]
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            break
+        if c + 1 < n and h[c + 1] < h[c]:
+            c += 1
+        if h[c] >= x:
+            break
+        h[i] = h[c]
+        i = c
+    h[i] = x
+
+
+def _heapify(h, n):
+    """Make ``h[:n]`` a binary min-heap."""
+    for i in range(n // 2 - 1, -1, -1):
+        _sift_down(h, i, n)
+
+
+if AVAILABLE:
+    _sift_down = numba.njit(cache=True, nogil=True)(_sift_down)
+    _heapify = numba.njit(cache=True, nogil=True)(_heapify)
+    iterate = numba.njit(cache=True, error_model="numpy", nogil=True)(_iterate_py)
+else:  # pragma: no cover - depends on the installation
+    iterate = None
