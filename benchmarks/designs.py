@@ -38,11 +38,12 @@ def design_tasks(paths: list[str | Path]) -> list[Task]:
     for path in paths:
         cfg = load_config(path)
         for i, sc in enumerate(cfg.scenarios):
-            for name in cfg.observers:
-                if not issubclass(observers.get(name).cls, OfflineGain):
+            for name in cfg.observers:  # registered names and labelled variants
+                if not issubclass(observers.get(cfg.observer_of(name)).cls, OfflineGain):
                     continue
                 options = cfg.options_for(name, sc)
-                key = (sc.name, name, json.dumps(options, sort_keys=True, default=repr))
+                key = (sc.name, cfg.observer_of(name),
+                       json.dumps(options, sort_keys=True, default=repr))
                 if key not in seen:
                     seen.add(key)
                     tasks.append((sc.system.A.shape[0], (str(path), i, name)))
@@ -56,7 +57,7 @@ def design_task(task: Task) -> tuple[str, str, str, float]:
     cfg = load_config(path)
     sc = cfg.scenarios[i]
     t0 = time.perf_counter()
-    _, status, _ = design_observer(name, sc, cfg.options_for(name, sc))
+    _, status, _ = design_observer(cfg.observer_of(name), sc, cfg.options_for(name, sc))
     return sc.name, name, status, time.perf_counter() - t0
 
 

@@ -167,3 +167,19 @@ def test_frad_strips_with_few_and_many_strips(n, m):
     c2, G2 = alamo_frad_strips(c, G, C, y, sigma)
     np.testing.assert_allclose(c2, c1, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(G2, G1, rtol=1e-10, atol=1e-12)
+
+
+def test_designs_of_labelled_variants_are_computed_under_their_observer(tmp_path, monkeypatch):
+    # bug: `designs` looked up a variant's label ("PRad-B[tight]") in the registry and stopped
+    # with "unknown observer"; a variant's design is its observer's, with the variant's options
+    from benchmarks import designs
+
+    cfg = tmp_path / "variants.yaml"
+    cfg.write_text("name: v\ntitle: v\nscenarios: [vehicle2d-cora]\nobservers: [PRad-B]\n"
+                   "variants:\n  PRad-B[tight]: {observer: PRad-B, options: {beta_tol: 0.001}}\n")
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path / "cache"))
+    tasks = designs.design_tasks([cfg])
+    assert sorted(t[2] for t in tasks) == ["PRad-B", "PRad-B[tight]"]
+    assert sorted(r[1:3] for r in designs.prewarm([cfg], jobs=1, progress=False)) == [
+        ("PRad-B", "ok"), ("PRad-B[tight]", "ok")]
+    assert len(list((tmp_path / "cache").glob("*.npz"))) == 2  # two options, two designs
