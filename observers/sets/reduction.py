@@ -27,7 +27,8 @@ different ones), while the box, and so the set, depends on the basis.  :func:`pr
 therefore makes the basis a function of the subspace only:
 
 1. the SVD is taken of ``G_red`` itself (not of ``G_red G_red'``, which squares the condition
-   number and leaves the axes of small singular values to rounding);
+   number and leaves the axes of small singular values to rounding), through the triangular
+   factor of a QR decomposition of ``G_red'`` when there are more generators than dimensions;
 2. singular values within ``CLUSTER_RTOL * s_max`` of their neighbour form a cluster;
 3. for each cluster, from its orthogonal projector ``P = V V'`` (independent of the basis
    ``V``), the basis is built by pivoted Cholesky: take the coordinate ``j`` with the largest
@@ -151,8 +152,12 @@ def _cluster_basis(V: np.ndarray) -> np.ndarray:
 def principal_axes(red: np.ndarray) -> np.ndarray:
     """Principal axes (n x n, orthonormal) of the generators ``red``, in a deterministic basis
     where singular values repeat (see the module docstring)."""
-    n = red.shape[0]
-    U, s, _ = np.linalg.svd(red, full_matrices=True)
+    n, r = red.shape
+    if r > n:  # G_red = R' Q' (QR of G_red'): same left singular vectors and values as R',
+        # an n x n matrix, without forming the r x r right factor (3-10x faster when r >> n)
+        U, s, _ = np.linalg.svd(np.linalg.qr(red.T, mode="r").T)
+    else:
+        U, s, _ = np.linalg.svd(red, full_matrices=True)
     s = np.concatenate([s, np.zeros(n - s.size)])
     tol = CLUSTER_RTOL * s[0]
     starts = np.flatnonzero(np.concatenate([[True], s[:-1] - s[1:] > tol]))
