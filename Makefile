@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline audit clean
+.PHONY: help install test lint bench bench-quick report check baseline history audit clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -35,15 +35,16 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config into results/<config>/ (report + figures) and reports/<config>.md
+bench: $(STAMP)  ## run every config: results/<config>/ (report.md, index.html), reports/<config>.md + index.html
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
+	$(PY) -m benchmarks index reports --results $(RESULTS)
 
-bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
+bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
 
@@ -53,10 +54,13 @@ check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare wi
 baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
 	$(PY) -m benchmarks baseline --update
 
+history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
+	$(PY) -m benchmarks history
+
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
 
-report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
+report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \
 		[ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
 	done

@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from datetime import datetime, timezone
@@ -42,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 import observers
 import systems
@@ -51,7 +53,6 @@ from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_text, environment
 from .membership import MembershipTester
-from .progress import Progress
 from .runner import run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim")
@@ -243,16 +244,20 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
         check_scenario(sc)
     tasks = [(sc, name, count) for sc in scenarios for name in names]
     rows: list[dict] = []
-    with Progress(len(tasks), "audit", enabled=progress) as bar:
+    # tqdm on stderr; progress=None: shown only on a terminal (clean output in pipes and CI)
+    with tqdm(total=len(tasks), desc="audit", unit="run", file=sys.stderr, dynamic_ncols=True,
+              disable=None if progress is None else not progress) as bar:
         if jobs == 1:
             for task in tasks:
                 rows += _audit_task(task)
-                bar.advance(f"{task[0]}: {task[1]}")
+                bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
+                bar.update()
         else:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 for task, out in zip(tasks, pool.map(_audit_task, tasks), strict=True):
                     rows += out
-                    bar.advance(f"{task[0]}: {task[1]}")
+                    bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
+                    bar.update()
     return pd.DataFrame(rows, columns=RESULT_COLUMNS)
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 import observers
 from observers import DesignFailed, Diverged, OptionError, RunResult, Unsupported
@@ -21,7 +22,6 @@ from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json, environment
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
-from .progress import Progress
 
 RUN_COLUMNS = ["scenario", "observer", "step", "t", "state", "lo", "hi", "radius", "x_true",
                "contained", "in_set"]
@@ -193,7 +193,9 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     """
     pairs = [(sc, name) for sc in cfg.scenarios for name in cfg.observers]
     runs, summaries = [], []
-    with Progress(len(pairs), cfg.name, enabled=progress) as bar:
+    # tqdm on stderr; progress=None: shown only on a terminal (clean output in pipes and CI)
+    with tqdm(total=len(pairs), desc=cfg.name, unit="run", file=sys.stderr, dynamic_ncols=True,
+              disable=None if progress is None else not progress) as bar:
         for sc, name in pairs:
             run = run_observer(name, sc, cfg.options_for(name, sc), cfg.containment)
             if run.result is not None:
@@ -204,7 +206,8 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                                 np.full(sc.N, np.nan), np.nan, run.status, run.message)
                 run.result = res
             summaries.append(_rows_summary(run))
-            bar.advance(f"{sc.name}: {name} {run.status}")
+            bar.set_postfix_str(f"{sc.name}: {name} {run.status}", refresh=False)
+            bar.update()
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
     summary = add_relative_rms(pd.concat(summaries, ignore_index=True))
     cols = ["scenario", "observer", "state", "state_name", "rms_radius", "rel_rms", "step_ms",
