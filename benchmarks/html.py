@@ -48,7 +48,9 @@ color:#222}
 h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2em}
 h3{font-size:1.05em}
 table.sortable{border-collapse:collapse;font-size:.85em;margin:.5em 0}
-table.sortable th,table.sortable td{border:1px solid #ccc;padding:2px 6px;text-align:right}
+table.sortable th,table.sortable td{border:1px solid #ccc;padding:2px 6px;text-align:right;
+white-space:nowrap}
+table.env td{text-align:left}
 table.sortable td:first-child,table.sortable th:first-child{text-align:left}
 table.sortable th{background:#eef;cursor:pointer;user-select:none;white-space:nowrap}
 table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
@@ -132,7 +134,7 @@ def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     head = ["Observer", "mean rank", "mean rel. RMS", "scenarios ranked", "failed",
             "violations"]
     rows = [[obs, _fmt(r.mean_rank), _fmt(r.mean_rel_rms, 4), str(int(r.ranked))
-             if pd.notna(r.ranked) else "0", str(r.failed),
+             if pd.notna(r.ranked) else "0", str(int(r.failed)),
              "n/a" if pd.isna(r.violations) else str(int(r.violations))]
             for obs, r in rk.iterrows()]
     return head, rows
@@ -191,7 +193,7 @@ def heat_map(df: pd.DataFrame, scenario: str, base: Path) -> list[Path] | None:
     if n <= 10:
         for (i, j), v in np.ndenumerate(vals):
             if np.isfinite(v):
-                ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=6,
+                ax.text(j, i, f"{v:.3g}", ha="center", va="center", fontsize=6,
                         color="w" if np.log10(v) > np.nanmean(np.log10(vals)) else "k")
     cb = fig.colorbar(im, ax=ax)
     cb.set_label("log10 relative RMS", fontsize=7)

@@ -162,3 +162,13 @@ def test_page_in_headless_chromium(browser, results):
     assert names == sorted(names) and set(names) == set(OBSERVERS)
     errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     assert errors == []
+
+
+def test_report_command_writes_index_html_beside_report_md(tmp_path, results):
+    out = tmp_path / "copy"
+    shutil.copytree(results, out)
+    (out / "index.html").unlink()
+    assert main(["report", str(out), "--no-figures"]) == 0
+    assert (out / "report.md").is_file() and (out / "index.html").is_file()
+    assert main(["report", str(out), "--out", str(tmp_path / "r.md")]) == 0
+    assert not (tmp_path / "index.html").exists()  # --out: the Markdown file only
