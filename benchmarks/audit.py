@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from datetime import datetime, timezone
@@ -43,7 +42,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 import observers
 import systems
@@ -53,6 +51,7 @@ from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_text, environment
 from .membership import MembershipTester
+from .progress import progress_bar
 from .runner import run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim")
@@ -244,9 +243,7 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
         check_scenario(sc)
     tasks = [(sc, name, count) for sc in scenarios for name in names]
     rows: list[dict] = []
-    # tqdm on stderr; progress=None: shown only on a terminal (clean output in pipes and CI)
-    with tqdm(total=len(tasks), desc="audit", unit="run", file=sys.stderr, dynamic_ncols=True,
-              disable=None if progress is None else not progress) as bar:
+    with progress_bar(len(tasks), "audit", progress) as bar:
         if jobs == 1:
             for task in tasks:
                 rows += _audit_task(task)

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 import observers
 from observers import DesignFailed, Diverged, OptionError, RunResult, Unsupported
@@ -22,6 +21,7 @@ from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_json, environment
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
+from .progress import progress_bar
 
 RUN_COLUMNS = ["scenario", "observer", "step", "t", "state", "lo", "hi", "radius", "x_true",
                "contained", "in_set"]
@@ -193,9 +193,7 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     """
     pairs = [(sc, name) for sc in cfg.scenarios for name in cfg.observers]
     runs, summaries = [], []
-    # tqdm on stderr; progress=None: shown only on a terminal (clean output in pipes and CI)
-    with tqdm(total=len(pairs), desc=cfg.name, unit="run", file=sys.stderr, dynamic_ncols=True,
-              disable=None if progress is None else not progress) as bar:
+    with progress_bar(len(pairs), cfg.name, progress) as bar:
         for sc, name in pairs:
             run = run_observer(name, sc, cfg.options_for(name, sc), cfg.containment)
             if run.result is not None:

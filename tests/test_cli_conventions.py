@@ -111,3 +111,13 @@ def test_history_of_this_repository(tmp_path):
 def test_history_outside_git(tmp_path):
     (tmp_path / "b").mkdir()
     assert main(["history", "--baseline", str(tmp_path / "b"), "--out", str(tmp_path)]) == 2
+
+
+def test_progress_shown_in_a_notebook(monkeypatch):
+    from benchmarks.progress import progress_enabled
+
+    monkeypatch.delitem(sys.modules, "ipykernel", raising=False)
+    assert progress_enabled(None) is sys.stderr.isatty()
+    assert progress_enabled(True) and not progress_enabled(False)
+    monkeypatch.setitem(sys.modules, "ipykernel", object())  # as inside a Jupyter kernel
+    assert progress_enabled(None) and not progress_enabled(False)

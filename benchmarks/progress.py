@@ -1,0 +1,25 @@
+"""Progress bars (tqdm) for the runner and the audit, on stderr.
+
+Shown on a terminal and in a Jupyter notebook (tqdm's widget where ``ipywidgets`` is
+installed, else its text bar); hidden in pipes, CI logs and files unless asked for, so that
+redirected output stays clean.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from tqdm.auto import tqdm
+
+
+def progress_enabled(progress: bool | None) -> bool:
+    """``progress`` if given, else whether stderr is a terminal or we run in a notebook."""
+    if progress is not None:
+        return bool(progress)
+    return sys.stderr.isatty() or "ipykernel" in sys.modules
+
+
+def progress_bar(total: int, desc: str, progress: bool | None = None) -> tqdm:
+    """A tqdm bar of ``total`` runs; use ``bar.set_postfix_str(note)`` and ``bar.update()``."""
+    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True,
+                disable=not progress_enabled(progress))
