@@ -141,6 +141,7 @@ def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
 
 
 def save_png_pdf(fig, base: Path) -> list[Path]:
+    """Save ``fig`` as ``base.png`` and ``base.pdf`` (atomically), close it, return both."""
     paths = [base.with_suffix(".png"), base.with_suffix(".pdf")]
     atomic_savefig(fig, paths[0], dpi=100)
     atomic_savefig(fig, paths[1])
@@ -231,6 +232,8 @@ def time_figure(df: pd.DataFrame, scenario: str, meta: dict, base: Path) -> list
 
 
 def figure_html(paths: list[Path] | None, page_dir: Path, caption: str) -> str:
+    """A ``<figure>`` showing the PNG of ``paths`` with download links to the PNG and the PDF
+    (relative to ``page_dir``); ``""`` without a figure."""
     if not paths:
         return ""
     png, pdf = (p.relative_to(page_dir).as_posix() for p in paths)
@@ -241,6 +244,7 @@ def figure_html(paths: list[Path] | None, page_dir: Path, caption: str) -> str:
 
 
 def html_page(title: str, body: list[str]) -> str:
+    """A complete page with the inline style sheet and sorting script (no external file)."""
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{CSS}</style>"
             f"<script>{SORT_JS}</script></head><body>\n" + "\n".join(body)
