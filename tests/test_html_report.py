@@ -172,3 +172,18 @@ def test_report_command_writes_index_html_beside_report_md(tmp_path, results):
     assert (out / "report.md").is_file() and (out / "index.html").is_file()
     assert main(["report", str(out), "--out", str(tmp_path / "r.md")]) == 0
     assert not (tmp_path / "index.html").exists()  # --out: the Markdown file only
+
+
+def test_reports_index_in_headless_chromium(browser, results, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    (reports / "res.md").write_text("# Small HTML test\n")
+    browser.get(write_index(reports, results.parent).resolve().as_uri())
+    links = [a.get_attribute("href") for a in browser.find_elements(By.CSS_SELECTOR, "#reports a")]
+    assert links == [(reports / "res.md").resolve().as_uri(),
+                     (results / "index.html").resolve().as_uri()]
+    browser.find_elements(By.CSS_SELECTOR, "#reports a")[1].click()  # follow it offline
+    assert browser.title == "Small HTML test"
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
