@@ -86,7 +86,8 @@ def test_index_links_reports_and_html(tmp_path, results):
 
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                   "--no-first-run", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--window-size=1280,1600"]
+                  "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
+                  "--window-size=1280,1600"]
 
 
 def _find(*names: str) -> str | None:
