@@ -13,7 +13,6 @@ each with a PDF copy to download.
 from __future__ import annotations
 
 import html
-import json
 import os
 import re
 from pathlib import Path
@@ -29,7 +28,7 @@ import yaml  # noqa: E402
 from observers.registry import table_order  # noqa: E402
 
 from .errors import ConfigError  # noqa: E402
-from .io import atomic_savefig, atomic_write_text, environment  # noqa: E402
+from .io import atomic_savefig, atomic_write_text, environment, load_results  # noqa: E402
 from .paper import paper_rows  # noqa: E402
 from .report import (  # noqa: E402
     INTRO,
@@ -278,12 +277,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
         The page written.
     """
     results_dir = Path(results_dir)
-    summary_path = results_dir / "summary.csv"
-    if not summary_path.is_file():
-        raise ConfigError(f"no summary.csv in {results_dir} (run `python -m benchmarks run` first)")
-    summary = pd.read_csv(summary_path)
-    meta_path = results_dir / "meta.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+    summary, meta = load_results(results_dir)
     out = Path(out) if out else results_dir / "index.html"
     page_dir = out.parent
     fig_dir = page_dir / FIGURE_DIR

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from .errors import ConfigError
+
 
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
@@ -55,6 +57,22 @@ def atomic_savefig(fig, path: str | Path, **kwargs) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
+    """Read ``summary.csv`` and ``meta.json`` (``{}`` if absent) of a results folder.
+
+    Raises
+    ------
+    ConfigError
+        If the folder has no ``summary.csv``.
+    """
+    folder = Path(folder)
+    if not (folder / "summary.csv").is_file():
+        raise ConfigError(f"no summary.csv in {folder} (run `python -m benchmarks run` first)")
+    meta_path = folder / "meta.json"
+    meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
+    return pd.read_csv(folder / "summary.csv"), meta
 
 
 #: packages whose versions :func:`environment` records

@@ -3,7 +3,6 @@ the bounds over time with the true state."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -16,8 +15,7 @@ import pandas as pd  # noqa: E402
 
 from observers.registry import table_order  # noqa: E402
 
-from .errors import ConfigError  # noqa: E402
-from .io import atomic_savefig, atomic_write_text  # noqa: E402
+from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
 
 MAX_FIGURE_STATES = 6
@@ -185,12 +183,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
                  figures: bool = True) -> Path:
     """Write the Markdown report (and figures) for a results folder; returns its path."""
     results_dir = Path(results_dir)
-    summary_path = results_dir / "summary.csv"
-    if not summary_path.is_file():
-        raise ConfigError(f"no summary.csv in {results_dir} (run `python -m benchmarks run` first)")
-    summary = pd.read_csv(summary_path)
-    meta_path = results_dir / "meta.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+    summary, meta = load_results(results_dir)
     out = Path(out) if out else results_dir / "report.md"
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)
