@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline history audit clean
+.PHONY: help install test lint bench bench-quick report check baseline history audit audit-short speed clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -35,14 +35,19 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## run every config: results/<config>/ (report.md, index.html), reports/<config>.md + index.html
+bench: $(STAMP)  ## every config: results/<config>/ (report.md, index.html), reports/<config>.md, index.html, speed.md
+	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
 		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
+	$(PY) -m benchmarks speed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
+
+speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
+	$(PY) -m benchmarks speed
 
 bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
@@ -51,7 +56,7 @@ bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML re
 check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
 	$(PY) -m benchmarks check
 
-baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (deliberately; commit them)
+baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
 	$(PY) -m benchmarks baseline --update
 
 history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
@@ -59,6 +64,9 @@ history: $(STAMP)  ## accuracy of the golden summaries over the git history -> r
 
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
+
+audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
+	$(PY) -m benchmarks audit --short --no-progress
 
 report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \

@@ -23,6 +23,11 @@ seed ``i`` and the kind ``KINDS[i % 5]``:
     ``j`` of each window maximises ``d_w' x`` at the window's end, and ``d_w`` alternates
     between ``d`` and ``-d`` from window to window, so the state swings between extremes.
 
+``python -m benchmarks audit --short`` (CI, after ``make check``) audits only the adversarial
+kinds of the first :data:`SHORT_REALISATIONS` realisations (:data:`ADVERSARIAL`: two each of
+``vertex``, ``vertex-hold`` and ``worst-input``) of every scenario, into ``results/audit-short``:
+a few minutes, so that an unsound change cannot pass CI by re-baselining the gate.
+
 Failures are counted, not raised: ``noGain``, ``diverged`` (its steps before divergence are
 still checked) and ``error`` runs are listed per observer.  The results go to
 ``reports/soundness.md`` (runs, steps, violations, worst violation per observer and scenario;
@@ -62,6 +67,9 @@ NOISE_OF_KIND = {"uniform": "uniform", "gaussian": "gaussian-truncated", "vertex
 #: could not be told from the rounding of hundreds of floating-point steps
 REL_TOL = 1e-8
 DEFAULT_REALISATIONS = 100
+#: the adversarial realisation kinds, and the realisations the short audit draws them from
+ADVERSARIAL = ("vertex", "vertex-hold", "worst-input")
+SHORT_REALISATIONS = 10
 RESULT_COLUMNS = ["observer", "guaranteed", "scenario", "kind", "runs", "steps", "violations",
                   "undecided", "worst_violation", "worst_at", "ok", "noGain", "unsupported",
                   "diverged", "empty",
@@ -180,8 +188,10 @@ def tolerance(sc: Scenario, x: np.ndarray) -> float:
     return max(sc.tolerance, REL_TOL * max(1.0, float(np.abs(x).max(initial=0.0))))
 
 
-def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
-    """Audit ``observer`` on ``count`` realisations of ``scenario``; one row per kind."""
+def audit_pair(scenario: str, observer: str, count: int,
+               kinds: tuple[str, ...] = KINDS) -> list[dict]:
+    """Audit ``observer`` on those of the first ``count`` realisations of ``scenario`` whose
+    kind is in ``kinds``; one row per kind."""
     info = observers.get(observer)
     cfg = BenchConfig(name="audit", title="audit", scenarios=[], observers=[observer])
     rows = {k: {"observer": observer, "guaranteed": info.guaranteed, "scenario": scenario,
@@ -190,6 +200,8 @@ def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
                 "diverged": 0, "empty": 0,
                 "error": 0, "lp_tests": 0, "seconds": 0.0} for k in KINDS}
     for index, (kind, sc) in enumerate(realisations(scenario, count)):
+        if kind not in kinds:
+            continue
         t0 = time.perf_counter()
         row = rows[kind]
         row["runs"] += 1
@@ -224,13 +236,15 @@ def audit_pair(scenario: str, observer: str, count: int) -> list[dict]:
     return [r for r in rows.values() if r["runs"]]
 
 
-def _audit_task(task: tuple[str, str, int]) -> list[dict]:
+def _audit_task(task: tuple[str, str, int, tuple[str, ...]]) -> list[dict]:
     return audit_pair(*task)
 
 
 def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALISATIONS,
-              jobs: int = 1, progress: bool | None = None) -> pd.DataFrame:
-    """Audit every observer in ``names`` (default: all registered) on every scenario."""
+              jobs: int = 1, progress: bool | None = None,
+              kinds: tuple[str, ...] = KINDS) -> pd.DataFrame:
+    """Audit every observer in ``names`` (default: all registered) on every scenario, on the
+    realisations among the first ``count`` whose kind is in ``kinds``."""
     if not isinstance(count, int) or count < 1:
         raise ConfigError(f"audit: the number of realisations must be >= 1, got {count!r}")
     if jobs < 1:
@@ -241,7 +255,11 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
         raise ConfigError(f"audit: {exc}") from None
     for sc in scenarios:
         check_scenario(sc)
-    tasks = [(sc, name, count) for sc in scenarios for name in names]
+    unknown = set(kinds) - set(KINDS)
+    if unknown or not kinds:
+        raise ConfigError(f"audit: unknown realisation kind(s) {sorted(unknown)} "
+                          f"(known: {', '.join(KINDS)})")
+    tasks = [(sc, name, count, tuple(kinds)) for sc in scenarios for name in names]
     rows: list[dict] = []
     with progress_bar(len(tasks), "audit", progress) as bar:
         if jobs == 1:
@@ -294,7 +312,8 @@ def _table(agg: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) -> str:
+def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int,
+                     command: str | None = None) -> str:
     """The Markdown report ``reports/soundness.md``."""
     agg = aggregate(df)
     guaranteed = agg[agg["guaranteed"]]
@@ -307,11 +326,13 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) ->
     first = df[(df["observer"] == df["observer"].iloc[0])
                & (df["scenario"] == df["scenario"].iloc[0])] if len(df) else df
     kinds = ", ".join(f"{r.kind} {r.runs}" for r in first.itertuples(index=False))
+    used = int(first["runs"].sum()) if len(first) else 0
+    command = command or f"python -m benchmarks audit --realisations {count}"
     versions = environment()
     parts = [
         "# Soundness audit",
         "",
-        f"Generated by `python -m benchmarks audit --realisations {count}` on "
+        f"Generated by `{command}` on "
         f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} (git "
         f"{versions.get('git', '?')}); {elapsed:.0f} s wall time with {jobs} worker(s).",
         "",
@@ -332,8 +353,9 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) ->
         "(diverged: its earlier steps are still checked; empty: the estimate became empty, "
         "which also counts as a violation).",
         "",
-        f"Realisations per observer and scenario: {count} (realisation i has seed i and "
-        f"kind i mod 5: {kinds}). `vertex`, `vertex-hold` and `worst-input` are adversarial: "
+        f"Realisations per observer and scenario: {used} of the first {count} (realisation "
+        f"i has seed i and kind i mod 5: {kinds}). `vertex`, `vertex-hold` and "
+        "`worst-input` are adversarial: "
         "noise at the vertices of W and V (redrawn every step, or held for random dwell "
         "times) and bang-bang inputs at the bounds of the nominal input range that swing the "
         "state between extremes; see `benchmarks/audit.py`.",
@@ -353,12 +375,12 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int) ->
 
 
 def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: int,
-                elapsed: float, jobs: int) -> tuple[Path, Path]:
+                elapsed: float, jobs: int, command: str | None = None) -> tuple[Path, Path]:
     """Write ``soundness.csv`` (per kind) and the Markdown report, each atomically."""
     csv_path = Path(out) / "soundness.csv"
     atomic_write_csv(csv_path, df)
     report = Path(report)
-    atomic_write_text(report, soundness_report(df, count, elapsed, jobs))
+    atomic_write_text(report, soundness_report(df, count, elapsed, jobs, command))
     return csv_path, report
 
 

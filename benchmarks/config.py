@@ -52,9 +52,9 @@ class BenchConfig:
         options the observer accepts (scenario and global ones) or all (per-observer ones);
         scenario defaults only for the options listed in the observer's ``SCENARIO_OPTIONS``;
         observers with a ``training`` option also get the scenario's offline experiment."""
-        cls = observers.get(observer).cls
-        accepted = cls.option_defaults()
-        from_scenario = accepted if cls.SCENARIO_OPTIONS is None else cls.SCENARIO_OPTIONS
+        info = observers.get(observer)
+        accepted = info.option_defaults()
+        from_scenario = accepted if info.scenario_options is None else info.scenario_options
         merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
         merged.update({k: v for k, v in self.options.items() if k in accepted})
         merged.update(self.observer_options.get(observer, {}))
@@ -68,6 +68,19 @@ def _yaml_error(path: Path, exc: yaml.YAMLError) -> ConfigError:
     where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
     problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
     return ConfigError(f"{path}: malformed YAML{where}: {problem}")
+
+
+def _check_values(name: str, info: observers.ObserverInfo, opts: dict[str, Any]) -> None:
+    """Check option values against the observer's declared specs (kind and range)."""
+    specs = getattr(info.cls, "option_specs", None)
+    if not callable(specs):
+        return
+    declared = specs()
+    for key, value in opts.items():
+        try:
+            declared[key].check(info.name, key, value)
+        except observers.OptionError as exc:
+            raise ConfigError(f"config '{name}': observer_options: {exc}") from None
 
 
 def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
@@ -102,7 +115,7 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     options = raw.get("options", {}) or {}
     if not isinstance(options, dict):
         raise ConfigError(f"config '{name}': 'options' must be a mapping")
-    accepted_any = set().union(*(observers.get(n).cls.option_defaults() for n in names))
+    accepted_any = set().union(*(observers.get(n).option_defaults() for n in names))
     bad = set(options) - accepted_any
     if bad:
         raise ConfigError(f"config '{name}': option(s) {sorted(bad)} are accepted by none of "
@@ -117,12 +130,13 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
             raise ConfigError(f"config '{name}': observer_options: {exc}") from None
         if not isinstance(opts, dict):
             raise ConfigError(f"config '{name}': observer_options of {oname} must be a mapping")
-        bad = set(opts) - set(info.cls.option_defaults())
+        bad = set(opts) - set(info.option_defaults())
         if bad:
             raise ConfigError(
                 f"config '{name}': {oname} has no option(s) {sorted(bad)} (accepted: "
-                f"{', '.join(sorted(info.cls.option_defaults())) or 'none'})"
+                f"{', '.join(sorted(info.option_defaults())) or 'none'})"
             )
+        _check_values(name, info, opts)  # also for an observer not in this run
     containment = raw.get("containment", "exact")
     if containment not in ("exact", "hull"):
         raise ConfigError(f"config '{name}': containment must be 'exact' or 'hull'")

@@ -1,18 +1,32 @@
-"""Atomic file output (write to a temporary file in the target folder, then rename) and the
-environment recorded with every result.
+"""Result output: the atomic writes, the output-folder check made before any work, the one
+generation of ``runs.csv`` / ``summary.csv`` / ``meta.json`` and its verification on reading,
+and the environment recorded with every result.
 
-A failed or interrupted run therefore never leaves half-written results behind, and the
-previous results stay untouched until the new ones are complete.
+Single files are written to a temporary file in the target folder and renamed over the
+target. The three result files of ``run`` are one *generation*: they are written into a
+temporary folder beside the target folder, which is then swapped in with one atomic
+``rename`` (``renameat2(RENAME_EXCHANGE)`` on Linux when the target exists), so that an
+interrupted run leaves either the complete old set or the complete new one. Each file
+carries the same run id (``run_id`` column; ``meta.json`` also records every file's size and
+SHA-256), and :func:`load_results` refuses mixed, truncated or broken sets.
+
+Files and folders are created with mode 0666 / 0777 reduced by the user's umask, as any
+other program's output.
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
+import hashlib
+import io
 import json
 import os
 import platform
+import secrets
+import shutil
 import subprocess
 import sys
-import tempfile
 from importlib import metadata
 from pathlib import Path
 
@@ -20,59 +34,331 @@ import pandas as pd
 
 from .errors import ConfigError
 
+#: the files of one result generation, in the order they are written
+RESULT_FILES = ("runs.csv", "summary.csv", "meta.json")
+
+
+def _new_file(folder: Path, prefix: str, suffix: str = ".tmp") -> tuple[int, Path]:
+    """Create a new, uniquely named file in ``folder`` with mode 0666 minus the umask (unlike
+    :func:`tempfile.mkstemp`, which creates 0600)."""
+    while True:
+        path = folder / f"{prefix}{secrets.token_hex(4)}{suffix}"
+        try:
+            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
+        except FileExistsError:  # pragma: no cover - 32 random bits collided
+            continue
+
 
 def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically."""
+    """Write ``text`` to ``path`` atomically (mode 0666 minus the umask)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = _new_file(path.parent, f".{path.name}.")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
+
+
+def csv_text(df: pd.DataFrame) -> str:
+    """A data frame as CSV text (full float precision), as every result file is written."""
+    return df.to_csv(index=False, float_format="%.17g")
 
 
 def atomic_write_csv(path: str | Path, df: pd.DataFrame) -> None:
     """Write a data frame as CSV atomically (full float precision)."""
-    atomic_write_text(path, df.to_csv(index=False, float_format="%.17g"))
+    atomic_write_text(path, csv_text(df))
+
+
+def json_text(obj) -> str:
+    """``obj`` as indented JSON text with sorted keys."""
+    return json.dumps(obj, indent=2, sort_keys=True, default=str) + "\n"
 
 
 def atomic_write_json(path: str | Path, obj) -> None:
     """Write ``obj`` as indented JSON atomically."""
-    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=str) + "\n")
+    atomic_write_text(path, json_text(obj))
 
 
 def atomic_savefig(fig, path: str | Path, **kwargs) -> None:
     """Save a matplotlib figure atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    fd, tmp = _new_file(path.parent, f".{path.stem}.", path.suffix)
     os.close(fd)
     try:
         fig.savefig(tmp, **kwargs)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
 
 
-def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
-    """Read ``summary.csv`` and ``meta.json`` (``{}`` if absent) of a results folder.
+# -- the output folder of `run` ------------------------------------------------------------
+def _probe_writable(folder: Path, what: str) -> None:
+    """Create and remove a folder in ``folder`` (what the generation swap will do)."""
+    probe = folder / f".setobs-probe-{secrets.token_hex(4)}"
+    try:
+        probe.mkdir()
+        probe.rmdir()
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise ConfigError(f"{what}: cannot write in {folder} ({reason})") from None
+
+
+def check_output_dir(out: str | Path) -> Path:
+    """Check, before any work, that the results of a run can be written to folder ``out``.
+
+    ``out`` may not exist yet (it and its parents are created when the results are written);
+    every existing part of the path must be a folder in which we may create and rename
+    entries, and an existing non-empty ``out`` must be a results folder of an earlier run
+    (it holds ``summary.csv`` or ``meta.json``), since the new generation replaces it.
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder.
+
+    Returns
+    -------
+    Path
+        ``out`` as an absolute path.
 
     Raises
     ------
     ConfigError
-        If the folder has no ``summary.csv``.
+        With a one-line reason if the results could not be written there.
+    """
+    what = f"output folder {out}"
+    out = Path(os.path.realpath(out))  # a symlinked folder: work beside its target
+    if out.parent == out:
+        raise ConfigError(f"{what}: the root folder cannot be a results folder")
+    node = out
+    while not node.exists() and not node.is_symlink():
+        node = node.parent
+    if not node.is_dir():
+        raise ConfigError(f"{what}: {node} is not a folder")
+    if node == out:
+        entries = {p.name for p in out.iterdir()}
+        if entries and not entries & {"summary.csv", "meta.json"}:
+            raise ConfigError(f"{what} exists and is not a results folder of `run` (it holds "
+                              "no summary.csv); give a new or empty folder")
+        _probe_writable(out, what)
+        _probe_writable(out.parent, what)
+    else:
+        _probe_writable(node, what)
+    return out
+
+
+# -- one generation of result files ----------------------------------------------------------
+def new_run_id() -> str:
+    """A fresh random run id (12 hex digits)."""
+    return secrets.token_hex(6)
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically exchange the paths ``a`` and ``b`` (Linux ``renameat2``); False where the
+    system does not offer it."""
+    if not sys.platform.startswith("linux"):  # pragma: no cover - other systems
+        return False
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (AttributeError, OSError):  # pragma: no cover - glibc < 2.28
+        return False
+    at_fdcwd, rename_exchange = -100, 2
+    if renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):  # pragma: no cover - e.g. some FS
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # pragma: no cover - another user's process
+        return True
+    return True
+
+
+def remove_stale_generations(out: Path) -> list[Path]:
+    """Remove the temporary folders beside ``out`` left by writers that were killed (their
+    process no longer exists); a writer still running keeps its folder.
+
+    Returns
+    -------
+    list of Path
+        The folders removed.
+    """
+    removed = []
+    for tmp in out.parent.glob(f".{out.name}.new-*-*"):
+        pid = tmp.name[len(f".{out.name}.new-"):].split("-")[0]
+        if tmp.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(tmp, ignore_errors=True)
+            removed.append(tmp)
+    return removed
+
+
+def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) -> str:
+    """Write ``runs.csv``, ``summary.csv`` and ``meta.json`` to folder ``out`` as one generation.
+
+    Every CSV gets a ``run_id`` column and ``meta.json`` the keys ``run_id`` and ``files``
+    (size and SHA-256 of each CSV). The files are written into a temporary folder beside
+    ``out``; other entries of an existing ``out`` (reports, figures) are moved into it, and
+    the folder is then swapped in atomically, so that a kill at any moment leaves either the
+    old or the new generation in ``out``. Temporary folders of killed writers are removed
+    the next time (:func:`remove_stale_generations`).
+
+    Parameters
+    ----------
+    out : str or Path
+        Target folder (checked with :func:`check_output_dir` first).
+    frames : dict
+        ``{"runs.csv": DataFrame, "summary.csv": DataFrame}``.
+    meta : dict
+        Content of ``meta.json`` (without ``run_id`` and ``files``).
+
+    Returns
+    -------
+    str
+        The run id.
+    """
+    out = check_output_dir(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_generations(out)
+    run_id = new_run_id()
+    tmp = out.parent / f".{out.name}.new-{os.getpid()}-{run_id}"
+    tmp.mkdir()
+    try:
+        files = {}
+        for name, df in frames.items():
+            data = csv_text(df.assign(run_id=run_id)).encode("utf-8")
+            (tmp / name).write_bytes(data)
+            files[name] = {"bytes": len(data), "sha256": _sha256(data)}
+        (tmp / "meta.json").write_text(json_text({**meta, "run_id": run_id, "files": files}),
+                                       encoding="utf-8")
+        for name in RESULT_FILES:
+            with open(tmp / name, "rb") as fh:
+                os.fsync(fh.fileno())
+        if not out.exists():
+            os.rename(tmp, out)
+            return run_id
+        moved = [e.name for e in out.iterdir() if e.name not in RESULT_FILES]
+        try:
+            for name in moved:  # reports, figures: kept beside the new results
+                os.rename(out / name, tmp / name)
+            swapped = _exchange(tmp, out)
+        except BaseException:
+            for name in moved:  # put them back before the temporary folder goes
+                if (tmp / name).exists():
+                    os.rename(tmp / name, out / name)
+            raise
+        if not swapped:  # pragma: no cover - no renameat2: two renames
+            old = out.parent / f".{out.name}.old-{os.getpid()}-{run_id}"
+            os.rename(out, old)
+            os.rename(tmp, out)
+            tmp = old
+        return run_id
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
+    """Read ``summary.csv`` and ``meta.json`` of a results folder, after checking that the
+    three result files are one complete generation.
+
+    Parameters
+    ----------
+    folder : str or Path
+        A folder written by ``run``.
+
+    Returns
+    -------
+    summary : DataFrame
+        ``summary.csv`` (without its ``run_id`` column).
+    meta : dict
+        ``meta.json``.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line reason if a file is missing, broken, truncated or from another run.
     """
     folder = Path(folder)
     if not (folder / "summary.csv").is_file():
         raise ConfigError(f"no summary.csv in {folder} (run `python -m benchmarks run` first)")
     meta_path = folder / "meta.json"
-    meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
-    return pd.read_csv(folder / "summary.csv"), meta
+    if not meta_path.is_file():
+        raise ConfigError(f"{folder}: meta.json is missing; the result set is incomplete")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{meta_path} is not valid JSON: "
+                          f"{getattr(exc, 'msg', None) or exc.reason}") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("files"), dict) or not isinstance(
+            meta.get("run_id"), str):
+        raise ConfigError(f"{meta_path} has no run id and file list (written by an older "
+                          "version or by hand); re-run `python -m benchmarks run`")
+    for name in RESULT_FILES[:2]:
+        path = folder / name
+        expected = meta["files"].get(name)
+        if not isinstance(expected, dict):
+            raise ConfigError(f"{meta_path} does not list {name}")
+        if not path.is_file():
+            raise ConfigError(f"{folder}: {name} is missing; the result set is incomplete")
+        data = path.read_bytes()
+        if len(data) != expected.get("bytes") or _sha256(data) != expected.get("sha256"):
+            where = "truncated" if len(data) < expected.get("bytes", 0) else "changed"
+            raise ConfigError(f"{path} is {where} or from another run than {meta_path} "
+                              f"(run {meta['run_id']}); re-run `python -m benchmarks run`")
+        if name == "summary.csv":
+            try:
+                summary = pd.read_csv(io.BytesIO(data))
+            except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+                raise ConfigError(f"{path} is not readable CSV: "
+                                  f"{str(exc).splitlines()[0]}") from None
+    ids = set(summary.get("run_id", pd.Series(dtype=str)).astype(str))
+    if ids != {meta["run_id"]}:
+        raise ConfigError(f"{folder / 'summary.csv'} is not from run {meta['run_id']} of "
+                          f"{meta_path}")
+    return summary.drop(columns="run_id"), meta
+
+
+#: symbols of OpenBLAS builds that return the kernel family in use
+_CORENAME_SYMBOLS = ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename",
+                     "openblas_get_corename64_", "openblas_get_corename")
+
+
+def blas_corename() -> str:
+    """The OpenBLAS kernel family numpy runs here (``"Haswell"``, ``"SkylakeX"``, ...), as
+    OpenBLAS chose it (by CPU, or by ``OPENBLAS_CORETYPE``); ``"unknown"`` for another BLAS."""
+    import ctypes
+    import glob
+
+    import numpy as np
+
+    root = Path(np.__file__).resolve().parent
+    for lib in sorted(glob.glob(str(root.parent / "numpy.libs" / "*openblas*"))):
+        try:
+            handle = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        for symbol in _CORENAME_SYMBOLS:
+            fn = getattr(handle, symbol, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                return fn().decode().strip()
+    return "unknown"
 
 
 #: packages whose versions :func:`environment` records
@@ -85,13 +371,13 @@ def environment() -> dict[str, str]:
     Returns
     -------
     dict of str to str
-        ``python`` (version), ``platform``, ``blas_coretype`` (the OpenBLAS kernel family,
-        ``OPENBLAS_CORETYPE``, pinned in :mod:`benchmarks`; ``"auto"`` if unset), the version
+        ``python`` (version), ``platform``, ``blas_coretype`` (the OpenBLAS kernel family in
+        use, :func:`blas_corename`), the version
         of each of :data:`ENVIRONMENT_PACKAGES` (``"missing"`` if not installed) and ``git``
         (the short commit of this checkout, ``""`` outside a git checkout).
     """
     out = {"python": sys.version.split()[0], "platform": platform.platform(),
-           "blas_coretype": os.environ.get("OPENBLAS_CORETYPE", "auto")}
+           "blas_coretype": blas_corename()}
     for pkg in ENVIRONMENT_PACKAGES:
         try:
             out[pkg] = metadata.version(pkg)
@@ -105,3 +391,4 @@ def environment() -> dict[str, str]:
     except (OSError, subprocess.SubprocessError):
         out["git"] = ""
     return out
+

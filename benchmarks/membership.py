@@ -26,6 +26,8 @@ Anything with ``distance(x)`` (e.g. ``Ellipsoid``)
     that distance (Euclidean for ellipsoids), compared with ``tol``.
 Any other set
     its own ``contains(x, tol)``; the distance is then the distance to its interval hull.
+    A set without ``contains`` (a plugin's set with only ``interval()``) is undecided unless
+    its hull already excludes the point.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import highspy
 import numpy as np
 
 from observers.sets import ConZonotope, Interval, Zonotope
+from observers.sets.highs import new_highs
 
 _EPS = np.finfo(float).eps
 #: relative feasibility tolerance of the LP (HiGHS's default is 1e-7)
@@ -84,6 +87,8 @@ class MembershipTester:
         d = hull_distance(lo, hi, x)
         if d > tol:
             return self._count(Membership(False, d, "hull"))
+        if not hasattr(S, "contains"):  # a plugin's set with only interval(): undecided
+            return self._count(Membership(None, 0.0, "hull"))
         inside = bool(S.contains(x, tol))
         return self._count(Membership(inside, 0.0 if inside else d, "contains"))
 
@@ -225,8 +230,7 @@ class MembershipTester:
 
     def _solver(self) -> highspy.Highs:
         if self._highs is None:
-            h = highspy.Highs()
-            h.setOptionValue("output_flag", False)
+            h = new_highs()
             h.setOptionValue("primal_feasibility_tolerance", LP_TOL)
             h.setOptionValue("dual_feasibility_tolerance", LP_TOL)
             _set_options(h, FAST_LP)

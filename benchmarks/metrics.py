@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .verdicts import reference_rows
+
 
 def rms_radius(radius: np.ndarray) -> np.ndarray:
     """RMS over time of the interval radius, per state (``radius`` is N x n)."""
@@ -30,8 +32,9 @@ def median_ms(times: np.ndarray) -> float:
 
 def add_relative_rms(summary: pd.DataFrame) -> pd.DataFrame:
     """Add ``rel_rms`` (eq. 9): each state's RMS radius divided by the smallest one among the
-    successful guaranteed observers of the same scenario."""
-    ok = (summary["status"] == "ok") & summary["guaranteed"].astype(bool)
+    successful guaranteed observers of the same scenario that do not violate containment
+    (:func:`benchmarks.verdicts.reference_rows`)."""
+    ok = reference_rows(summary)
     best = summary[ok].groupby(["scenario", "state"])["rms_radius"].min().rename("_best")
     out = summary.join(best, on=["scenario", "state"])
     out["rel_rms"] = np.where(out["status"] == "ok", out["rms_radius"] / out["_best"], np.nan)

@@ -17,9 +17,26 @@ re-runs the subset and compares:
 
 Timings are never compared.
 
-Tolerances are data, not code paths: ``rtol`` is the class attribute ``REGRESSION_RTOL`` of the
-observer (``observers.Observer``: 1e-6, deterministic online computations; ``OfflineGain``:
-1e-4, gains from an SDP solver, accurate to the solver's tolerance).  A plugin sets its own.
+Tolerances are data, not code paths: ``rtol`` is the larger of the class attribute
+``REGRESSION_RTOL`` of the observer (``observers.Observer``: 1e-6, deterministic online
+computations; ``OfflineGain``: 1e-4, gains from an SDP solver, accurate to the solver's
+tolerance; a plugin sets its own) and a *measured* sensitivity to the BLAS kernel:
+``baseline --update`` re-runs the subset under every OpenBLAS kernel family of
+:data:`SPREAD_KERNELS` that this CPU runs (one subprocess each, ``OPENBLAS_CORETYPE=K``) and
+records, per observer, scenario and state, the largest relative difference of ``rms_radius``
+from this run (``kernel_spread``).  An observer whose numbers depend on the kernel (an SDP
+design on a flat optimum, a near-divergent observer) gets ``rtol = SPREAD_SAFETY x`` its
+largest spread on that scenario; ``SENSITIVITY.md`` beside the golden files lists every such
+observer with the measured figures.  An ``rtol`` of :data:`CHAOTIC_RTOL` or more marks the
+observer as *chaotic* on that scenario: a 0.5 % loosening may pass there; everywhere else it
+fails.  The comparison uses the larger of the stored and the current class tolerance.
+
+Installed third-party plugins (observers not defined in the ``observers`` package) are not
+part of the project's baseline: ``baseline --update`` leaves them out and ``check`` lists them
+as "not in the baseline" without failing, unless ``--strict``.
+
+The last line of ``check`` says what changed: which observers got looser or tighter, which
+changed containment (violations) or status, and which are new or missing.
 
 Offline designs are recomputed by default (the design cache is switched off for the run,
 ``SETOBS_CACHE_DIR=off``), so that the gate tests the design code and never a stale cached
@@ -31,28 +48,46 @@ from __future__ import annotations
 import json
 import math
 import os
+import subprocess
+import sys
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 import observers
 
 from .config import BenchConfig, load_config
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json, environment
+from .io import atomic_write_csv, atomic_write_json, atomic_write_text, environment
 from .metrics import add_relative_rms
 from .runner import run_config
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
 BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
-                    "rms_radius", "rel_rms", "violations", "rtol"]
+                    "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread"]
 #: absolute floor of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
+#: OpenBLAS kernel families compared by ``baseline --update`` (those this CPU runs)
+SPREAD_KERNELS = ("Sandybridge", "Haswell", "SkylakeX")
+#: tolerance = this factor x the largest measured kernel spread of an observer on a scenario
+#: (a spread measured on a few kernels underestimates the range of others)
+SPREAD_SAFETY = 4.0
+#: an observer with a tolerance from here on is chaotic on that scenario: the gate cannot see
+#: a 0.5 % loosening of its radii (half of 0.5 %, since ``rel_rms`` adds the best one's)
+CHAOTIC_RTOL = 0.0025
+
+
+def is_project_observer(name: str) -> bool:
+    """Whether ``name`` is one of the project's observers (not a third-party plugin)."""
+    module = getattr(observers.get(name).cls, "__module__", "") or ""
+    return module == "observers" or module.startswith("observers.")
 
 
 def regression_rtol(name: str) -> float:
@@ -84,13 +119,15 @@ def design_cache(use_cache: bool) -> Iterator[str]:
             os.environ["SETOBS_CACHE_DIR"] = old
 
 
-def subset_config(path: str | Path = DEFAULT_CONFIG) -> BenchConfig:
+def subset_config(path: str | Path = DEFAULT_CONFIG, plugins: bool = True) -> BenchConfig:
     """The regression subset; ``observers: all`` means every registered observer here,
-    including the non-guaranteed baselines (their numbers are regression-tested too)."""
+    including the non-guaranteed baselines (their numbers are regression-tested too), and the
+    installed third-party plugins unless ``plugins`` is False (the baseline leaves them out)."""
     cfg = load_config(path)
     if cfg.raw.get("observers", "all") == "all":
         excluded = set(map(str, cfg.raw.get("exclude", []) or []))
-        cfg.observers = [i.name for i in observers.available() if i.name not in excluded]
+        cfg.observers = [i.name for i in observers.available() if i.name not in excluded
+                         and (plugins or is_project_observer(i.name))]
     return cfg
 
 
@@ -101,7 +138,134 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
         _, summary = run_config(cfg, out, progress=progress)
     frame = summary.copy()
     frame["rtol"] = [regression_rtol(o) for o in frame["observer"]]
+    frame["kernel_spread"] = 0.0
     return frame[BASELINE_COLUMNS], cache_note
+
+
+# -- measured sensitivity to the BLAS kernel --------------------------------------------------
+def _corename_in(kernel: str) -> str:
+    code = "from benchmarks.io import blas_corename; print(blas_corename())"
+    env = {**os.environ, "OPENBLAS_CORETYPE": kernel}
+    try:
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return out.stdout.strip()
+
+
+def available_kernels(candidates: tuple[str, ...] = SPREAD_KERNELS) -> list[str]:
+    """The kernel families of ``candidates`` that OpenBLAS really runs on this CPU."""
+    return [k for k in candidates if _corename_in(k).lower() == k.lower()]
+
+
+def _subset_to_csv(config: str, out: str, use_cache: bool, observers_: list[str]) -> None:
+    """Run the subset and write its golden rows to ``out`` (in a kernel subprocess)."""
+    cfg = subset_config(config)
+    cfg.observers = observers_
+    frame, _ = run_subset(cfg, use_cache, progress=False)
+    frame.to_csv(out, index=False, float_format="%.17g")
+
+
+def runs_under_kernels(config: str | Path, cfg: BenchConfig, kernels: list[str],
+                       use_cache: bool = False) -> dict[str, pd.DataFrame]:
+    """The subset's golden rows under each kernel family (subprocesses, two at a time)."""
+    results: dict[str, pd.DataFrame] = {}
+    with tempfile.TemporaryDirectory(prefix="setobs-kernels-") as tmp:
+        pending = list(kernels)
+        while pending:
+            batch, pending = pending[:2], pending[2:]
+            procs = []
+            for k in batch:
+                out = Path(tmp) / f"{k}.csv"
+                code = ("import sys; from benchmarks.regression import _subset_to_csv; "
+                        "_subset_to_csv(sys.argv[1], sys.argv[2], sys.argv[3] == '1', "
+                        "sys.argv[4:])")
+                env = {**os.environ, "OPENBLAS_CORETYPE": k}
+                procs.append((k, out, subprocess.Popen(
+                    [sys.executable, "-c", code, str(config), str(out),
+                     "1" if use_cache else "0", *cfg.observers],
+                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)))
+            for k, out, proc in procs:
+                _, err = proc.communicate()
+                if proc.returncode != 0 or not out.is_file():
+                    last = (err.strip().splitlines() or ["no output"])[-1]
+                    raise ConfigError(f"the subset failed under OPENBLAS_CORETYPE={k}: {last}")
+                results[k] = pd.read_csv(out)
+    return results
+
+
+def apply_kernel_spread(frame: pd.DataFrame, others: dict[str, pd.DataFrame]) -> tuple[
+        pd.DataFrame, list[str]]:
+    """Record each value's largest relative difference under the other kernels
+    (``kernel_spread``) and widen ``rtol`` to ``SPREAD_SAFETY x`` the pair's largest spread
+    where that exceeds the class tolerance.  Returns the frame and the problems (a status or
+    a containment count that depends on the kernel: no tolerance can absorb those)."""
+    frame = frame.copy().reset_index(drop=True)
+    key = ["scenario", "observer", "state"]
+    spread = pd.Series(0.0, index=frame.index)
+    problems: list[str] = []
+    for kernel, other in others.items():
+        m = frame[key + ["status", "rms_radius", "violations"]].merge(
+            other[key + ["status", "rms_radius", "violations"]], on=key, how="left",
+            suffixes=("", "_k"))
+        for r in m.drop_duplicates(["scenario", "observer"]).itertuples(index=False):
+            if r.status != r.status_k:
+                problems.append(f"{r.observer} on {r.scenario}: status {r.status} here, "
+                                f"{r.status_k} with OPENBLAS_CORETYPE={kernel}")
+            elif not (pd.isna(r.violations) and pd.isna(r.violations_k)) and (
+                    r.violations != r.violations_k):
+                problems.append(f"{r.observer} on {r.scenario}: {r.violations} violations "
+                                f"here, {r.violations_k} with OPENBLAS_CORETYPE={kernel}")
+        a, b = m["rms_radius"].astype(float), m["rms_radius_k"].astype(float)
+        rel = ((a - b).abs() / a.abs()).where(a.abs() > ATOL, 0.0).fillna(0.0)
+        spread = np.maximum(spread, rel.to_numpy())
+    frame["kernel_spread"] = spread
+    worst = frame.groupby(["scenario", "observer"])["kernel_spread"].transform("max")
+    measured = (SPREAD_SAFETY * worst).map(_round_up)
+    frame["rtol"] = np.maximum(frame["rtol"].astype(float), measured)
+    return frame, problems
+
+
+def _round_up(x: float) -> float:
+    """``x`` rounded up to one significant digit (readable tolerances)."""
+    if not x > 0:
+        return 0.0
+    e = math.floor(math.log10(x))
+    return math.ceil(x / 10 ** e) * 10 ** e
+
+
+def sensitivity_report(frame: pd.DataFrame, kernels: list[str], here: str) -> str:
+    """``SENSITIVITY.md``: how each widened tolerance was measured."""
+    per = frame.groupby(["scenario", "observer"], sort=False).agg(
+        spread=("kernel_spread", "max"), rtol=("rtol", "first")).reset_index()
+    base = {o: regression_rtol(o) for o in per["observer"].unique()}
+    wide = per[per["rtol"] > per["observer"].map(base)]
+    lines = [
+        "# Measured sensitivity of the golden numbers to the BLAS kernel",
+        "",
+        f"Written by `python -m benchmarks baseline --update`: the subset ran here "
+        f"(OpenBLAS kernel {here}) and under " + (", ".join(
+            f"`OPENBLAS_CORETYPE={k}`" for k in kernels) or "no other kernel") + ". "
+        "*Spread*: the largest relative difference of an RMS radius (over the states) from "
+        "this run. Where the observer's class tolerance is below "
+        f"{SPREAD_SAFETY:g} x spread, the tolerance of that observer on that scenario is "
+        f"{SPREAD_SAFETY:g} x spread, rounded up to one digit. *Chaotic*: tolerance of "
+        f"{CHAOTIC_RTOL:g} or more, so a 0.5 % loosening of its radii may pass the gate "
+        "there (everywhere else it fails).",
+        "",
+    ]
+    if wide.empty:
+        lines.append("Every golden number is independent of the kernel (spreads within the "
+                     "class tolerances).")
+    else:
+        lines += ["| observer | scenario | spread | class rtol | rtol | chaotic |",
+                  "|---|---|---|---|---|---|"]
+        for r in wide.sort_values(["observer", "scenario"]).itertuples(index=False):
+            lines.append(f"| {r.observer} | {r.scenario} | {r.spread:.2e} | "
+                         f"{base[r.observer]:g} | {r.rtol:g} | "
+                         f"{'yes' if r.rtol >= CHAOTIC_RTOL else 'no'} |")
+    return "\n".join(lines) + "\n"
 
 
 def _meta(cfg: BenchConfig, cache_note: str) -> dict:
@@ -121,13 +285,24 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
     written = []
     for sc, g in frame.groupby("scenario", sort=False):
         path = folder / f"{sc}.csv"
-        g = g.reset_index(drop=True).assign(rtol=g["rtol"].map("{:g}".format).to_numpy())
+        g = g.reset_index(drop=True).assign(
+            rtol=g["rtol"].map("{:g}".format).to_numpy(),
+            kernel_spread=g["kernel_spread"].map("{:.3g}".format).to_numpy())
         atomic_write_csv(path, g)
         written.append(path)
     for stale in set(folder.glob("*.csv")) - set(written):
         stale.unlink()
     atomic_write_json(folder / "meta.json", _meta(cfg, cache_note))
     return written
+
+
+def write_sensitivity(frame: pd.DataFrame, folder: str | Path, kernels: list[str]) -> Path:
+    """Write ``SENSITIVITY.md`` beside the golden files."""
+    from .io import blas_corename
+
+    path = Path(folder) / "SENSITIVITY.md"
+    atomic_write_text(path, sensitivity_report(frame, kernels, blas_corename()))
+    return path
 
 
 def baseline_problems(frame: pd.DataFrame) -> list[str]:
@@ -157,6 +332,8 @@ def load_baseline(folder: str | Path) -> tuple[pd.DataFrame, dict]:
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
             raise ConfigError(f"baseline file {path} is not readable CSV: "
                               f"{str(exc).splitlines()[0]}") from None
+        if "kernel_spread" not in df.columns:  # baselines written before it was measured
+            df["kernel_spread"] = 0.0
         missing = [c for c in BASELINE_COLUMNS if c not in df.columns]
         if missing:
             raise ConfigError(f"baseline file {path} lacks column(s) {missing}")
@@ -190,12 +367,14 @@ def _row(sc, obs, state, metric, base, cur, tol, ok, note="") -> dict:
             "note": note}
 
 
-def _best_rtol(base: pd.DataFrame, rtols: dict[str, float]) -> dict[tuple[str, int], float]:
+def _best_rtol(base: pd.DataFrame, rtols: dict[tuple[str, str], float]
+               ) -> dict[tuple[str, int], float]:
     ok = base[(base["status"] == "ok") & base["guaranteed"].astype(bool)]
     out = {}
     for (sc, st), g in ok.groupby(["scenario", "state"]):
         best = g.loc[g["rms_radius"].idxmin(), "observer"]
-        out[(sc, int(st))] = rtols.get(best, float(g.loc[g["rms_radius"].idxmin(), "rtol"]))
+        out[(sc, int(st))] = rtols.get((sc, best),
+                                       float(g.loc[g["rms_radius"].idxmin(), "rtol"]))
     return out
 
 
@@ -209,8 +388,11 @@ def _normalise(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
-def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
-    """Every compared value as a row (``ok`` False for a regression); see the module doc."""
+def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.DataFrame:
+    """Every compared value as a row (``ok`` False for a regression); see the module doc.
+
+    A third-party plugin that is not in the baseline is listed (``ok`` True, metric
+    ``observer``, note "not in the baseline") unless ``strict``, where it fails."""
     base, cur = _normalise(base), _normalise(cur)
     rows: list[dict] = []
     bpairs = set(zip(base["scenario"], base["observer"], strict=True))
@@ -219,11 +401,20 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
         rows.append(_row(sc, obs, "-", "observer", "present", "missing", "", False,
                          "in the baseline but not run now (removed or unregistered?)"))
     for sc, obs in sorted(cpairs - bpairs):
-        rows.append(_row(sc, obs, "-", "observer", "absent", "present", "", False,
-                         "not in the baseline: `python -m benchmarks baseline --update`"))
+        plugin = not is_project_observer(obs)
+        note = ("not in the baseline (third-party plugin, not gated; --strict fails on it)"
+                if plugin and not strict else
+                "not in the baseline: `python -m benchmarks baseline --update`")
+        rows.append(_row(sc, obs, "-", "observer", "absent", "present", "",
+                         plugin and not strict, note))
     keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
     common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
-    rtols = {o: float(r) for o, r in zip(common["observer"], common["rtol"], strict=True)}
+    # the larger of the stored (class or measured) and the current class tolerance
+    stored = {(s, o): float(r) for s, o, r in zip(base["scenario"], base["observer"],
+                                                  base["rtol"], strict=True)}
+    rtols = {(s, o): max(float(r), stored.get((s, o), 0.0))
+             for s, o, r in zip(common["scenario"], common["observer"], common["rtol"],
+                                strict=True)}
     best = _best_rtol(base, rtols)
     merged = base.merge(common, on=["scenario", "observer", "state"], how="outer",
                         suffixes=("_b", "_c"), indicator="origin")
@@ -237,7 +428,7 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame) -> pd.DataFrame:
             rows.append(_row(sc, obs, label, "state", "absent", "present", "", False,
                              "state not in the baseline"))
             continue
-        rtol = float(r.rtol_c)
+        rtol = rtols[(sc, obs)]
         first = (sc, obs) not in status_done  # status and violations: once per observer
         status_done.add((sc, obs))
         if r.status_c == "error" or r.status_b != r.status_c:
@@ -303,10 +494,31 @@ def _consequential(diff: pd.DataFrame) -> pd.Series:
                       for r in diff.itertuples(index=False)], index=diff.index, dtype=bool)
 
 
-def changed_observers(diff: pd.DataFrame) -> list[str]:
-    """Observers with a failing value of their own (not only a shifted ratio)."""
+def _where(rows: pd.DataFrame) -> str:
+    if rows.empty:
+        return "none"
+    per = rows.groupby("observer", sort=False)["scenario"].agg(lambda s: ", ".join(
+        dict.fromkeys(map(str, s))))
+    return "; ".join(f"{o} ({s})" for o, s in per.items())
+
+
+def change_summary(diff: pd.DataFrame) -> str:
+    """One line saying what changed: ``looser: ... | tighter: ... | containment: ...``
+    (observers with their scenarios, "none" if nothing), then status changes, new and
+    missing observers, and third-party plugins not in the baseline, where there are any."""
     own = diff[~diff["ok"] & ~_consequential(diff)]
-    return list(dict.fromkeys(own["observer"]))
+    radius = own[own["metric"] == "rms_radius"]
+    cur = pd.to_numeric(radius["current"], errors="coerce")
+    base = pd.to_numeric(radius["baseline"], errors="coerce")
+    parts = [f"looser: {_where(radius[cur > base])}",
+             f"tighter: {_where(radius[cur < base])}",
+             f"containment: {_where(own[own['metric'] == 'violations'])}"]
+    extra = {"status": own[own["metric"] == "status"],
+             "new": own[(own["metric"] == "observer") & (own["current"] == "present")],
+             "missing": own[(own["metric"] == "observer") & (own["current"] == "missing")],
+             "not in the baseline (plugins)": diff[diff["ok"] & (diff["metric"] == "observer")]}
+    parts += [f"{k}: {_where(v)}" for k, v in extra.items() if not v.empty]
+    return " | ".join(parts)
 
 
 def format_diff(diff: pd.DataFrame, only_failures: bool = True) -> str:

@@ -17,6 +17,7 @@ from observers.registry import table_order  # noqa: E402
 
 from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
+from .verdicts import NA, NO, contained_column, reference_rows, violating  # noqa: E402
 
 MAX_FIGURE_STATES = 6
 #: the paragraph that opens the Markdown and the HTML report
@@ -26,8 +27,12 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "their reference; observers the paper did not run, e.g. CZN in ARCH 2021, can be "
          "below 1). `rel_rms` in summary.csv is against all observers of the run. Times "
          "are medians "
-         "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: the "
-         "true state lies in every estimated set (exact membership test).")
+         "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: "
+         "`yes` if the true state lies in every estimated set (exact membership test; "
+         "`contained (hull only)`: in every interval hull), `no` with the number of "
+         "violating steps, `n/a` where it was not checked (no true state in the record). "
+         "A row marked (unsound) violates containment and is never the reference of a "
+         "ratio.")
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -45,13 +50,19 @@ def _pair(ours, paper) -> str:
     return _fmt(ours) if paper is None else f"{_fmt(ours)} ({_fmt(paper)})"
 
 
+def _contained_col(df: pd.DataFrame) -> str:
+    hull = contained_column("hull")
+    return hull if hull in df.columns else contained_column("exact")
+
+
 def _status_cell(g: pd.DataFrame) -> str:
-    status = g["status"].iloc[0]
+    """The ``contained`` cell: ``yes``, ``n/a`` (nothing to check it against, or not
+    checked to the end), the number of violations, or the failure status."""
+    status, verdict = g["status"].iloc[0], g[_contained_col(g)].iloc[0]
+    if verdict == NO:
+        return f"**no: {int(g['violations'].iloc[0])} violations**"
     if status == "ok":
-        viol = g["violations"].iloc[0]
-        if pd.isna(viol):
-            return "ok"
-        return "ok" if int(viol) == 0 else f"**{int(viol)} violations**"
+        return NA if pd.isna(verdict) else str(verdict)
     step = g["failed_step"].iloc[0]
     return f"{status}" + (f" (step {int(step)})" if pd.notna(step) else "")
 
@@ -59,8 +70,7 @@ def _status_cell(g: pd.DataFrame) -> str:
 def paper_relative(df: pd.DataFrame, paper_names) -> pd.Series:
     """Eq. (9) with the minimum taken over the observers the published table compares (so
     that our ratios and the paper's share their reference); NaN where none of them ran."""
-    ok = (df["status"] == "ok") & df["guaranteed"].astype(bool) & df["observer"].isin(
-        list(paper_names))
+    ok = reference_rows(df) & df["observer"].isin(list(paper_names))
     best = df[ok].groupby("state")["rms_radius"].min()
     return df["rms_radius"] / df["state"].map(best)
 
@@ -92,15 +102,18 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     paper = paper_rows(key, n, variant)
     names = info.get("state_names") or [f"x{i + 1}" for i in range(n)]
     show = list(range(n)) if n <= 8 else []
+    contained = "contained" if _contained_col(df) == contained_column("exact") else (
+        "contained (hull only)")
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
-            "design s", "contained"])
+            "design s", contained])
     rows = []
-    df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"])
+    df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"],
+                   _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         rel = g["_rel"].to_numpy(float)
-        cells = [obs]
+        cells = [f"**{obs}** (unsound)" if g["_bad"].any() else obs]
         for i in show:
             cells.append(_pair(rel[i], p.v[i] if p and p.v else None))
         avg = float(np.mean(rel)) if g["status"].iloc[0] == "ok" else float("nan")
@@ -183,7 +196,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
                  figures: bool = True) -> Path:
     """Write the Markdown report (and figures) for a results folder; returns its path."""
     results_dir = Path(results_dir)
-    summary, meta = load_results(results_dir)
+    summary, meta = load_results(results_dir)  # one complete generation, or ConfigError
     out = Path(out) if out else results_dir / "report.md"
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)

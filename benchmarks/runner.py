@@ -1,5 +1,5 @@
 """Run a benchmark configuration: every observer on every scenario, with containment checks
-and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (atomically)."""
+and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (one generation)."""
 
 from __future__ import annotations
 
@@ -13,15 +13,17 @@ import numpy as np
 import pandas as pd
 
 import observers
-from observers import DesignFailed, Diverged, OptionError, RunResult, Unsupported
-from systems import ModelError, Scenario
+from observers import DesignFailed, OptionError, RunResult, Unsupported
+from observers.sets import ConZonotope, Interval, Zonotope
+from systems import ModelError, Scenario, available_memory
 
 from .config import BenchConfig
 from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json, environment
+from .io import check_output_dir, environment, write_results
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import progress_bar
+from .verdicts import contained_column, containment_verdict
 
 RUN_COLUMNS = ["scenario", "observer", "step", "t", "state", "lo", "hi", "radius", "x_true",
                "contained", "in_set"]
@@ -37,7 +39,8 @@ class ObserverRun:
     status: str
     message: str = ""
     contained: np.ndarray | None = None  # N x n, hull containment (with tolerance)
-    in_set: np.ndarray | None = None  # N, exact set membership (or hull if not checked)
+    in_set: np.ndarray | None = None  # per set: exact membership (hull with `hull`)
+    decided: bool = True  # every set tested as the configuration asks (exact or hull)
 
     @property
     def violations(self) -> int:
@@ -45,23 +48,44 @@ class ObserverRun:
         return 0 if self.in_set is None else int(np.sum(~self.in_set))
 
 
+def _testable(S) -> bool:
+    """Whether :class:`MembershipTester` can test membership in ``S`` exactly."""
+    return isinstance(S, (Interval, Zonotope, ConZonotope)) or hasattr(S, "distance") or (
+        hasattr(S, "contains"))
+
+
 def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: bool):
-    """Hull containment per step and state, and exact set membership per step.
+    """Hull containment per step and state, set membership per step, and whether every
+    set was tested as asked.
 
     The exact test (:mod:`benchmarks.membership`: a membership certificate, else an LP) runs
     only where the hull test passes, since a point outside the interval hull is outside the set.
+    A set that offers no exact test (a plugin's set with only ``interval()``) leaves the run
+    undecided (``decided`` False) unless the hull already shows a violation.
+
+    Returns
+    -------
+    hull : ndarray of bool, shape (K, n)
+        Hull containment per produced set and state (with tolerance ``tol``).
+    in_set : ndarray of bool, shape (K,)
+        Membership per produced set (exact if ``exact``, else the hull test).
+    decided : bool
+        Whether every set passed through the test that was asked for.
     """
     N = len(res.sets)
     x = x_true[:N]
     hull = (x >= res.lo[:N] - tol) & (x <= res.hi[:N] + tol)
     in_set = hull.all(axis=1)
+    decided = True
     if exact:
         tester = MembershipTester()
         for k in np.flatnonzero(in_set):
             S = res.sets[k]
-            if hasattr(S, "contains"):
+            if _testable(S):
                 in_set[k] = tester.contains(S, x[k], tol, hull=(res.lo[k], res.hi[k]))
-    return hull, in_set
+            else:
+                decided = False
+    return hull, in_set, decided
 
 
 def design_observer(name: str, sc: Scenario, options: dict
@@ -118,21 +142,28 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     obs, status, message = design_observer(name, sc, options)
     if obs is None:
         return ObserverRun(sc, info, None, status, message)
-    try:
-        res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None)
-    except Diverged as exc:  # pragma: no cover - run() already converts these
-        return ObserverRun(sc, info, None, "diverged", str(exc))
-    except Exception as exc:
-        print(f"warning: {name} failed on {sc.name}: {exc}", file=sys.stderr)
-        traceback.print_exc(limit=3, file=sys.stderr)
-        return ObserverRun(sc, info, None, "error", f"{type(exc).__name__}: {exc}")
+    res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None, on_error="status")
+    if res.error is not None:  # a plugin bug: reported, and the benchmark goes on
+        print(f"warning: {name} failed on {sc.name}: {res.message}", file=sys.stderr)
+        traceback.print_exception(res.error, limit=3, file=sys.stderr)
+    same_dim = res.lo.shape[1] == sc.system.n
+    if not same_dim and res.status == "ok":
+        res.status, res.failed_step = "error", 0
+        res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
     run = ObserverRun(sc, info, res, res.status, res.message)
-    if sc.x_true is not None and len(res.sets):
-        run.contained, run.in_set = check_containment(
+    if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
+        run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
+
+
+def _bounds(res: RunResult, N: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The run's bounds as N x n arrays (NaN where a failed run produced none)."""
+    if res.lo.shape == (N, n):
+        return res.lo, res.hi
+    return np.full((N, n), np.nan), np.full((N, n), np.nan)
 
 
 def _rows_runs(run: ObserverRun) -> pd.DataFrame:
@@ -140,8 +171,7 @@ def _rows_runs(run: ObserverRun) -> pd.DataFrame:
     N, n = sc.N, sc.system.n
     step = np.repeat(np.arange(N), n)
     state = np.tile(np.arange(n), N)
-    lo = res.lo.reshape(-1)
-    hi = res.hi.reshape(-1)
+    lo, hi = (b.reshape(-1) for b in _bounds(res, N, n))
     xt = sc.x_true.reshape(-1) if sc.x_true is not None else np.full(N * n, np.nan)
     contained = np.full((N, n), np.nan)
     in_set = np.full(N, np.nan)
@@ -156,9 +186,10 @@ def _rows_runs(run: ObserverRun) -> pd.DataFrame:
     })
 
 
-def _rows_summary(run: ObserverRun) -> pd.DataFrame:
+def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
     sc, res, info = run.scenario, run.result, run.info
     n = sc.system.n
+    verdict = containment_verdict(run.status, sc.N, run.in_set, run.decided)
     names = sc.state_names or tuple(f"x{i + 1}" for i in range(n))
     ok = run.status == "ok"
     first_violation = (int(np.argmax(~run.in_set)) if run.in_set is not None
@@ -172,7 +203,7 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
         "step_ms": median_ms(res.step_times) if res is not None else np.nan,
         "hull_ms": median_ms(res.hull_times) if res is not None else np.nan,
         "design_s": res.design_time if res is not None else np.nan,
-        "contained_all": (bool(run.contained.all()) if run.contained is not None else None),
+        contained_column(containment): verdict,
         "violations": run.violations if run.in_set is not None else None,
         "first_violation_step": first_violation if run.in_set is not None else None,
         "status": run.status,
@@ -185,12 +216,39 @@ def _rows_summary(run: ObserverRun) -> pd.DataFrame:
     })
 
 
+#: bytes a run needs per scenario step, state and observer (the row of runs.csv as a data
+#: frame and as CSV text, the bounds and the kept sets; measured about 150, rounded up)
+BYTES_PER_ROW = 256
+
+
+def check_memory(cfg: BenchConfig) -> None:
+    """Refuse, before any work, a configuration whose results would not fit in memory.
+
+    Raises
+    ------
+    ConfigError
+        If the estimated size of the results (:data:`BYTES_PER_ROW` per step, state and
+        observer) exceeds the memory available.
+    """
+    need = BYTES_PER_ROW * len(cfg.observers) * sum(sc.N * sc.system.n for sc in cfg.scenarios)
+    have = available_memory()
+    if have is not None and need > have:
+        raise ConfigError(f"config '{cfg.name}': its results need about {need / 2**30:.3g} GiB "
+                          f"of memory, {have / 2**30:.3g} GiB are available; use fewer steps, "
+                          "scenarios or observers")
+
+
 def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None):
     """Run every (scenario, observer) pair of ``cfg``.
 
     Returns ``(runs, summary)`` data frames; with ``out`` they are also written there
-    (``runs.csv``, ``summary.csv``, ``meta.json``), each file atomically.
+    (``runs.csv``, ``summary.csv``, ``meta.json``) as one generation
+    (:func:`benchmarks.io.write_results`). The output folder and the memory needed are
+    checked before any observer runs (:class:`ConfigError`).
     """
+    if out is not None:
+        check_output_dir(out)
+    check_memory(cfg)
     pairs = [(sc, name) for sc in cfg.scenarios for name in cfg.observers]
     runs, summaries = [], []
     with progress_bar(len(pairs), cfg.name, progress) as bar:
@@ -203,22 +261,20 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                                 np.full((sc.N, sc.system.n), np.nan), [], np.full(sc.N, np.nan),
                                 np.full(sc.N, np.nan), np.nan, run.status, run.message)
                 run.result = res
-            summaries.append(_rows_summary(run))
+            summaries.append(_rows_summary(run, cfg.containment))
             bar.set_postfix_str(f"{sc.name}: {name} {run.status}", refresh=False)
             bar.update()
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
     summary = add_relative_rms(pd.concat(summaries, ignore_index=True))
     cols = ["scenario", "observer", "state", "state_name", "rms_radius", "rel_rms", "step_ms",
-            "hull_ms", "design_s", "contained_all", "violations", "first_violation_step",
-            "status", "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
+            "hull_ms", "design_s", contained_column(cfg.containment), "violations",
+            "first_violation_step", "status", "failed_step", "message", "family", "set_type",
+            "timing", "guaranteed"]
     summary = summary[cols]
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_csv(out / "runs.csv", runs_df)
-        atomic_write_csv(out / "summary.csv", summary)
-        atomic_write_json(out / "meta.json", {
-            "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw},
+        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, {
+            "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
+                       "containment": cfg.containment},
             "scenarios": {sc.name: {
                 "N": sc.N, "n": sc.system.n, "dt": sc.system.dt, "paper_table": sc.paper_table,
                 "description": sc.description, "source": sc.source,

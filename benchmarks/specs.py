@@ -1,7 +1,14 @@
 """Inline system and scenario definitions in benchmark configs.
 
 A config scenario is either a registered name (``vehicle6d-cora``), a mapping with a name and
-keyword arguments (``{name: tank6-linear, seed: 3}``), or an inline definition::
+keyword arguments (``{name: tank6-linear, seed: 3}``), or an inline definition.  A named
+scenario may also replace the observer options it suggests (``options: {}`` runs every
+observer with its own defaults) and take another name in the results (``label``), so that
+one scenario can appear twice in a config::
+
+    - {name: tank6-linear, seed: 0, options: {}, label: tank6-linear-defaults}
+
+An inline definition::
 
     - name: my-plant
       system:
@@ -20,17 +27,27 @@ keyword arguments (``{name: tank6-linear, seed: 3}``), or an inline definition::
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from observers.sets import Interval, SetError, Zonotope
-from systems import NOISE_MODELS, LinearSystem, ModelError, Scenario, scenario, simulate
+from systems import (
+    NOISE_MODELS,
+    LinearSystem,
+    ModelError,
+    Scenario,
+    check_steps,
+    scenario,
+    simulate,
+)
 
 from .errors import ConfigError
 
 NAMED_KWARGS = {"seed", "noise", "steps"}
+NAMED_KEYS = NAMED_KWARGS | {"options", "label"}
 INLINE_KEYS = {"name", "system", "u", "y", "x_true", "simulate", "options", "tolerance",
                "description"}
 SYSTEM_KEYS = {"A", "B", "C", "W", "V", "X0", "dt"}
@@ -198,6 +215,10 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         sim = {"steps": 100, "seed": 0, "noise": "uniform",
                **simulation_kwargs(sim, f"{where}: simulate")}
         steps = sim["steps"]
+        try:
+            check_steps(name, steps)
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
         u = (np.zeros((steps, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u", system.nu))
         try:
@@ -209,6 +230,8 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
     else:
         y = _check_record(_array(spec["y"], f"{where}: y", base), f"{where}: y", system.ny)
         N = y.shape[0]
+        if N == 0:
+            raise ConfigError(f"{where}: y is empty (0 steps)")
         u = (np.zeros((N, system.nu)) if "u" not in spec
              else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u",
                                 system.nu, N))
@@ -237,13 +260,24 @@ def build_scenario(spec: Any, base: Path | None) -> Scenario:
         raise ConfigError(f"a scenario must be a name or a mapping with 'name', got {spec!r}")
     if "system" in spec:
         return build_inline(spec, base)
-    kwargs = {k: v for k, v in spec.items() if k != "name"}
-    unknown = set(kwargs) - NAMED_KWARGS
+    where = f"scenario '{spec['name']}'"
+    kwargs = {k: v for k, v in spec.items() if k not in ("name", "options", "label")}
+    unknown = set(spec) - NAMED_KEYS - {"name"}
     if unknown:
-        raise ConfigError(f"scenario '{spec['name']}': unknown key(s) {sorted(unknown)} "
-                          f"(a named scenario takes {', '.join(sorted(NAMED_KWARGS))})")
-    kwargs = simulation_kwargs(kwargs, f"scenario '{spec['name']}'")
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} "
+                          f"(a named scenario takes {', '.join(sorted(NAMED_KEYS))})")
+    kwargs = simulation_kwargs(kwargs, where)
     try:
-        return scenario(str(spec["name"]), **kwargs)
+        sc = scenario(str(spec["name"]), **kwargs)
     except ModelError as exc:
         raise ConfigError(str(exc)) from None
+    changes: dict[str, Any] = {}
+    if "options" in spec:
+        if not isinstance(spec["options"], dict):
+            raise ConfigError(f"{where}: 'options' must be a mapping ({{}}: observer defaults)")
+        changes["options"] = dict(spec["options"])
+    if "label" in spec:
+        if not isinstance(spec["label"], str) or not spec["label"].strip():
+            raise ConfigError(f"{where}: 'label' must be a non-empty name")
+        changes["name"] = spec["label"].strip()
+    return dataclasses.replace(sc, **changes) if changes else sc

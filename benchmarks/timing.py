@@ -1,6 +1,7 @@
 """Per-step timing of observers against a plain Kalman filter step.
 
-``python -m benchmarks time NAME... --scenario S [--repeat N] [--warmup K] [--json F]``
+``python -m benchmarks time NAME... --scenario S [--repeat N] [--warmup K] [--steps M]
+[--json F]``
 
 Each observer is designed once (the offline design is not part of the step times; its
 duration is reported separately as ``design_s``), then run ``repeat`` times over the
@@ -21,6 +22,7 @@ Timings on a shared machine are noisy: read them as indicative, never as test va
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from dataclasses import asdict, dataclass
@@ -219,6 +221,22 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
     return row
 
 
+def first_steps(sc: Scenario, steps: int | None) -> Scenario:
+    """``sc`` restricted to its first ``steps`` steps (``sc`` itself if ``steps`` is None).
+
+    Raises
+    ------
+    ConfigError
+        If ``steps`` is below 1.
+    """
+    if steps is None or steps >= sc.N:
+        return sc
+    if steps < 1:
+        raise ConfigError(f"--steps must be at least 1, got {steps}")
+    x_true = None if sc.x_true is None else sc.x_true[:steps]
+    return dataclasses.replace(sc, u=sc.u[:steps], y=sc.y[:steps], x_true=x_true)
+
+
 def resolve_warmup(sc: Scenario, warmup: int | None) -> int:
     """The steps dropped per run: ``warmup``, or :func:`warmup_steps` of the record length.
 
@@ -238,7 +256,8 @@ def resolve_warmup(sc: Scenario, warmup: int | None) -> int:
 
 
 def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT,
-                   warmup: int | None = None) -> tuple[Scenario, int, list[TimingRow]]:
+                   warmup: int | None = None, steps: int | None = None
+                   ) -> tuple[Scenario, int, list[TimingRow]]:
     """Time every observer of ``names`` on ``scenario`` (see the module docstring).
 
     Parameters
@@ -251,6 +270,8 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
         Runs over the record per observer.
     warmup : int or None
         Steps dropped at the start of every run (default :func:`warmup_steps`).
+    steps : int or None
+        Run only the first ``steps`` steps of the record (default: all of them).
 
     Returns
     -------
@@ -262,7 +283,7 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
     Raises
     ------
     ConfigError
-        Bad ``repeat`` or ``warmup``.
+        Bad ``repeat``, ``warmup`` or ``steps``.
     observers.UnknownObserver, systems.ModelError
         Unknown observer or scenario (before anything runs).
     """
@@ -271,7 +292,7 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
     names = list(dict.fromkeys(names))
     for name in names:
         observers.get(name)  # unknown names fail before anything runs
-    sc = systems.scenario(scenario)
+    sc = first_steps(systems.scenario(scenario), steps)
     warmup = resolve_warmup(sc, warmup)
     cfg = BenchConfig(name="time", title="time", scenarios=[sc], observers=names)
     rows = [time_observer(name, sc, cfg.options_for(name, sc), repeat, warmup)

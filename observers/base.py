@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from .errors import Diverged, MeasurementError, OptionError, Unsupported
+from .errors import DesignFailed, Diverged, MeasurementError, OptionError, Unsupported
 from .options import OptionSpec, as_spec
 from .sets.errors import EmptySet
 
@@ -62,7 +62,15 @@ class Observer(ABC):
         self._check_options()
         self.validate_options()
         t0 = perf_counter()
-        self.design()
+        try:
+            self.design()
+        except DesignFailed as exc:  # name a zero-width noise set, the likely cause
+            note = zero_width_note(system)
+            if not note:
+                raise
+            who = self.name or type(self).__name__
+            msg = str(exc) if str(exc).startswith(who) else f"{who}: {exc}"
+            raise DesignFailed(f"{msg} (zero-width noise: {note})") from None
         self.design_time = perf_counter() - t0
         self.reset()
 
@@ -136,25 +144,47 @@ class Observer(ABC):
 
     # -- input checks used by subclasses -------------------------------------------------------
     def _measurement(self, y) -> np.ndarray:
-        y = np.asarray(y, dtype=float).reshape(-1)
+        y = _numeric(y, f"{self.name}: measurement at step {self.k}").reshape(-1)
         ny = self.system.C.shape[0]
         if y.shape[0] != ny:
             raise MeasurementError(
                 f"{self.name}: measurement has {y.shape[0]} entries, expected {ny}")
-        if not np.all(np.isfinite(y)):
+        if not np.isfinite(y).all():
             raise MeasurementError(f"{self.name}: non-finite measurement at step {self.k}")
         return y
 
     def _input(self, u) -> np.ndarray:
         nu = self.system.nu
         if u is None:
-            return np.zeros(nu)
-        u = np.asarray(u, dtype=float).reshape(-1)
+            if nu:  # only the first step has no previous input
+                raise MeasurementError(
+                    f"{self.name}: u_prev is None at step {self.k}; only the first step after "
+                    "reset() has no previous input")
+            return np.zeros(0)
+        u = _numeric(u, f"{self.name}: input at step {self.k}").reshape(-1)
         if u.shape[0] != nu:
             raise MeasurementError(f"{self.name}: input has {u.shape[0]} entries, expected {nu}")
-        if not np.all(np.isfinite(u)):
+        if not np.isfinite(u).all():
             raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
         return u
+
+
+def zero_width_note(system: Any) -> str:
+    """Which noise sets of ``system`` have zero width (``W = {0}``: no process noise; a zero
+    component of ``V``: an exact sensor), e.g. ``"W is a single point"``; ``""`` if none."""
+    notes = []
+    for key in ("W", "V"):
+        S = getattr(system, key, None)
+        if S is None or not hasattr(S, "interval"):
+            continue
+        I = S.interval()
+        r = 0.5 * (np.asarray(I.hi, float) - np.asarray(I.lo, float))
+        if not np.any(r > 0):
+            notes.append(f"{key} is a single point")
+        elif np.any(r == 0):
+            zero = ", ".join(str(i + 1) for i in np.flatnonzero(r == 0))
+            notes.append(f"{key} has zero width in component {zero}")
+    return "; ".join(notes)
 
 
 @dataclass
@@ -171,6 +201,7 @@ class RunResult:
     status: str = "ok"
     message: str = ""
     failed_step: int | None = None
+    error: BaseException | None = field(default=None, repr=False)  # of status "error"
 
     @property
     def radius(self) -> np.ndarray:
@@ -183,25 +214,39 @@ class RunResult:
         return 0.5 * (self.hi + self.lo)
 
 
-def as_record(u, y, nu: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
-    """Validate an input/measurement record: ``y`` is N x ny, ``u`` is N x nu (or N-1 x nu)."""
-    y = np.asarray(y, dtype=float)
+def _numeric(a, what: str) -> np.ndarray:
+    """``a`` as a float array; a :class:`MeasurementError` naming ``what`` if it is not
+    numeric (instead of numpy's bare ``ValueError``)."""
+    try:
+        return np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MeasurementError(f"{what} is not numeric ({exc})") from None
+
+
+def as_record(u, y, nu: int | None, ny: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """Validate an input/measurement record: ``y`` is N x ny with N >= 1, ``u`` is N x nu
+    (or N-1 x nu); ``None`` for ``nu`` or ``ny`` takes the width of the given array."""
+    y = _numeric(y, "measurements y")
     if y.ndim == 1 and ny == 1:
         y = y.reshape(-1, 1)
-    if y.ndim != 2 or y.shape[1] != ny:
-        raise MeasurementError(f"measurements y must have shape (N, {ny}), got {y.shape}")
+    if y.ndim != 2 or (ny is not None and y.shape[1] != ny):
+        raise MeasurementError(f"measurements y must have shape (N, {ny or 'ny'}), "
+                               f"got {y.shape}")
+    if y.shape[0] == 0:
+        raise MeasurementError("measurements y are empty (0 steps)")
+    ny = y.shape[1]
     bad = np.argwhere(~np.isfinite(y))
     if bad.size:
         k, j = bad[0]
         raise MeasurementError(f"measurement y[{k}, {j}] is not finite ({y[k, j]})")
     N = y.shape[0]
     if u is None:
-        u = np.zeros((N, nu))
-    u = np.asarray(u, dtype=float)
+        u = np.zeros((N, nu or 0))
+    u = _numeric(u, "inputs u")
     if u.ndim == 1 and nu == 1:
         u = u.reshape(-1, 1)
-    if u.ndim != 2 or u.shape[1] != nu or u.shape[0] not in (N, N - 1):
-        raise MeasurementError(f"inputs u must have shape ({N}, {nu}), got {u.shape}")
+    if u.ndim != 2 or (nu is not None and u.shape[1] != nu) or u.shape[0] not in (N, N - 1):
+        raise MeasurementError(f"inputs u must have shape ({N}, {nu or 'nu'}), got {u.shape}")
     bad = np.argwhere(~np.isfinite(u))
     if bad.size:
         k, j = bad[0]
@@ -210,32 +255,51 @@ def as_record(u, y, nu: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run(
-    obs: Observer,
+    obs: Any,
     u,
     y,
     *,
     keep_sets: bool = True,
     divergence_bound: float = 1e12,
+    on_error: str = "raise",
 ) -> RunResult:
     """Drive ``obs`` over the record and collect interval hulls and timings.
+
+    ``obs`` is an :class:`Observer` or any object with ``step(u_prev, y)`` returning a set
+    with ``interval()`` (an object with ``lo`` and ``hi``); its ``reset()``, ``name``,
+    ``design_time`` and ``system`` (for the shapes of ``u`` and ``y``) are used where present.
 
     ``step()`` and the interval hull are timed separately (``step_times``, ``hull_times``).
     A :class:`~observers.errors.Diverged` raised by the observer, a non-finite hull or a hull
     beyond ``divergence_bound`` ends the run with status ``"diverged"``; an empty estimate
     (:class:`~observers.sets.EmptySet`: the measurements contradict the model and noise
     bounds, or a numerical failure) with status ``"empty"``; the remaining rows are NaN.
+    Any other exception of ``step`` or ``interval`` propagates (``on_error="raise"``) or ends
+    the run with status ``"error"`` and the failing step (``on_error="status"``, the
+    exception in ``RunResult.error``).
+
+    Raises
+    ------
+    MeasurementError
+        If ``u`` or ``y`` is empty, not numeric, not finite or of the wrong shape.
     """
-    system = obs.system
-    n = system.C.shape[1]
-    u, y = as_record(u, y, system.nu, system.C.shape[0])
+    if on_error not in ("raise", "status"):
+        raise ValueError(f"on_error must be 'raise' or 'status', got {on_error!r}")
+    system = getattr(obs, "system", None)
+    C = getattr(system, "C", None)
+    u, y = as_record(u, y, getattr(system, "nu", None), None if C is None else C.shape[0])
     N = y.shape[0]
-    lo = np.full((N, n), np.nan)
-    hi = np.full((N, n), np.nan)
+    n = None if C is None else C.shape[1]
+    lo = np.full((N, n or 0), np.nan)
+    hi = np.full((N, n or 0), np.nan)
     step_times = np.full(N, np.nan)
     hull_times = np.full(N, np.nan)
     sets: list = []
-    obs.reset()
-    result = RunResult(obs.name, lo, hi, sets, step_times, hull_times, obs.design_time)
+    if callable(getattr(obs, "reset", None)):
+        obs.reset()
+    name = getattr(obs, "name", "") or type(obs).__name__
+    result = RunResult(name, lo, hi, sets, step_times, hull_times,
+                       float(getattr(obs, "design_time", np.nan)))
     for k in range(N):
         u_prev = u[k - 1] if k > 0 else None
         try:
@@ -244,6 +308,13 @@ def run(
             t1 = perf_counter()
             I = S.interval()
             t2 = perf_counter()
+            if n is None:  # an observer without a system: its sets give the dimension
+                n = np.size(I.lo)
+                result.lo = lo = np.full((N, n), np.nan)
+                result.hi = hi = np.full((N, n), np.nan)
+            if np.shape(I.lo) != (n,) or np.shape(I.hi) != (n,):
+                raise ValueError(f"the interval hull of step {k} has shape {np.shape(I.lo)}, "
+                                 f"expected ({n},)")
         except Diverged as exc:
             result.status, result.message = "diverged", str(exc)
             result.failed_step = k if exc.step is None else exc.step
@@ -252,9 +323,15 @@ def run(
             result.status, result.failed_step = "empty", k
             result.message = f"step {k}: the estimate is empty ({exc})"
             break
+        except Exception as exc:
+            if on_error == "raise":
+                raise
+            result.status, result.failed_step, result.error = "error", k, exc
+            result.message = f"step {k}: {type(exc).__name__}: {exc}"
+            break
         step_times[k], hull_times[k] = t1 - t0, t2 - t1
         if not (np.all(np.isfinite(I.lo)) and np.all(np.isfinite(I.hi))) or (
-            max(np.abs(I.lo).max(), np.abs(I.hi).max()) > divergence_bound
+            max(np.abs(I.lo).max(initial=0.0), np.abs(I.hi).max(initial=0.0)) > divergence_bound
         ):
             result.status, result.failed_step = "diverged", k
             result.message = f"step {k}: interval hull left +-{divergence_bound:g}"

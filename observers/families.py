@@ -63,7 +63,10 @@ def strip_update(
     ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]``.
     """
     c_new = c + Lam @ (y - C @ c)
-    G_new = np.hstack([G - Lam @ (C @ G), Lam * sigma])
+    r = G.shape[1]
+    G_new = np.empty((G.shape[0], r + Lam.shape[1]))  # one allocation, no hstack copy
+    np.subtract(G, Lam @ (C @ G), out=G_new[:, :r])
+    np.multiply(Lam, sigma, out=G_new[:, r:])
     return c_new, G_new
 
 def propagate(
@@ -84,7 +87,11 @@ def propagate(
     cW, GW = W
     M = A - L @ C
     c_new = M @ c + B @ u + L @ (y - cV) + cW
-    G_new = np.hstack([M @ G, -L @ GV, GW])
+    r, rv = G.shape[1], GV.shape[1]
+    G_new = np.empty((G.shape[0], r + rv + GW.shape[1]))  # one allocation, no hstack copy
+    np.matmul(M, G, out=G_new[:, :r])
+    np.matmul(-L, GV, out=G_new[:, r : r + rv])
+    G_new[:, r + rv :] = GW
     return c_new, G_new
 
 
@@ -146,7 +153,10 @@ class StripBasedObserver(ZonotopeObserver):
         else:
             u = self._input(u_prev)
             c = self.A @ self._c + self.B @ u + self.W.c
-            G = np.hstack([self.A @ self._G, self.E])
+            r = self._G.shape[1]
+            G = np.empty((self.A.shape[0], r + self.E.shape[1]))  # [A G, E] without hstack
+            np.matmul(self.A, self._G, out=G[:, :r])
+            G[:, r:] = self.E
             c, G = self.intersect(c, G, y)
             G = self._reduce(G, self.order)
         self._c, self._G = c, G

@@ -50,6 +50,17 @@ class ObserverInfo:
         """``"ready for control"`` (estimate available before y_k) or ``"in time"``."""
         return "ready for control" if self.ready_for_control else "in time"
 
+    def option_defaults(self) -> dict[str, Any]:
+        """Accepted options with their defaults (``{}`` for a plain class without
+        ``option_defaults``, which then takes no options)."""
+        defaults = getattr(self.cls, "option_defaults", None)
+        return dict(defaults()) if callable(defaults) else {}
+
+    @property
+    def scenario_options(self) -> tuple[str, ...] | None:
+        """Options a scenario may set by default (``SCENARIO_OPTIONS``; None = all)."""
+        return getattr(self.cls, "SCENARIO_OPTIONS", None)
+
     @property
     def summary(self) -> str:
         """First line of the class docstring."""
@@ -174,5 +185,30 @@ def get(name: str) -> ObserverInfo:
 
 
 def create(name: str, system: Any, **options: Any) -> Observer:
-    """Instantiate observer ``name`` for ``system``: this runs (and times) its offline design."""
-    return get(name).cls(system, **options)
+    """Instantiate observer ``name`` for ``system``: this runs (and times) its offline design.
+
+    A registered class that is not an :class:`~observers.base.Observer` (any class whose
+    objects have ``step(u_prev, y)``) is called as ``cls(system, **options)``; without
+    ``option_defaults`` it takes no options, and without a ``design_time`` attribute the
+    construction is timed as its design.
+    """
+    from time import perf_counter
+
+    from .base import Observer
+    from .errors import OptionError
+
+    info = get(name)
+    if issubclass(info.cls, Observer):
+        return info.cls(system, **options)
+    unknown = sorted(set(options) - set(info.option_defaults()))
+    if unknown:
+        raise OptionError(f"{name}: unknown option(s) {', '.join(unknown)} "
+                          f"(accepted: {', '.join(sorted(info.option_defaults())) or 'none'})")
+    t0 = perf_counter()
+    obs = info.cls(system, **options)
+    if not hasattr(obs, "design_time"):
+        try:
+            obs.design_time = perf_counter() - t0
+        except AttributeError:  # pragma: no cover - e.g. __slots__
+            pass
+    return obs

@@ -5,9 +5,10 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 
 from .alamo import alamo2d
 from .errors import ModelError
+from .memory import available_memory
 from .model import LinearSystem, NonlinearSystem, observability_matrix
 from .rotating import rotating_target
-from .scenarios import Scenario, register_scenario, scenario, scenario_names
+from .scenarios import Scenario, check_steps, register_scenario, scenario, scenario_names
 from .simulate import NOISE_MODELS, Simulation, simulate
 from .tank import tank, tank_input
 from .training import Training, offline_experiment
@@ -22,6 +23,8 @@ __all__ = [
     "Simulation",
     "Training",
     "alamo2d",
+    "available_memory",
+    "check_steps",
     "lane_change_input",
     "observability_matrix",
     "offline_experiment",

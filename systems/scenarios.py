@@ -22,6 +22,7 @@ from observers.sets import Zonotope
 
 from .alamo import alamo2d
 from .errors import ModelError
+from .memory import available_memory
 from .model import LinearSystem
 from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
@@ -287,8 +288,27 @@ def scenario_names() -> list[str]:
     return list(_LISTED)
 
 
+#: bytes per simulated step of the smallest system (x, y, u and the noise factors), a lower
+#: bound of what a record of ``steps`` steps allocates
+RECORD_BYTES_PER_STEP = 48
+
+
+def check_steps(name: str, steps: Any) -> None:
+    """``steps`` must be an integer >= 1 whose record fits in the memory available."""
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ModelError(f"scenario '{name}': steps must be an integer >= 1, got {steps!r}")
+    have = available_memory()
+    if have is not None and steps * RECORD_BYTES_PER_STEP > have:
+        raise ModelError(f"scenario '{name}': {steps} steps need at least "
+                         f"{steps * RECORD_BYTES_PER_STEP / 2**30:.3g} GiB of memory, "
+                         f"{have / 2**30:.3g} GiB are available")
+
+
 def scenario(name: str, **kwargs: Any) -> Scenario:
-    """Build the scenario ``name``; simulated ones accept ``seed``, ``noise`` and ``steps``."""
+    """Build the scenario ``name``; simulated ones accept ``seed``, ``noise`` and ``steps``
+    (an integer >= 1 whose record fits in memory, checked before anything is allocated)."""
+    if "steps" in kwargs:
+        check_steps(name, kwargs["steps"])
     try:
         if name in _FIXED:
             return _FIXED[name](**kwargs)

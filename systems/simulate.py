@@ -9,6 +9,7 @@ import numpy as np
 from observers.sets import Zonotope
 
 from .errors import ModelError
+from .memory import available_memory
 
 NOISE_MODELS = ("uniform", "gaussian-truncated", "vertex")
 
@@ -84,6 +85,13 @@ def simulate(
         raise ModelError(f"u has {u.shape[0]} rows, but {N} steps were requested")
     if not np.all(np.isfinite(u[:N])):
         raise ModelError("u contains non-finite values")
+    need = 8 * N * (2 * n + system.C.shape[0] + system.W.num_generators
+                    + system.V.num_generators)
+    have = available_memory()
+    if have is not None and need > have:
+        raise ModelError(f"simulating {N} steps of this {n}-state system needs about "
+                         f"{need / 2**30:.3g} GiB of memory, {have / 2**30:.3g} GiB are "
+                         "available")
     rng = np.random.default_rng(seed)
     if x0 is None:
         x = _draw(system.X0, sample_unit_box(rng, (1, system.X0.num_generators), noise)[0])

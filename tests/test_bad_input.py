@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import re
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -126,6 +127,17 @@ BAD_CONFIGS = [
     ("unknown observer options", cfg_with(cfg__observer_options={"Kalman-X": {}}),
      "unknown observer 'Kalman-X'"),
     ("unknown system key", cfg_with(system__D=[[0.0]]), r"unknown system key\(s\) \['D'\]"),
+    # values of an observer that is not in the run are checked too
+    ("option value of an absent observer",
+     cfg_with(cfg__observer_options={"FRad-B": {"variant": "nonsense"}}),
+     "observer_options: FRad-B: variant must be one of"),
+    # records too large for memory: refused before anything is allocated
+    ("named steps beyond memory",
+     cfg_with(cfg__scenarios=[{"name": "vehicle2d-sim", "steps": 10**12}]),
+     r"scenario 'vehicle2d-sim': 1000000000000 steps need at least .* GiB of memory"),
+    ("empty y", cfg_with(scen__simulate=None, scen__y=[]), r"scenario 'toy': y is empty"),
+    ("inline steps beyond memory", cfg_with(scen__simulate={"steps": 10**12}),
+     "steps need at least .* GiB of memory"),
     ("unknown scenario key", cfg_with(scen__colour="red"), r"unknown key\(s\) \['colour'\]"),
 ]
 
@@ -242,3 +254,154 @@ def test_new_commands_reject_bad_arguments_in_one_line(tmp_path, capsys, argv, m
     assert err.startswith("error: ") and len(err.splitlines()) == 1, err
     assert message in err
     assert not (tmp_path / "a").exists()
+
+
+# -- the Python API ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def toy():
+    s = systems.LinearSystem([[0.9, 0.1], [0.0, 0.8]], [[0.0], [1.0]], [[1.0, 0.0]],
+                             W=Zonotope.box([0.01, 0.01]), V=Zonotope.box([0.1]),
+                             X0=Zonotope.box([1.0, 1.0]))
+    return s, systems.simulate(s, np.zeros((10, 1)), seed=0)
+
+
+def test_empty_record_is_refused(toy):
+    s, sim = toy
+    obs = observers.create("FRad-A", s)
+    with pytest.raises(observers.MeasurementError, match=r"y are empty \(0 steps\)"):
+        observers.run(obs, np.zeros((0, 1)), np.zeros((0, 1)))
+
+
+@pytest.mark.parametrize("bad", [["a"], [object()], "0.1"])
+def test_non_numeric_measurement_is_a_measurement_error(toy, bad):
+    s, sim = toy
+    obs = observers.create("FRad-A", s)
+    obs.step(None, sim.y[0])
+    with pytest.raises(observers.MeasurementError, match="measurement at step 1 is not numeric"):
+        obs.step(sim.u[0], bad if bad != "0.1" else [{"y": 0.1}])
+    with pytest.raises(observers.MeasurementError, match="measurements y is not numeric"):
+        observers.run(obs, sim.u, [["x"]] * len(sim.y))
+    with pytest.raises(observers.MeasurementError, match="input at step 1 is not numeric"):
+        obs.reset()
+        obs.step(None, sim.y[0])
+        obs.step(["u"], sim.y[1])
+
+
+def test_u_prev_none_only_on_the_first_step(toy):
+    s, sim = toy
+    for name in ("FRad-A", "FRad-C", "CZN-A", "ESO-B", "Hinf-G"):
+        obs = observers.create(name, s)
+        obs.step(None, sim.y[0])
+        with pytest.raises(observers.MeasurementError, match="u_prev is None at step 1"):
+            obs.step(None, sim.y[1])
+        obs.reset()
+        obs.step(None, sim.y[0])  # after reset() the first step again
+
+
+@pytest.mark.parametrize("name", ["vehicle2d-sim", "alamo2d-sim", "tank6-linear",
+                                  "rotating-target"])
+@pytest.mark.parametrize("steps", [-5, 0, 2.5, True])
+def test_bad_steps_of_a_named_scenario(name, steps):
+    with pytest.raises(systems.ModelError,
+                       match=rf"scenario '{name}': steps must be an integer >= 1, got"):
+        systems.scenario(name, steps=steps)
+
+
+def test_steps_beyond_memory_are_refused_before_allocating():
+    with pytest.raises(systems.ModelError, match="GiB of memory"):
+        systems.scenario("vehicle2d-sim", steps=10**12)
+
+
+# -- zero-width noise sets -----------------------------------------------------------------------
+def _zero_width_systems():
+    """A 2-state, 2-output system with W = {0}, V = {0}, both, one zero component of W, and
+    one of V (an exact sensor)."""
+    A, B, C = [[0.9, 0.2], [-0.1, 0.8]], [[0.0], [1.0]], [[1.0, 0.0], [0.5, 1.0]]
+    W, V = np.diag([0.02, 0.01]), np.diag([0.1, 0.05])
+    out = {}
+    for label, (Wg, Vg) in {"W={0}": (np.zeros((2, 0)), V), "V={0}": (W, np.zeros((2, 0))),
+                            "W=V={0}": (np.zeros((2, 2)), np.zeros((2, 2))),
+                            "W1=0": (np.diag([0.0, 0.01]), V),
+                            "V1=0": (W, np.diag([0.0, 0.05]))}.items():
+        out[label] = systems.LinearSystem(A, B, C, W=Zonotope(np.zeros(2), Wg),
+                                          V=Zonotope(np.zeros(2), Vg),
+                                          X0=Zonotope.box([1.0, 1.0]))
+    return out
+
+
+ZERO_WIDTH = _zero_width_systems()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label", list(ZERO_WIDTH))
+def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
+    """Every observer either runs soundly (exact membership at every step) or refuses at
+    construction with a message naming W or V; no warning, no other exception."""
+    from benchmarks.membership import MembershipTester
+
+    s = ZERO_WIDTH[label]
+    sim = systems.simulate(s, 0.1 * np.sin(np.arange(25)).reshape(-1, 1), seed=3)
+    training = systems.offline_experiment(s, 120, 5, Zonotope.box([0.5]), C=np.eye(2),
+                                          Gamma=Zonotope.box([0.001, 0.001]))
+    tester = MembershipTester()
+    for info in observers.available():
+        accepted = info.cls.option_defaults()
+        opts = {"training": training} if "training" in accepted else {}
+        if "max_subsets" in accepted:
+            opts["order"] = 4  # VolMin-A: keep its LP enumeration small
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            try:
+                obs = observers.create(info.name, s, **opts)
+            except (DesignFailed, observers.Unsupported) as exc:
+                assert re.search(r"\b[WV]\b", str(exc)), (label, info.name, str(exc))
+                continue
+            res = observers.run(obs, sim.u, sim.y)
+        assert res.status == "ok", (label, info.name, res.message)
+        if info.guaranteed:
+            for k, S in enumerate(res.sets):
+                m = tester.test(S, sim.x_true[k], 1e-9)
+                assert m.inside is not False, (label, info.name, k, m.distance)
+
+
+@pytest.mark.parametrize("name", ["FRad-A", "FRad-B", "FRad-C", "CZN-B"])
+def test_frad_gains_handle_exact_models(name):
+    """No noise at all: FRad-A's strip gain was 0/0, FRad-C's (and FRad-B's, CZN-B's)
+    innovation matrix C P C' + F F' singular; the F-radius gains are exact there."""
+    from benchmarks.membership import MembershipTester
+
+    s = ZERO_WIDTH["W=V={0}"]
+    sim = systems.simulate(s, 0.1 * np.sin(np.arange(25)).reshape(-1, 1), seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = observers.run(observers.create(name, s), sim.u, sim.y)
+    assert res.status == "ok", res.message
+    tester = MembershipTester()
+    assert all(tester.test(S, x, 1e-9).inside for S, x in zip(res.sets, sim.x_true,
+                                                               strict=True))
+
+
+def test_memory_estimates_before_simulating_and_before_running(tmp_path, monkeypatch):
+    """A record or a run that would not fit is refused with its estimate, before the arrays
+    are allocated (here with 1 MiB and 64 KiB of "available" memory)."""
+    import sys
+
+    import benchmarks.runner
+
+    monkeypatch.setattr(sys.modules["systems.simulate"], "available_memory", lambda: 2**20)
+    s = systems.tank(50)
+    with pytest.raises(systems.ModelError, match=r"simulating 2000 steps of this 50-state "
+                                                 r"system needs about .* GiB"):
+        systems.simulate(s, np.zeros((2000, s.nu)))
+    monkeypatch.undo()
+    monkeypatch.setattr(benchmarks.runner, "available_memory", lambda: 2**16)
+    cfg = load_config(_write(tmp_path, cfg_with(cfg__scenarios=["tank6-linear"],
+                                                cfg__observers=["FRad-A", "FRad-B"])))
+    with pytest.raises(benchmarks.errors.ConfigError, match="results need about"):
+        benchmarks.runner.run_config(cfg, progress=False)
+
+
+def _write(tmp_path, cfg) -> str:
+    path = tmp_path / "cfg.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return str(path)

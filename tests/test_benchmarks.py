@@ -51,14 +51,18 @@ def test_run_writes_runs_summary_and_report(tmp_path):
     runs = pd.read_csv(out / "runs.csv")
     summary = pd.read_csv(out / "summary.csv")
     for col in ("scenario", "observer", "state", "rms_radius", "rel_rms", "step_ms", "design_s",
-                "contained_all", "status"):
+                "contained", "status"):
         assert col in summary.columns
     assert len(runs) == 3 * (100 * 2 + 30 * 2)
     assert set(runs.columns) >= {"lo", "hi", "radius", "x_true", "contained", "step"}
     best = summary.groupby(["scenario", "state"])["rel_rms"].min()
     np.testing.assert_allclose(best, 1.0)
     toy = summary[summary["scenario"] == "toy"]
-    assert toy["contained_all"].all() and (toy["violations"] == 0).all()
+    assert (toy["contained"] == "yes").all() and (toy["violations"] == 0).all()
+    cora = summary[summary["scenario"] == "vehicle2d-cora"]  # no true states in CORA's record
+    assert cora["violations"].isna().all()
+    literal = pd.read_csv(out / "summary.csv", keep_default_na=False)  # pandas reads n/a as NaN
+    assert set(literal.loc[literal["scenario"] == "vehicle2d-cora", "contained"]) == {"n/a"}
     assert main(["report", str(out)]) == 0
     text = (out / "report.md").read_text()
     assert "| FRad-A |" in text and (out / "report_figures" / "toy" / "FRad-A.png").is_file()

@@ -26,13 +26,15 @@ def test_vehicle2d_final_hull_matches_cora(name, cora_vehicle2d_refs):
 
 
 @pytest.mark.parametrize(("name", "rtol"), [("FRad-A", 0.01), ("FRad-B", 0.01),
-                                            ("FRad-C", 0.01)])
+                                            ("FRad-C", 0.02)])
 def test_tank6_rms_radii_match_arch2021_table3(name, rtol):
     # F-radius gains depend only on the generators, so the radii do not depend on the noise
     # realisation: ARCH Table 3 (relative value x smallest absolute radius) is reproducible.
-    # FRad-A/B land within 0.05 % of the table, FRad-C within 0.75 % with the pinned AVX2
-    # BLAS kernels (benchmarks/__init__.py); FRad-C's PCA reductions act on repeated singular
-    # values here, so rounding moves it: with AVX-512 kernels it lands 1.2 % below on x5.
+    # FRad-A/B land within 0.05 % of the table.  FRad-C's PCA reductions act on repeated
+    # singular values here, where any basis of the repeated subspace is a set of principal
+    # axes: CORA's came from MATLAB's LAPACK, ours is the deterministic basis of
+    # observers/sets/reduction.py (the same on every BLAS kernel), which lands up to 1.5 %
+    # below (tighter than) the table (x2, seed 0); kernel-chosen bases gave 0.75 % to 1.2 %.
     tab = paper_table("arch2021_table3_tank6_linear")
     expected = np.array(tab["rows"][name]["v"]) * np.array(tab["smallest_absolute_radii"])
     for seed in (0, 1):

@@ -41,19 +41,33 @@ def gate(tmp_path, command: str, cfg: Path, *extra: str) -> int:
             "--no-progress", *extra]
     if command == "check":
         argv += ["--out", str(tmp_path / "check")]
+    elif "--update" in extra:
+        argv += ["--kernels", "none"]  # the kernel sensitivity: tests/test_gate_everywhere.py
     return main(argv)
+
+
+def perturb_frad_a(monkeypatch) -> None:
+    """Make FRad-A's strip intersection 1 % wider (its generators times 1.01), as a changed
+    algorithm would."""
+    original = frad.alamo_frad_strips
+
+    def wider(*args):
+        c, G = original(*args)
+        return c, 1.01 * G
+
+    monkeypatch.setattr(frad, "alamo_frad_strips", wider)
 
 
 def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys, monkeypatch):
     cfg = subset(tmp_path)
     assert gate(tmp_path, "baseline", cfg, "--update") == 0
     assert sorted(p.name for p in (tmp_path / "baseline").iterdir()) == [
-        "alamo2d.csv", "meta.json", "vehicle2d-cora.csv"]
+        "SENSITIVITY.md", "alamo2d.csv", "meta.json", "vehicle2d-cora.csv"]
     assert gate(tmp_path, "check", cfg) == 0
     assert "check passed" in capsys.readouterr().out
 
-    original = frad.alamo_frad_gain
-    monkeypatch.setattr(frad, "alamo_frad_gain", lambda *a: 1.01 * original(*a))
+    original = frad.alamo_frad_strips
+    perturb_frad_a(monkeypatch)
     assert gate(tmp_path, "check", cfg) == 1
     captured = capsys.readouterr()
     table = captured.out
@@ -64,12 +78,12 @@ def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys
         assert any(line.split()[:4] == [scenario, "FRad-A", state, "rms_radius"]
                    and "REGRESSION" in line for line in own.splitlines()), own
     assert "FRad-B" not in own and "FRad-C" not in own  # their own radii did not change
-    assert "changed: FRad-A (" in captured.err
+    assert "looser: FRad-A (" in captured.err.splitlines()[-1]
     diff = pd.read_csv(tmp_path / "check" / "diff.csv")
     assert set(diff.loc[~diff["ok"] & (diff["metric"] == "rms_radius"), "observer"]) == {
         "FRad-A"}
 
-    monkeypatch.setattr(frad, "alamo_frad_gain", original)
+    monkeypatch.setattr(frad, "alamo_frad_strips", original)
     assert gate(tmp_path, "check", cfg) == 0
 
 
@@ -162,7 +176,7 @@ def test_baseline_refuses_an_unsound_or_crashing_observer(tmp_path, capsys):
         assert gate(tmp_path, "baseline", cfg, "--update") == 1
         assert "Test-Unsound violates containment on alamo2d-sim" in capsys.readouterr().err
         assert not (tmp_path / "baseline").exists()
-        assert gate(tmp_path, "baseline", cfg, "--update", "--force") == 0
+        assert gate(tmp_path, "baseline", cfg, "--update", "--force") == 1  # never enshrined
     finally:
         registry._REGISTRY.pop("Test-Unsound")
 
@@ -214,13 +228,12 @@ def test_a_failing_check_names_environment_differences_from_the_baseline(tmp_pat
     meta_path = tmp_path / "baseline" / "meta.json"
     meta = json.loads(meta_path.read_text())
     assert meta["versions"]["blas_coretype"]  # recorded with the baseline
-    meta["versions"]["blas_coretype"] = "SkylakeX"
+    meta["versions"]["blas_coretype"] = "Prescott"
     meta_path.write_text(json.dumps(meta))
     assert gate(tmp_path, "check", cfg) == 0  # equal results: no note needed
     capsys.readouterr()
-    original = frad.alamo_frad_gain
-    monkeypatch.setattr(frad, "alamo_frad_gain", lambda *a: 1.01 * original(*a))
+    perturb_frad_a(monkeypatch)
     assert gate(tmp_path, "check", cfg) == 1
     err = capsys.readouterr().err
-    assert "environment differs from the baseline's (blas_coretype: SkylakeX -> " in err
+    assert "environment differs from the baseline's (blas_coretype: Prescott -> " in err
     assert regression.environment_differences(meta, meta["versions"]) == []

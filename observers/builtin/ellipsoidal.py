@@ -60,6 +60,11 @@ class EllipsoidalStripObserver(Observer):
         V = Ellipsoid.from_zonotope(as_zonotope(s.V, "V"), mode)
         self.QW, self.cW = np.array(W.Q), np.array(W.q)
         self.QV, self.cV = np.array(V.Q), np.array(V.q)
+        if not np.any(self.QW):
+            raise DesignFailed(
+                f"{self.name}: the disturbance set W is a single point; without process noise "
+                "the estimate shrinks towards a point, where the ellipsoidal update loses "
+                "containment to rounding (give W a width)")
         self.cora = self.options["variant"] == "cora"
         s2 = CORA_SIGMA2_0 if self.cora else 1.0
         self._start = (np.array(X0.q), np.array(X0.Q), s2)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..families import AllStripsObserver, PerStripObserver, PropagationObserver
-from ..numerics.frad import alamo_frad_gain, combastel_gain, wang_frad_gain
+from ..numerics.frad import alamo_frad_gain, alamo_frad_strips, combastel_gain, wang_frad_gain
 from ..options import Choice
 from ..registry import register
 
@@ -19,6 +19,11 @@ class FRadA(PerStripObserver):
 
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
         return alamo_frad_gain(G, self.C[i], self.sigma[i])
+
+    def intersect(self, c, G, y):
+        """All strips at once on ``G G'`` (:func:`alamo_frad_strips`; the same set as the
+        strip-by-strip loop of :class:`PerStripObserver` with :meth:`strip_gain`)."""
+        return alamo_frad_strips(c, G, self.C, y, self.sigma)
 
 
 class WangGainVariant:

@@ -79,6 +79,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import DesignFailed
 from ..families import AllStripsObserver, PerStripObserver
 from ..numerics.prad import le_gain, wang_c1_gain, wang_c2_gain, wang_d_gain
 from ..offline import OfflineGain
@@ -87,9 +88,13 @@ from ..registry import register
 
 
 def cora_epsilon(W, sigma: np.ndarray) -> float:
-    """CORA's ``epsilon = norm(W) + phi'phi`` of the PRad-A/B design."""
+    """CORA's ``epsilon = norm(W) + phi'phi`` of the PRad-A/B design; it must be positive."""
     Wi = W.interval()
-    return float(np.linalg.norm(np.maximum(np.abs(Wi.lo), np.abs(Wi.hi))) + sigma @ sigma)
+    eps = float(np.linalg.norm(np.maximum(np.abs(Wi.lo), np.abs(Wi.hi))) + sigma @ sigma)
+    if not eps > 0:
+        raise DesignFailed("the P-radius design needs epsilon = |W| + phi'phi > 0, but the "
+                           "disturbance set W and the noise set V are both the point 0")
+    return eps
 
 
 class _BetaTol:

@@ -19,6 +19,7 @@ from ..base import Observer
 from ..errors import DesignFailed
 from ..families import as_zonotope
 from ..numerics.datadriven import check_training
+from ..numerics.linalg import psd_solve
 from ..options import Choice, Integer, Number, training_data
 from ..registry import register
 from ..sets import Ellipsoid
@@ -109,7 +110,7 @@ class KalmanN4SID(Observer):
             x = self.A @ self._x + self.B @ u + self.cw
             P = self.A @ self._P @ self.A.T + self.Q
         S = self.C @ P @ self.C.T + self.R
-        K = np.linalg.solve(S, self.C @ P).T
+        K = psd_solve(S, self.C @ P).T  # R = 0 (an exact sensor) makes S singular
         x = x + K @ (y - self.C @ x - self.cv)
         IKC = np.eye(x.size) - K @ self.C
         P = IKC @ P @ IKC.T + K @ self.R @ K.T  # Joseph form

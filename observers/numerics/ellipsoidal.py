@@ -274,6 +274,9 @@ def _lyapunov_weight(Ao: np.ndarray, Sigma: np.ndarray, what: str) -> np.ndarray
         raise DesignFailed(f"{what}: the first gain does not make A - L C Schur stable")
     V = sym(solve_discrete_lyapunov(Ao, sym(Sigma)))
     w = np.linalg.eigvalsh(V)
+    if not w[-1] > 0:
+        raise DesignFailed(f"{what}: the disturbance set W is a single point, so the error "
+                           "covariance that weights the second gain is zero")
     V = V + max(0.0, 1e-9 * w[-1] - w[0]) * np.eye(V.shape[0])
     return sym(np.linalg.inv(V))
 

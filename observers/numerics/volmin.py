@@ -41,6 +41,8 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
+from observers.sets.highs import new_highs
+
 #: CORA's threshold below which ``c g_j`` counts as zero (candidate j = unchanged zonotope)
 ZERO_PROJECTION = 1e10 * np.finfo(float).eps
 
@@ -232,8 +234,7 @@ def _solve_volume_lp(c_row: np.ndarray, v: np.ndarray, a: float, b: np.ndarray) 
     lp.a_matrix_.start_ = A.indptr
     lp.a_matrix_.index_ = A.indices
     lp.a_matrix_.value_ = A.data
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
+    h = new_highs()
     h.passModel(lp)
     h.run()
     if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:

@@ -28,6 +28,7 @@ except ImportError as exc:  # pragma: no cover - exercised only on broken instal
 
 from . import _dual_simplex
 from .errors import EmptySet, SetError
+from .highs import new_highs
 
 _EPS = np.finfo(float).eps
 _EMPTY = "constrained zonotope is empty (its constraints are infeasible)"
@@ -61,8 +62,7 @@ def dual_bounds(Gd: np.ndarray, A: np.ndarray, b: np.ndarray, Mu: np.ndarray) ->
 
 
 def _highs() -> highspy.Highs:
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
+    h = new_highs()
     h.setOptionValue("presolve", "off")  # tiny LPs, re-solved warm: presolve only costs time
     h.setOptionValue("simplex_scale_strategy", 0)  # fewer iterations on these LPs (measured)
     return h
@@ -264,8 +264,7 @@ def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
     tol = np.broadcast_to(np.asarray(tol, dtype=float), (m,))
     if r == 0:
         return bool(np.all(np.abs(t) <= tol))
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
+    h = new_highs()
     lp = highspy.HighsLp()
     lp.num_col_ = r + m
     lp.num_row_ = m

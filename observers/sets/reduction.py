@@ -18,6 +18,23 @@ and ``pca``):
 ``girard`` encloses the reduced generators by an axis-aligned box (Girard, HSCC 2005);
 ``pca`` encloses them by a box aligned with the principal axes of ``[G_red, -G_red]``
 (Kopetzki et al., CDC 2017).
+
+Deterministic PCA basis.  The principal axes are the left singular vectors of ``G_red``.  Where
+singular values repeat (the boxes of ``W`` or ``X0`` give ties; a rank-deficient block gives a
+repeated zero) the singular vectors of that cluster are any orthonormal basis of its subspace,
+and LAPACK returns one that depends on the BLAS kernel (AVX2 and AVX-512 kernels pick
+different ones), while the box, and so the set, depends on the basis.  :func:`principal_axes`
+therefore makes the basis a function of the subspace only:
+
+1. the SVD is taken of ``G_red`` itself (not of ``G_red G_red'``, which squares the condition
+   number and leaves the axes of small singular values to rounding);
+2. singular values within ``CLUSTER_RTOL * s_max`` of their neighbour form a cluster;
+3. for each cluster, from its orthogonal projector ``P = V V'`` (independent of the basis
+   ``V``), the basis is built by pivoted Cholesky: take the coordinate ``j`` with the largest
+   ``P_jj`` (the lowest index among those within ``PIVOT_RTOL`` of the largest, so rounding
+   cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
+
+For a single singular value this only fixes the sign (largest component positive).
 """
 
 from __future__ import annotations
@@ -46,19 +63,46 @@ def split_generators(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarra
     Zero columns are dropped first.  The to-be-reduced block is returned sorted by the metric
     ``||g||_1 - ||g||_inf`` (stable), the unreduced block in the original column order.
     """
+    keep, red, _ = _split(G, order)
+    return keep, red
+
+
+def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`split_generators` plus ``|red|`` (``None`` if nothing is reduced).
+
+    One pass of ``|G|`` serves the zero-column test (a column is zero iff its 1-norm is), the
+    metric and the box of the reduced generators; a matrix without zero columns is not copied.
+    """
     check_order(order)
-    G = G[:, np.any(G != 0.0, axis=0)]
+    absG = np.abs(G)
+    norm1 = absG.sum(axis=0)
+    nonzero = norm1 != 0.0
+    if not nonzero.all():
+        G, absG, norm1 = G[:, nonzero], absG[:, nonzero], norm1[nonzero]
     n, r = G.shape
     if r <= n * order:
-        return G, G[:, :0]
+        return G, G[:, :0], None
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    absG = np.abs(G)
-    h = absG.sum(axis=0) - absG.max(axis=0)
-    picked = np.argsort(h, kind="stable")[:n_reduced]
-    keep = np.ones(r, dtype=bool)
-    keep[picked] = False
-    return G[:, keep], G[:, picked]
+    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced)
+    return G[:, kept], G[:, picked], absG[:, picked]
+
+
+def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the ``k`` smallest entries of ``h`` in the order of a stable sort, and the
+    other indices in increasing order: ``argsort(h, kind="stable")`` split at ``k``, found
+    with a partition and a sort of the ``k`` picked entries only (``k`` is usually small)."""
+    if k >= h.size:
+        return np.argsort(h, kind="stable"), np.arange(0)
+    thr = np.partition(h, k - 1)[k - 1]  # the k-th smallest value
+    if thr != thr:  # NaN among the k smallest: the plain stable sort decides
+        ranked = np.argsort(h, kind="stable")
+        return ranked[:k], np.sort(ranked[k:])
+    sel = h < thr
+    ties = np.flatnonzero(h == thr)  # equal values go by index, as in a stable sort
+    sel[ties[: k - np.count_nonzero(sel)]] = True
+    picked = np.flatnonzero(sel)
+    return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
 
 
 def check_order(order: float) -> None:
@@ -75,23 +119,60 @@ class Girard:
     name = "girard"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        keep, red = split_generators(G, order)
-        if red.shape[1] == 0:
+        keep, red, abs_red = _split(G, order)
+        if abs_red is None:
             return keep
-        return np.hstack([keep, np.diag(np.abs(red).sum(axis=1))])
+        n, k = keep.shape
+        out = np.zeros((n, k + n))
+        out[:, :k] = keep
+        out[:, k:].flat[:: n + 1] = abs_red.sum(axis=1)  # the diagonal box
+        return out
+
+
+#: singular values closer than this (relative to the largest) form one cluster (repeated)
+CLUSTER_RTOL = 1e-9
+#: pivot ties of the cluster basis: diagonal entries within this (relative) count as equal
+PIVOT_RTOL = 1e-6
+
+
+def _cluster_basis(V: np.ndarray) -> np.ndarray:
+    """A basis of ``span(V)`` (orthonormal columns ``V``) that depends only on the subspace."""
+    P = V @ V.T
+    out = np.empty_like(V)
+    for i in range(V.shape[1]):
+        d = np.diag(P)
+        j = int(np.flatnonzero(d >= (1.0 - PIVOT_RTOL) * d.max())[0])
+        axis = P[:, j] / math.sqrt(d[j])
+        out[:, i] = axis
+        P = P - np.outer(axis, axis)
+    return out
+
+
+def principal_axes(red: np.ndarray) -> np.ndarray:
+    """Principal axes (n x n, orthonormal) of the generators ``red``, in a deterministic basis
+    where singular values repeat (see the module docstring)."""
+    n = red.shape[0]
+    U, s, _ = np.linalg.svd(red, full_matrices=True)
+    s = np.concatenate([s, np.zeros(n - s.size)])
+    tol = CLUSTER_RTOL * s[0]
+    starts = np.flatnonzero(np.concatenate([[True], s[:-1] - s[1:] > tol]))
+    ends = np.append(starts[1:], n)
+    return np.hstack([_cluster_basis(U[:, a:b]) for a, b in zip(starts, ends, strict=True)])
 
 
 class PCA:
-    """Replace the reduced generators by a box aligned with their principal components."""
+    """Replace the reduced generators by a box aligned with their principal components
+    (:func:`principal_axes`: deterministic where singular values repeat)."""
 
     name = "pca"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        keep, red = split_generators(G, order)
-        if red.shape[1] == 0:
+        keep, red, abs_red = _split(G, order)
+        if abs_red is None:
             return keep
-        # covariance of [red, -red] is proportional to red @ red.T (zero mean by symmetry)
-        U, _, _ = np.linalg.svd(red @ red.T)
+        # the covariance of [red, -red] is proportional to red @ red.T (zero mean by
+        # symmetry): its eigenvectors are the left singular vectors of red
+        U = principal_axes(red)
         box = np.abs(U.T @ red).sum(axis=1)
         return np.hstack([keep, U * box])
 

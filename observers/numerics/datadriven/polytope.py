@@ -25,6 +25,8 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
+from observers.sets.highs import new_highs
+
 _EPS = np.finfo(float).eps
 
 
@@ -43,8 +45,7 @@ class RangeLP:
     def __init__(self, F, l, u, lo, hi):
         self.F, self.l, self.u, self.lo, self.hi = F, l, u, lo, hi
         m, k = F.shape
-        h = highspy.Highs()
-        h.setOptionValue("output_flag", False)
+        h = new_highs()
         lp = highspy.HighsLp()
         lp.num_col_, lp.num_row_ = k, m
         lp.col_cost_ = np.zeros(k)

@@ -1,0 +1,211 @@
+"""The speed report ``reports/speed.md`` (``python -m benchmarks speed``, part of ``make bench``).
+
+Times the cases of the speed table (:data:`CASES`: per-step cost on the 6-state vehicle as a
+ratio to a numpy Kalman step, milliseconds per step on 100 and 200 tanks) with
+:func:`benchmarks.timing.time_observers`, and writes one Markdown table with
+
+* the measured value and the case's target,
+* the ratio of our median step time to the per-step time published with MATLAB + CORA
+  (``systems/data/paper_tables``; ``n/a`` where the paper has no time for that system),
+* the ratio to the previous measurement, read from the JSON this command wrote last time
+  (``reports/speed.json``, committed with the report, so it holds a previous commit's numbers)
+  before it is overwritten with the new measurement.
+
+Every time is a median over repeated runs in one process; the ratio to the Kalman step is
+measured right after the observer in the same process, so it survives a busy machine better
+than the milliseconds do.  Read the table as indicative; no test asserts on it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+from .io import atomic_write_json, atomic_write_text, environment
+from .paper import paper_rows
+from .timing import TimingRow, time_observers
+
+DEFAULT_REPORT = Path("reports") / "speed.md"
+DEFAULT_JSON = Path("reports") / "speed.json"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One row group of the speed table.
+
+    Attributes
+    ----------
+    label : str
+        Text of the table's case column.
+    scenario : str
+        Scenario timed.
+    observers : tuple of str
+        Observers timed (one table row each).
+    metric : str
+        ``"ratio"`` (median step / Kalman step), ``"ratio_hull"`` (median step + interval hull
+        / Kalman step), ``"ms"`` (median step, ms) or ``"ms_hull"`` (median step + hull, ms).
+    target : float
+        The value to reach (at most).
+    repeat, steps, warmup : int
+        Runs over the record, steps of the record run (``0``: all) and steps not timed.
+    """
+
+    label: str
+    scenario: str
+    observers: tuple[str, ...]
+    metric: str
+    target: float
+    repeat: int = 3
+    steps: int = 0
+    warmup: int = 5
+
+
+VEHICLE = "vehicle6d-cora"
+CASES: tuple[Case, ...] = (
+    Case("FRad-A, vehicle-6, step / Kalman step", VEHICLE, ("FRad-A",), "ratio", 3.0),
+    Case("FRad-B, FRad-C, PRad-*, Nom-G, vehicle-6, step / Kalman step", VEHICLE,
+         ("FRad-B", "FRad-C", "PRad-A", "PRad-B", "PRad-C-I", "PRad-C-II", "PRad-D", "Nom-G"),
+         "ratio", 3.0),
+    Case("VolMin-B, vehicle-6, step / Kalman step", VEHICLE, ("VolMin-B",), "ratio", 5.0),
+    Case("CZN-A, vehicle-6, (step + interval hull) / Kalman step", VEHICLE, ("CZN-A",),
+         "ratio_hull", 20.0),
+    Case("FRad-A, 100 tanks, ms per step (steps 61-80)", "tank100-linear", ("FRad-A",), "ms",
+         50.0, repeat=1, steps=80, warmup=60),
+    Case("CZN-A/B, 100 tanks, step + hull, ms (steps 2-4)", "tank100-linear",
+         ("CZN-A", "CZN-B"), "ms_hull", 500.0, repeat=1, steps=4, warmup=1),
+    Case("zonotope observers, 200 tanks, ms per step (steps 2-4)", "tank200-linear",
+         ("FRad-A",), "ms", 500.0, repeat=1, steps=4, warmup=1),
+)
+#: rows of the issue's table this command does not measure, with the reason
+NOT_MEASURED = (
+    ("VolMin-B and CZN-A/B, 200 tanks", "<= 500 ms",
+     "not run: too slow for this report (the CZN hulls take 10-20 s per step already at "
+     "100 tanks, 2n HiGHS LPs)"),
+    ("`make bench` from a cold design cache", "<= 20 min",
+     "not measured here: time `rm -rf ~/.cache/setobs-bench && make bench`"),
+)
+_UNIT = {"ratio": "x", "ratio_hull": "x", "ms": " ms", "ms_hull": " ms"}
+
+
+def metric_value(row: TimingRow, metric: str) -> float:
+    """The value of ``metric`` (see :class:`Case`) in a timing row (NaN if not ok)."""
+    if row.status != "ok":
+        return math.nan
+    if metric == "ratio":
+        return row.ratio
+    if metric == "ratio_hull":
+        k = row.kalman_ms_median
+        return row.step_hull_ms_median / k if k > 0 else math.nan
+    if metric == "ms":
+        return row.step_ms_median
+    if metric == "ms_hull":
+        return row.step_hull_ms_median
+    raise ConfigError(f"unknown speed metric '{metric}'")
+
+
+def measure(cases: tuple[Case, ...] = CASES, progress: bool = True) -> list[dict[str, Any]]:
+    """Time every case; one dict per (case, observer) with the row and the metric value."""
+    out = []
+    for case in cases:
+        if progress:
+            print(f"timing {', '.join(case.observers)} on {case.scenario}", flush=True)
+        sc, warmup, rows = time_observers(list(case.observers), case.scenario, case.repeat,
+                                          case.warmup, case.steps or None)
+        paper = paper_rows(sc.paper_table, sc.system.A.shape[0])
+        for row in rows:
+            p = paper.get(row.observer)
+            paper_ms = p.t_ms if p is not None and p.t_ms else math.nan
+            out.append({
+                "case": case.label, "observer": row.observer, "metric": case.metric,
+                "value": metric_value(row, case.metric), "target": case.target,
+                "status": row.status, "message": row.message,
+                "step_ms": row.step_ms_median, "hull_ms": row.hull_ms_median,
+                "kalman_ms": row.kalman_ms_median, "paper_ms": paper_ms,
+                "steps_timed": row.timed_steps,
+            })
+    return out
+
+
+def load_previous(path: str | Path) -> tuple[dict[tuple[str, str], float], str]:
+    """Metric values of the previous measurement by (case, observer), and its git commit
+    (``({}, "")`` if there is no readable previous file)."""
+    try:
+        with open(path) as fh:
+            data = json.load(fh)
+        values = {(r["case"], r["observer"]): (math.nan if r["value"] is None else r["value"])
+                  for r in data["results"]}
+        return values, str(data.get("environment", {}).get("git", ""))
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}, ""
+
+
+def _fmt(x: float, unit: str = "") -> str:
+    if not isinstance(x, (int, float)) or not math.isfinite(x):
+        return "n/a"
+    return f"{x:.3g}{unit}"
+
+
+def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float],
+           previous_git: str, env: dict[str, str]) -> str:
+    """The Markdown of ``reports/speed.md``."""
+    lines = [
+        "# Speed",
+        "",
+        "Written by `python -m benchmarks speed` (part of `make bench`) at commit "
+        f"`{env.get('git', '')}`; Python {env.get('python', '')}, numpy "
+        f"{env.get('numpy', '')}, {env.get('platform', '')}, single-threaded BLAS.",
+        "Times are medians over the timed steps of repeated runs; *step / Kalman step* divides "
+        "the observer's median step by the median step of a plain numpy Kalman filter "
+        "(predict + update) timed right after it in the same process (see "
+        "`benchmarks/timing.py`). The machine is shared: read the milliseconds as indicative.",
+        "",
+        "*paper ms*: per-step time published with MATLAB + CORA (vehicle: Althoff & Rath, "
+        "Automatica 2021, Table 3, i7-8565U; tanks: ARCH 2021 Tables 5/6, up to 30 tanks only); "
+        "*ours / paper* = our median step (without hull) / paper ms. "
+        f"*previous*: the value of `reports/speed.json` before this run (commit "
+        f"`{previous_git or 'none'}`).",
+        "",
+        "| case | observer | now | target | met | step ms | hull ms | paper ms | ours / paper "
+        "| previous | now / previous |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        unit = _UNIT[r["metric"]]
+        v = r["value"]
+        met = "n/a" if not math.isfinite(v) else ("yes" if v <= r["target"] else "no")
+        now = _fmt(v, unit) if r["status"] == "ok" else r["status"]
+        prev = previous.get((r["case"], r["observer"]), math.nan)
+        ratio_paper = r["step_ms"] / r["paper_ms"] if math.isfinite(r["paper_ms"]) else math.nan
+        ratio_prev = v / prev if math.isfinite(prev) and prev > 0 else math.nan
+        lines.append(
+            f"| {r['case']} | {r['observer']} | {now} | <= {_fmt(r['target'], unit)} | {met} | "
+            f"{_fmt(r['step_ms'])} | {_fmt(r['hull_ms'])} | {_fmt(r['paper_ms'])} | "
+            f"{_fmt(ratio_paper)} | {_fmt(prev, unit)} | {_fmt(ratio_prev)} |")
+    for label, target, _why in NOT_MEASURED:
+        lines.append(f"| {label} | | not measured | {target} | n/a | | | | | | |")
+    lines += ["", "Not measured by this command:", ""]
+    lines += [f"- {label}: {why}." for label, _, why in NOT_MEASURED]
+    failed = [r for r in results if r["status"] != "ok"]
+    if failed:
+        lines += ["", "Failures:", ""]
+        lines += [f"- {r['observer']} ({r['case']}): {r['status']}: {r['message']}"
+                  for r in failed]
+    return "\n".join(lines) + "\n"
+
+
+def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
+                       cases: tuple[Case, ...] = CASES, progress: bool = True) -> Path:
+    """Measure :data:`CASES`, compare with ``json_path`` (the previous measurement), write the
+    Markdown report ``out`` and overwrite ``json_path`` with this measurement."""
+    previous, previous_git = load_previous(json_path)
+    results = measure(cases, progress)
+    env = environment()
+    atomic_write_text(out, render(results, previous, previous_git, env))
+    clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+              for k, v in r.items()} for r in results]
+    atomic_write_json(json_path, {"environment": env, "results": clean})
+    return Path(out)

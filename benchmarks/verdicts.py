@@ -1,0 +1,110 @@
+"""The verdicts of a run: containment per observer (``yes`` / ``no`` / ``n/a``), which rows
+may serve as the reference of eq. (9), and the exit code of ``run``.
+
+A table never claims more than was checked: containment is ``yes`` only where the true state
+is known and was found in every set of a complete run, ``no`` where it was outside at least
+one set, and ``n/a`` everywhere else (no true state, no set produced, a run cut short, a set
+whose exact membership could not be tested).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+YES, NO, NA = "yes", "no", "n/a"
+
+#: exit codes of ``python -m benchmarks run``
+EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH = 0, 1, 2, 3
+
+EXIT_CODES_HELP = (
+    "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
+    "1 a guaranteed observer's set missed the true state (or became empty); "
+    "2 bad input (config, scenario, options, output folder), nothing written; "
+    "3 an observer crashed (status 'error', its failing step in summary.csv), after the "
+    "others ran. 1 takes precedence over 3."
+)
+
+
+def contained_column(containment: str) -> str:
+    """Name of the containment column of ``summary.csv``: ``contained`` for the exact
+    membership test, ``contained_hull`` where the configuration asks for the interval-hull
+    test only."""
+    return "contained" if containment == "exact" else "contained_hull"
+
+
+def containment_verdict(status: str, steps: int, in_set: np.ndarray | None,
+                        decided: bool) -> str:
+    """Containment verdict of one observer on one scenario.
+
+    Parameters
+    ----------
+    status : str
+        The run's status (``"ok"``, ``"diverged"``, ...).
+    steps : int
+        Number of steps of the scenario.
+    in_set : ndarray of bool or None
+        Per produced set, whether the true state lies in it; None if not checked (no true
+        state).
+    decided : bool
+        Whether every test was of the kind the run promises (exact membership, or the hull
+        where the configuration asks for it).
+
+    Returns
+    -------
+    str
+        ``"no"`` if the true state was outside a set; ``"yes"`` if the run is complete
+        (status ``ok``, every step checked) and every test decided it inside; else ``"n/a"``.
+    """
+    if in_set is None:
+        return NA
+    if not np.all(in_set):
+        return NO
+    return YES if status == "ok" and len(in_set) == steps and decided else NA
+
+
+def violating(summary: pd.DataFrame) -> pd.Series:
+    """Rows of guaranteed observers whose sets missed the true state (or became empty)."""
+    bad = summary["status"] == "empty"
+    for col in (contained_column("exact"), contained_column("hull")):
+        if col in summary.columns:
+            bad = bad | (summary[col] == NO)
+    return bad & summary["guaranteed"].astype(bool)
+
+
+def reference_rows(summary: pd.DataFrame) -> pd.Series:
+    """Rows that may serve as the reference (the minimum) of eq. (9): successful guaranteed
+    observers without a containment violation."""
+    return ((summary["status"] == "ok") & summary["guaranteed"].astype(bool)
+            & ~violating(summary))
+
+
+def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
+    """Exit code of ``run`` and the lines that explain it (for stderr).
+
+    Returns
+    -------
+    code : int
+        :data:`EXIT_VIOLATION` if a guaranteed observer violates containment, else
+        :data:`EXIT_CRASH` if an observer crashed, else :data:`EXIT_OK`.
+    lines : list of str
+        One line per kind of failure.
+    """
+    pairs = summary.drop_duplicates(["scenario", "observer"])
+    bad = pairs[violating(pairs)]
+    crashed = pairs[pairs["status"] == "error"]
+    lines = []
+    if len(bad):
+        lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
+            f"{o} on {s}" for s, o in sorted(zip(bad["scenario"], bad["observer"],
+                                                 strict=True))))
+    if len(crashed):
+        lines.append("CRASHED: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({_where(r.failed_step)})"
+            for r in crashed.itertuples(index=False)))
+    code = EXIT_VIOLATION if len(bad) else EXIT_CRASH if len(crashed) else EXIT_OK
+    return code, lines
+
+
+def _where(step) -> str:
+    return "in its design" if pd.isna(step) else f"at step {int(step)}"

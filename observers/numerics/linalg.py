@@ -1,0 +1,27 @@
+"""Linear algebra shared by the gain computations of several plugins."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def psd_solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``S^{-1} B`` for a symmetric positive semidefinite ``S``; the minimum-norm ``S^+ B``
+    where ``S`` is singular (zero-width noise sets: no process noise, an exact sensor).
+
+    With ``S = C R C' + F F'`` and ``B = C R`` (``R`` positive semidefinite), ``B`` vanishes
+    on the null space of ``S``, so ``S^+ B`` is an exact solution of the normal equations
+    there (the F-radius gain, the Kalman gain). Where even the pseudo-inverse overflows (a set
+    shrunk to a point) the result is zero: the gain is then irrelevant, and every gain gives
+    a sound set in the zonotopic observers.
+    """
+    try:
+        with np.errstate(all="ignore"):
+            out = np.linalg.solve(S, B)
+        if np.all(np.isfinite(out)):
+            return out
+    except np.linalg.LinAlgError:
+        pass
+    with np.errstate(all="ignore"):
+        out = np.linalg.pinv(S, hermitian=True) @ B
+    return out if np.all(np.isfinite(out)) else np.zeros_like(B)

@@ -1,0 +1,169 @@
+"""Speed work (issue 15): the lean hot paths give the numbers of the plain formulas, and the
+speed report (``python -m benchmarks speed``) compares with the previous measurement.
+
+No test asserts on a time: the report's cells are checked for form and for the arithmetic of
+the comparison columns only.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks import speed
+from benchmarks.cli import main
+from benchmarks.timing import first_steps
+from observers.families import strip_update
+from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
+from observers.sets import get_reduction
+from observers.sets.reduction import split_generators
+
+
+def reference_split(G: np.ndarray, order: float):
+    """The reduction split as the module docstring defines it, written plainly: zero columns
+    dropped, then the ``r - floor(n (order - 1))`` columns of smallest ``||g||_1 - ||g||_inf``
+    (stable order) reduced, the others kept in their order."""
+    G = G[:, [j for j in range(G.shape[1]) if np.any(G[:, j] != 0.0)]]
+    n, r = G.shape
+    if r <= n * order:
+        return G, G[:, :0]
+    n_red = r - math.floor(n * (order - 1))
+    h = [np.abs(G[:, j]).sum() - np.abs(G[:, j]).max() for j in range(r)]
+    ranked = sorted(range(r), key=lambda j: (h[j], j))
+    picked = ranked[:n_red]
+    kept = sorted(ranked[n_red:])
+    return G[:, kept], G[:, picked]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_split_generators_equals_the_plain_definition(seed):
+    rng = np.random.default_rng(seed)
+    n, r = int(rng.integers(1, 7)), int(rng.integers(0, 60))
+    G = rng.standard_normal((n, r))
+    G[:, rng.random(r) < 0.2] = 0.0  # zero columns
+    if seed % 2:
+        G = np.round(G)  # many ties of the metric
+    order = float(rng.choice([1.0, 1.5, 2.0, 4.0]))
+    keep, red = split_generators(G, order)
+    keep_ref, red_ref = reference_split(G, order)
+    assert np.array_equal(keep, keep_ref) and np.array_equal(red, red_ref)
+    box = np.hstack([keep_ref, np.diag(np.abs(red_ref).sum(axis=1))]) if red_ref.shape[1] \
+        else keep_ref
+    assert np.array_equal(get_reduction("girard").reduce(G, order), box)
+
+
+def test_reduction_keeps_ties_in_column_order():
+    # metrics 1, 1, 0, 1 and a zero column; in R^2 with order 1.5 one generator is kept
+    G = np.array([[1.0, 1.0, 2.0, 1.0, 0.0],
+                  [1.0, 1.0, 0.0, 1.0, 0.0]])
+    keep, red = split_generators(G, 1.5)  # zero column dropped, 4 left, keep floor(2 * 0.5)
+    assert np.array_equal(keep, G[:, [3]])  # metric 1, 1, 0, 1: the last tie is kept
+    assert np.array_equal(red, G[:, [2, 0, 1]])
+
+
+def strip_by_strip(c, G, C, y, sigma):
+    for i in range(C.shape[0]):
+        lam = alamo_frad_gain(G, C[i], sigma[i]).reshape(-1, 1)
+        c, G = strip_update(c, G, lam, C[i:i + 1], y[i:i + 1], sigma[i:i + 1])
+    return c, G
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_frad_strips_on_the_gram_matrix_equal_the_strip_loop(seed):
+    rng = np.random.default_rng(seed)
+    n, r, m = 5, 40, 3
+    c, G = rng.standard_normal(n), rng.standard_normal((n, r))
+    C, y, sigma = rng.standard_normal((m, n)), rng.standard_normal(m), rng.random(m) + 0.1
+    c1, G1 = strip_by_strip(c, G, C, y, sigma)
+    c2, G2 = alamo_frad_strips(c, G, C, y, sigma)
+    assert G2.shape == G1.shape
+    np.testing.assert_allclose(c2, c1, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(G2, G1, rtol=1e-10, atol=1e-12)
+
+
+def test_first_steps_cuts_the_record():
+    import systems
+
+    sc = systems.scenario("vehicle2d-cora")
+    short = first_steps(sc, 10)
+    assert short.N == 10 and np.array_equal(short.y, sc.y[:10])
+    assert first_steps(sc, None) is sc
+
+
+def test_time_steps_option_and_its_bad_value(capsys):
+    assert main(["time", "FRad-A", "--scenario", "vehicle2d-cora", "--repeat", "1",
+                 "--steps", "12", "--warmup", "2"]) == 0
+    fields = [ln.split() for ln in capsys.readouterr().out.splitlines()
+              if ln.startswith("FRad-A")][0]
+    assert fields[1] == "ok" and int(fields[6]) == 10
+    assert main(["time", "FRad-A", "--scenario", "vehicle2d-cora", "--steps", "0"]) == 2
+    assert capsys.readouterr().err.startswith("error: --steps must be at least 1")
+
+
+def test_speed_report_compares_with_the_previous_json(tmp_path):
+    cases = (speed.Case("FRad-A, 2-D vehicle", "vehicle2d-cora", ("FRad-A", "PRad-A"), "ratio",
+                        3.0, repeat=1, steps=20, warmup=2),
+             speed.Case("FRad-A, 2-D vehicle, ms", "vehicle2d-cora", ("FRad-A",), "ms", 1e9,
+                        repeat=1, steps=20, warmup=2))
+    out, js = tmp_path / "speed.md", tmp_path / "speed.json"
+    js.write_text(json.dumps({"environment": {"git": "abc1234"}, "results": [
+        {"case": "FRad-A, 2-D vehicle, ms", "observer": "FRad-A", "value": 2.0}]}))
+    speed.write_speed_report(out, js, cases, progress=False)
+    text = out.read_text()
+    assert "commit `abc1234`" in text
+    rows = {ln.split("|")[1].strip() + "/" + ln.split("|")[2].strip(): ln.split("|")
+            for ln in text.splitlines() if ln.startswith("| FRad-A, 2-D")}
+    ms_row = rows["FRad-A, 2-D vehicle, ms/FRad-A"]
+    data = json.loads(js.read_text())
+    now = {(r["case"], r["observer"]): r for r in data["results"]}
+    value = now[("FRad-A, 2-D vehicle, ms", "FRad-A")]["value"]
+    assert math.isfinite(value) and value > 0
+    assert ms_row[10].strip() == "2 ms"  # previous
+    assert float(ms_row[11]) == pytest.approx(value / 2.0, rel=5e-3)  # now / previous
+    assert ms_row[5].strip() == "yes"  # target 1e9 ms
+    # the 2-D vehicle has no published time and no previous ratio: n/a, never a number
+    ratio_row = rows["FRad-A, 2-D vehicle/FRad-A"]
+    assert [ratio_row[i].strip() for i in (8, 9, 10, 11)] == ["n/a"] * 4
+    # PRad-A has no gain on the 2-D vehicle or diverges: its status, not a time
+    prad = now[("FRad-A, 2-D vehicle", "PRad-A")]
+    if prad["status"] != "ok":
+        assert prad["value"] is None
+        assert rows["FRad-A, 2-D vehicle/PRad-A"][3].strip() == prad["status"]
+    assert "`make bench` from a cold design cache" in text
+
+
+def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkeypatch, capsys):
+    import observers
+    import systems
+    from benchmarks import designs
+
+    cfg = tmp_path / "small.yaml"
+    cfg.write_text("name: small\ntitle: small\nscenarios: [vehicle2d-cora]\n"
+                   "observers: [FRad-A, Nom-G, PRad-B]\n")
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path / "cache"))
+    tasks = designs.design_tasks([cfg])
+    assert [t[2] for t in tasks] == ["Nom-G", "PRad-B"]  # FRad-A has no offline design
+    assert main(["designs", str(cfg), "--jobs", "2", "--no-progress"]) == 0
+    assert "2 designs in the cache (0 failed" in capsys.readouterr().out
+    assert len(list((tmp_path / "cache").glob("*.npz"))) == 2
+    system = systems.scenario("vehicle2d-cora").system
+    cached = {n: observers.create(n, system).L for n in ("Nom-G", "PRad-B")}
+    monkeypatch.setenv("SETOBS_CACHE_DIR", "off")
+    for name, L in cached.items():
+        assert np.array_equal(observers.create(name, system).L, L)
+    assert main(["designs", str(cfg), "--jobs", "0"]) == 2
+    assert capsys.readouterr().err.startswith("error: --jobs must be at least 1")
+
+
+@pytest.mark.parametrize("n, m", [(6, 2), (4, 4)])  # both ways of applying I - L C
+def test_frad_strips_with_few_and_many_strips(n, m):
+    rng = np.random.default_rng(n + m)
+    c, G = rng.standard_normal(n), rng.standard_normal((n, 30))
+    C, y, sigma = rng.standard_normal((m, n)), rng.standard_normal(m), rng.random(m) + 0.1
+    c1, G1 = strip_by_strip(c, G, C, y, sigma)
+    c2, G2 = alamo_frad_strips(c, G, C, y, sigma)
+    np.testing.assert_allclose(c2, c1, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(G2, G1, rtol=1e-10, atol=1e-12)
