@@ -324,7 +324,8 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
              "<p>Mean over the scenarios of each observer's average relative RMS (eq. 9 against "
              "all observers of the run) and of its rank in each scenario (1 = tightest); "
              "failed runs are not ranked. Violations: steps whose true state lay outside the "
-             "set (n/a: not checked).</p>",
+             "set, summed over the scenarios where containment was checked (n/a: checked in "
+             "none).</p>",
              html_table(*ranking_table(summary), table_id="ranking-table")]
     raw = meta.get("config", {}).get("raw")
     env = {"created": meta.get("created", "?"), **meta.get("versions", {})}
