@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report check baseline history audit audit-short speed clean
+.PHONY: help install test lint bench bench-quick report check baseline history audit audit-short speed scaling clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -23,10 +23,10 @@ $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,dask]'
 	@touch $(STAMP)
 
-install: $(STAMP)  ## create .venv and install the project with its test extras
+install: $(STAMP)  ## create .venv and install the project with its test and dask extras
 
 test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
@@ -35,7 +35,7 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## every config: results/<config>/ (report.md, index.html), reports/<config>.md, index.html, speed.md
+bench: $(STAMP)  ## every config -> results/<config>/ (+ index.html), reports/<config>.md; speed.md, scaling.md, index.html
 	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
@@ -44,6 +44,7 @@ bench: $(STAMP)  ## every config: results/<config>/ (report.md, index.html), rep
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
 	$(PY) -m benchmarks speed
+	$(MAKE) scaling
 	$(PY) -m benchmarks index reports --results $(RESULTS)
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
@@ -52,6 +53,9 @@ speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with repo
 bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
+
+scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
+	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
 
 check: $(STAMP)  ## CI regression gate: re-run the regression subset, compare with results/baseline/
 	$(PY) -m benchmarks check

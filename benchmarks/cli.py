@@ -20,7 +20,7 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, designs, history, regression, speed, timing, verdicts
+from . import audit, designs, executors, history, regression, speed, timing, verdicts
 from .config import BenchConfig, load_config, parse_config
 from .errors import ConfigError
 from .html import write_html, write_index
@@ -48,9 +48,14 @@ def _cmd_run(args) -> int:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
     cfg = load_config(args.config) if args.config else _inline_config(args)
     out = Path(args.out) if args.out else Path("results") / cfg.name
-    _, summary = run_config(cfg, out, progress=False if args.no_progress else None)
+    executor = executors.from_args(args.executor, args.jobs, args.address)
+    try:
+        _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
+                                executor=executor)
+    finally:
+        executor.close()
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
-    pairs = summary.drop_duplicates(["scenario", "observer"])
+    pairs = summary.drop_duplicates(["scenario", "seed", "observer", "variant"])
     for r in pairs[pairs["status"] != "ok"].itertuples(index=False):
         print(f"note: {r.observer} on {r.scenario}: {r.status}: {r.message}", file=sys.stderr)
     statuses = pairs["status"].value_counts()
@@ -256,6 +261,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--name", help="without a config: the run's name (default cli)")
     r.add_argument("--out", help="output folder (default results/<config name>)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--jobs", type=int, nargs="?", const=0, metavar="N",
+                   help="run the jobs in N local worker processes (no N: the number of cores); "
+                        "timing columns are then marked parallel")
+    r.add_argument("--executor", choices=executors.EXECUTORS,
+                   help="serial (default), processes (as --jobs) or dask (a Dask cluster)")
+    r.add_argument("--address", metavar="tcp://HOST:PORT",
+                   help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
     r.set_defaults(func=_cmd_run)
     rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")

@@ -11,12 +11,22 @@
     observer_options:                    # optional, per observer
       FRad-B: {variant: textbook}
     containment: exact                   # exact (LP membership) | hull (interval hull only)
+    sweep:                               # optional: a grid of runs, one tidy table
+      seeds: [0, 1, 2]                   # or {count: 20} (seeds 0..19) for simulated scenarios
+      sizes: [6, 12, 30]                 # substituted for {n} in scenario names (tank{n}-linear)
+      grid:                              # per observer: every combination of these values
+        FRad-A: {order: [20, 50]}
 
-Everything is validated when the file is loaded, before any observer runs.
+Everything is validated when the file is loaded, before any observer runs.  A sweep runs
+every scenario x size x seed x observer x option combination; ``summary.csv`` then has one row
+per combination and state, keyed by ``scenario``, ``seed``, ``observer`` and ``variant`` (the
+grid options, e.g. ``order=20``), and the report aggregates over the seeds.
 """
 
 from __future__ import annotations
 
+import itertools
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,7 +40,18 @@ from .errors import ConfigError
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
-            "containment", "description"}
+            "containment", "description", "sweep"}
+SWEEP_KEYS = {"seeds", "sizes", "grid"}
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One scenario of a (possibly swept) config: its built value, the config entry that
+    rebuilds it (in a worker process) and its seed (``None`` if the entry sets none)."""
+
+    scenario: Scenario
+    spec: dict
+    seed: int | None = None
 
 
 @dataclass
@@ -46,6 +67,19 @@ class BenchConfig:
     containment: str = "exact"
     description: str = ""
     raw: dict = field(default_factory=dict, repr=False)
+    #: the scenarios with their config entries (a sweep: one per size and seed)
+    instances: list[Instance] = field(default_factory=list)
+    #: per observer, the option combinations of the sweep grid as (label, options)
+    variants: dict[str, list[tuple[str, dict[str, Any]]]] = field(default_factory=dict)
+    base: Path | None = None
+
+    def __post_init__(self):
+        if not self.instances:  # built in code from scenario values: their names as entries
+            self.instances = [Instance(sc, {"name": sc.name}) for sc in self.scenarios]
+
+    def variants_of(self, observer: str) -> list[tuple[str, dict[str, Any]]]:
+        """The sweep variants of ``observer`` (``[("", {})]`` if the grid has none)."""
+        return self.variants.get(observer) or [("", {})]
 
     def options_for(self, observer: str, scenario: Scenario) -> dict[str, Any]:
         """Scenario defaults < config options < per-observer options, restricted to the
@@ -70,6 +104,15 @@ def _yaml_error(path: Path, exc: yaml.YAMLError) -> ConfigError:
     return ConfigError(f"{path}: malformed YAML{where}: {problem}")
 
 
+def _check_keys(value: Any, allowed: set[str], where: str, shape: str) -> None:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a mapping {shape}")
+    unknown = set(value) - allowed
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} "
+                          f"(allowed: {', '.join(sorted(allowed))})")
+
+
 def _check_values(name: str, info: observers.ObserverInfo, opts: dict[str, Any]) -> None:
     """Check option values against the observer's declared specs (kind and range)."""
     specs = getattr(info.cls, "option_specs", None)
@@ -85,12 +128,7 @@ def _check_values(name: str, info: observers.ObserverInfo, opts: dict[str, Any])
 
 def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     """Validate a config mapping (as loaded from YAML) and build its scenarios."""
-    if not isinstance(raw, dict):
-        raise ConfigError(f"config '{name}' must be a mapping at the top level")
-    unknown = set(raw) - TOP_KEYS
-    if unknown:
-        raise ConfigError(f"config '{name}': unknown key(s) {sorted(unknown)} "
-                          f"(allowed: {', '.join(sorted(TOP_KEYS))})")
+    _check_keys(raw, TOP_KEYS, f"config '{name}'", "at the top level")
     scen = raw.get("scenarios")
     if not isinstance(scen, list) or not scen:
         raise ConfigError(f"config '{name}': 'scenarios' must be a non-empty list")
@@ -140,16 +178,102 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     containment = raw.get("containment", "exact")
     if containment not in ("exact", "hull"):
         raise ConfigError(f"config '{name}': containment must be 'exact' or 'hull'")
-    scenarios = [build_scenario(s, base) for s in scen]
-    seen = [s.name for s in scenarios]
+    seeds, sizes, variants = _parse_sweep(raw.get("sweep"), name, names)
+    instances = []
+    for spec in _expand(scen, seeds, sizes, name):
+        seed = spec.get("seed", (spec.get("simulate") or {}).get("seed"))
+        instances.append(Instance(build_scenario(spec, base), spec, seed))
+    seen = [(i.scenario.name, i.seed) for i in instances]
     if len(set(seen)) != len(seen):
-        raise ConfigError(f"config '{name}': a scenario name appears twice: {seen}")
+        raise ConfigError(f"config '{name}': a scenario appears twice with the same seed: "
+                          f"{[s for s, _ in seen]}")
     return BenchConfig(
         name=str(raw.get("name", name)), title=str(raw.get("title", name)),
-        scenarios=scenarios, observers=names, options=options,
+        scenarios=[i.scenario for i in instances], observers=names, options=options,
         observer_options={str(k): dict(v) for k, v in per.items()},
         containment=containment, description=str(raw.get("description", "")), raw=raw,
+        instances=instances, variants=variants, base=base,
     )
+
+
+def _int_list(value: Any, what: str, minimum: int) -> list[int]:
+    if isinstance(value, dict) and set(value) == {"count"}:
+        count = value["count"]
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+            raise ConfigError(f"{what}: count must be an integer >= 1, got {count!r}")
+        return list(range(count))
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{what} must be a non-empty list of integers (or {{count: N}})")
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+            raise ConfigError(f"{what}: {v!r} is not an integer >= {minimum}")
+    if len(set(value)) != len(value):
+        raise ConfigError(f"{what}: a value appears twice: {value}")
+    return list(value)
+
+
+def _parse_sweep(sweep: Any, name: str, names: list[str]):
+    """Seeds, sizes and per-observer option variants of a ``sweep:`` block."""
+    if sweep is None:
+        return None, None, {}
+    where = f"config '{name}': sweep"
+    _check_keys(sweep, SWEEP_KEYS, where, f"with keys {sorted(SWEEP_KEYS)}")
+    seeds = _int_list(sweep["seeds"], f"{where}: seeds", 0) if "seeds" in sweep else None
+    sizes = _int_list(sweep["sizes"], f"{where}: sizes", 1) if "sizes" in sweep else None
+    grid = sweep.get("grid") or {}
+    if not isinstance(grid, dict):
+        raise ConfigError(f"{where}: grid must be a mapping of observer -> {{option: [values]}}")
+    variants: dict[str, list[tuple[str, dict[str, Any]]]] = {}
+    for oname, opts in grid.items():
+        if str(oname) not in names:
+            raise ConfigError(f"{where}: grid: '{oname}' is not one of the selected observers")
+        info = observers.get(str(oname))
+        if not isinstance(opts, dict) or not opts:
+            raise ConfigError(f"{where}: grid of {oname} must be a non-empty mapping "
+                              "{option: [values]}")
+        bad = set(opts) - set(info.cls.option_defaults())
+        if bad:
+            raise ConfigError(f"{where}: grid: {oname} has no option(s) {sorted(bad)}")
+        keys = sorted(opts)
+        values = []
+        for k in keys:
+            if not isinstance(opts[k], list) or not opts[k]:
+                raise ConfigError(f"{where}: grid: {oname}.{k} must be a non-empty list of "
+                                  "values")
+            values.append(opts[k])
+        variants[info.name] = [
+            (",".join(f"{k}={json.dumps(v)}" for k, v in zip(keys, combo, strict=True)),
+             dict(zip(keys, combo, strict=True)))
+            for combo in itertools.product(*values)]
+    return seeds, sizes, variants
+
+
+def _expand(entries: list, seeds: list[int] | None, sizes: list[int] | None,
+            name: str) -> list[dict]:
+    """Config scenario entries for every size (``{n}`` in the name) and seed."""
+    out = []
+    for entry in entries:
+        spec = {"name": entry} if isinstance(entry, str) else entry
+        if not isinstance(spec, dict) or "name" not in spec:
+            raise ConfigError(f"a scenario must be a name or a mapping with 'name', got "
+                              f"{entry!r}")
+        templated = "{n}" in str(spec["name"])
+        if templated and not sizes:
+            raise ConfigError(f"config '{name}': scenario '{spec['name']}' has {{n}} but the "
+                              "sweep gives no sizes")
+        for n in (sizes if templated else [None]):
+            sized = dict(spec, name=str(spec["name"]).replace("{n}", str(n)))
+            for seed in (seeds if seeds is not None else [None]):
+                if seed is None:
+                    out.append(sized)
+                elif "system" in sized:  # inline: the seed of its simulation
+                    if not isinstance(sized.get("simulate"), dict):
+                        raise ConfigError(f"config '{name}': sweep seeds need a simulated "
+                                          f"scenario; '{sized['name']}' has a fixed record")
+                    out.append(dict(sized, simulate=dict(sized["simulate"], seed=seed)))
+                else:
+                    out.append(dict(sized, seed=seed))
+    return out
 
 
 def load_config(path: str | Path) -> BenchConfig:

@@ -27,6 +27,7 @@ import yaml  # noqa: E402
 
 from observers.registry import table_order  # noqa: E402
 
+from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .errors import ConfigError  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, environment, load_results  # noqa: E402
 from .paper import paper_rows  # noqa: E402
@@ -36,6 +37,7 @@ from .report import (  # noqa: E402
     scenario_notes,
     scenario_table_data,
 )
+from .report import _fmt as _report_fmt  # noqa: E402  (the Markdown's number format)
 
 #: observers drawn in the bounds-over-time figure of a scenario (the tightest ones)
 BOUNDS_OBSERVERS = 4
@@ -99,6 +101,32 @@ def html_table(head: list[str], rows: list[list[str]], table_id: str = "") -> st
         out.append("<tr>" + "".join(f"<td>{_cell(c)}</td>" for c in cells) + "</tr>")
     out.append("</tbody></table>")
     return "".join(out)
+
+
+def markdown_to_html(lines: list[str]) -> list[str]:
+    """Render Markdown headings (``## x``), tables and paragraphs (as produced by
+    :func:`benchmarks.aggregate.sweep_tables`) as HTML, tables sortable."""
+    out: list[str] = []
+    table: list[list[str]] = []
+
+    def flush() -> None:
+        if table:
+            out.append(html_table(table[0], table[1:]))
+            table.clear()
+
+    for line in lines:
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if not all(set(c) <= set("-:") for c in cells):  # not the separator row
+                table.append(cells)
+            continue
+        flush()
+        if line.startswith("## "):
+            out.append(f"<h2>{html.escape(line[3:])}</h2>")
+        elif line.strip():
+            out.append(f"<p>{_cell(line)}</p>")
+    flush()
+    return out
 
 
 def ranking(summary: pd.DataFrame) -> pd.DataFrame:
@@ -285,12 +313,17 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
     if figures and (results_dir / "runs.csv").is_file():
         runs = pd.read_csv(results_dir / "runs.csv")
     title = meta.get("config", {}).get("title", results_dir.name)
-    scenarios = list(dict.fromkeys(summary["scenario"]))
+    sweep = is_sweep(summary)
+    scenarios = [] if sweep else list(dict.fromkeys(summary["scenario"]))
     body = [f"<h1>{html.escape(title)}</h1>",
             "<nav>" + "".join(f'<a href="#sc-{html.escape(s)}">{html.escape(s)}</a>'
                               for s in scenarios)
             + '<a href="#ranking">ranking</a><a href="#environment">configuration</a></nav>',
             f"<p>{html.escape(INTRO)} Click a column header to sort.</p>"]
+    if sweep:  # several seeds or option variants: the aggregated tables of the Markdown report
+        body += ["<p>Sweep: relative RMS radius over the seeds (mean, std, min, max over the "
+                 "successful runs), as in report.md.</p>"]
+        body += markdown_to_html(sweep_tables(summary, _report_fmt))
     for sc in scenarios:
         full = summary[summary["scenario"] == sc]
         info = meta.get("scenarios", {}).get(sc, {})
@@ -326,7 +359,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
              "failed runs are not ranked. Violations: steps whose true state lay outside the "
              "set, summed over the scenarios where containment was checked (n/a: checked in "
              "none).</p>",
-             html_table(*ranking_table(summary), table_id="ranking-table")]
+             html_table(*ranking_table(summary), table_id="ranking-table")] if not sweep else []
     raw = meta.get("config", {}).get("raw")
     env = {"created": meta.get("created", "?"), **meta.get("versions", {})}
     now = environment()

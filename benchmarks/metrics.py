@@ -32,10 +32,14 @@ def median_ms(times: np.ndarray) -> float:
 
 def add_relative_rms(summary: pd.DataFrame) -> pd.DataFrame:
     """Add ``rel_rms`` (eq. 9): each state's RMS radius divided by the smallest one among the
-    successful guaranteed observers of the same scenario that do not violate containment
-    (:func:`benchmarks.verdicts.reference_rows`)."""
+    successful guaranteed observers (and option variants) of the same scenario and seed that do
+    not violate containment (:func:`benchmarks.verdicts.reference_rows`)."""
+    keys = ["scenario", "state"] + (["seed"] if "seed" in summary.columns else [])
+    tmp = summary.assign(**{k: summary[k].astype(object).where(summary[k].notna(), "")
+                            for k in keys})
     ok = reference_rows(summary)
-    best = summary[ok].groupby(["scenario", "state"])["rms_radius"].min().rename("_best")
-    out = summary.join(best, on=["scenario", "state"])
-    out["rel_rms"] = np.where(out["status"] == "ok", out["rms_radius"] / out["_best"], np.nan)
-    return out.drop(columns="_best")
+    best = tmp[ok].groupby(keys)["rms_radius"].min().rename("_best")
+    best = tmp.join(best, on=keys)["_best"].to_numpy(float)
+    out = summary.copy()
+    out["rel_rms"] = np.where(out["status"] == "ok", out["rms_radius"] / best, np.nan)
+    return out

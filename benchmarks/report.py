@@ -15,6 +15,7 @@ import pandas as pd  # noqa: E402
 
 from observers.registry import table_order  # noqa: E402
 
+from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
 from .verdicts import NA, NO, contained_column, reference_rows, violating  # noqa: E402
@@ -201,8 +202,19 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)
     parts = [f"# {title}", "", INTRO, ""]
+    if "timed" in summary.columns and (summary["timed"] == "parallel").any():
+        ex = meta.get("executor", {})
+        parts += [f"Times were measured while {ex.get('workers', 'several')} jobs ran "
+                  f"concurrently ({ex.get('name', 'parallel')} executor): indicative only; a "
+                  "serial run gives the comparable per-step times.", ""]
+    if is_sweep(summary):  # aggregated over the seeds, one row per observer and variant
+        parts += ["Sweep: relative RMS radius (mean over the states of eq. 9, against the "
+                  "best observer of the same seed) over the seeds: mean, standard deviation, "
+                  "min and max over the successful runs; times are medians over them.", ""]
+        parts += sweep_tables(summary, _fmt)
+        summary = summary.iloc[0:0]  # no per-seed tables
     runs = None
-    if figures and (results_dir / "runs.csv").is_file():
+    if figures and (results_dir / "runs.csv").is_file() and len(summary):
         runs = pd.read_csv(results_dir / "runs.csv")
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})

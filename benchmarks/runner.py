@@ -1,8 +1,13 @@
 """Run a benchmark configuration: every observer on every scenario, with containment checks
-and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (one generation)."""
+and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (one generation).
+
+The work is a list of independent :class:`Job` values run by an executor
+(:mod:`benchmarks.executors`: serial, local processes or Dask)."""
 
 from __future__ import annotations
 
+import importlib
+import json
 import sys
 import traceback
 from dataclasses import dataclass
@@ -19,14 +24,16 @@ from systems import ModelError, Scenario, available_memory
 
 from .config import BenchConfig
 from .errors import ConfigError
+from .executors import JobFailure, SerialExecutor
 from .io import check_output_dir, environment, write_results
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import progress_bar
+from .specs import build_scenario
 from .verdicts import contained_column, containment_verdict
 
-RUN_COLUMNS = ["scenario", "observer", "step", "t", "state", "lo", "hi", "radius", "x_true",
-               "contained", "in_set"]
+RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
+               "radius", "x_true", "contained", "in_set"]
 
 
 @dataclass
@@ -230,7 +237,8 @@ def check_memory(cfg: BenchConfig) -> None:
         If the estimated size of the results (:data:`BYTES_PER_ROW` per step, state and
         observer) exceeds the memory available.
     """
-    need = BYTES_PER_ROW * len(cfg.observers) * sum(sc.N * sc.system.n for sc in cfg.scenarios)
+    need = BYTES_PER_ROW * sum(len(cfg.variants_of(o)) for o in cfg.observers) * sum(
+        sc.N * sc.system.n for sc in cfg.scenarios)
     have = available_memory()
     if have is not None and need > have:
         raise ConfigError(f"config '{cfg.name}': its results need about {need / 2**30:.3g} GiB "
@@ -238,39 +246,127 @@ def check_memory(cfg: BenchConfig) -> None:
                           "scenarios or observers")
 
 
-def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None):
-    """Run every (scenario, observer) pair of ``cfg``.
+@dataclass(frozen=True)
+class Job:
+    """One independent unit of a run: an observer (one option variant) on one scenario.
+
+    Picklable: the scenario travels as its config entry and is rebuilt (once per process) in
+    a worker; ``module`` is imported there so that plugin observers are registered.
+    """
+
+    spec: dict
+    base: str | None
+    observer: str
+    module: str
+    options: dict
+    observer_options: dict
+    containment: str
+    seed: int | None = None
+    variant: str = ""
+
+
+_SCENARIOS: dict[str, Scenario] = {}
+
+
+def _scenario(job: Job) -> Scenario:
+    key = json.dumps([job.spec, job.base], sort_keys=True, default=str)
+    if key not in _SCENARIOS:
+        _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
+    return _SCENARIOS[key]
+
+
+def make_jobs(cfg: BenchConfig) -> list[Job]:
+    """The jobs of ``cfg``: every scenario instance x observer x option variant."""
+    base = str(cfg.base) if cfg.base is not None else None
+    jobs = []
+    for inst in cfg.instances:
+        key = json.dumps([inst.spec, base], sort_keys=True, default=str)
+        _SCENARIOS[key] = inst.scenario  # this process needs not rebuild it
+        for name in cfg.observers:
+            for label, opts in cfg.variants_of(name):
+                jobs.append(Job(inst.spec, base, name, observers.get(name).cls.__module__,
+                                cfg.options, {**cfg.observer_options.get(name, {}), **opts},
+                                cfg.containment, inst.seed, label))
+    return jobs
+
+
+def _job_options(job: Job, sc: Scenario) -> dict:
+    cfg = BenchConfig(name="job", title="job", scenarios=[sc], observers=[job.observer],
+                      options=job.options, observer_options={job.observer: job.observer_options})
+    return cfg.options_for(job.observer, sc)
+
+
+def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
+    """``(runs rows or None, summary rows)`` of a finished or failed job."""
+    runs = None
+    if run.result is not None:
+        runs = _rows_runs(run)
+    else:
+        run.result = RunResult(job.observer, np.full((sc.N, sc.system.n), np.nan),
+                               np.full((sc.N, sc.system.n), np.nan), [], np.full(sc.N, np.nan),
+                               np.full(sc.N, np.nan), np.nan, run.status, run.message)
+    summary = _rows_summary(run, job.containment)
+    for df in (runs, summary):
+        if df is not None:
+            df.insert(1, "seed", job.seed)
+            df.insert(3, "variant", job.variant)
+    return runs, summary
+
+
+def execute_job(job: Job):
+    """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
+    importlib.import_module(job.module)
+    sc = _scenario(job)
+    run = run_observer(job.observer, sc, _job_options(job, sc), job.containment)
+    return _job_frames(job, sc, run)
+
+
+def failed_job(job: Job, failure: JobFailure):
+    """The rows of a job that produced no result (its worker died, it raised, timed out)."""
+    sc = _scenario(job)
+    run = ObserverRun(sc, observers.get(job.observer), None, failure.status, failure.message)
+    return _job_frames(job, sc, run)
+
+
+def summary_columns(containment: str) -> list[str]:
+    """Columns of ``summary.csv`` (the containment column is named by the check made)."""
+    return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
+            "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
+            "violations", "first_violation_step", "status", "failed_step", "message", "family",
+            "set_type", "timing", "guaranteed"]
+
+
+def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None,
+               executor=None):
+    """Run every job of ``cfg`` (scenario x observer x option variant).
 
     Returns ``(runs, summary)`` data frames; with ``out`` they are also written there
     (``runs.csv``, ``summary.csv``, ``meta.json``) as one generation
-    (:func:`benchmarks.io.write_results`). The output folder and the memory needed are
-    checked before any observer runs (:class:`ConfigError`).
+    (:func:`benchmarks.io.write_results`), only once every job has finished. The output folder
+    and the memory needed are checked before any job runs (:class:`ConfigError`).
+    ``executor`` (:mod:`benchmarks.executors`, default serial) runs the
+    jobs; a job it could not run (worker died, timeout) is a row with that status.  Timing
+    columns of jobs run concurrently are marked ``timed = parallel`` (indicative only).
     """
     if out is not None:
         check_output_dir(out)
     check_memory(cfg)
-    pairs = [(sc, name) for sc in cfg.scenarios for name in cfg.observers]
-    runs, summaries = [], []
-    with progress_bar(len(pairs), cfg.name, progress) as bar:
-        for sc, name in pairs:
-            run = run_observer(name, sc, cfg.options_for(name, sc), cfg.containment)
-            if run.result is not None:
-                runs.append(_rows_runs(run))
-            else:
-                res = RunResult(name, np.full((sc.N, sc.system.n), np.nan),
-                                np.full((sc.N, sc.system.n), np.nan), [], np.full(sc.N, np.nan),
-                                np.full(sc.N, np.nan), np.nan, run.status, run.message)
-                run.result = res
-            summaries.append(_rows_summary(run, cfg.containment))
-            bar.set_postfix_str(f"{sc.name}: {name} {run.status}", refresh=False)
+    executor = executor or SerialExecutor()
+    jobs = make_jobs(cfg)
+    frames: list = [None] * len(jobs)
+    with progress_bar(len(jobs), cfg.name, progress) as bar:
+        for i, outcome in executor.map(execute_job, jobs):
+            if isinstance(outcome, JobFailure):
+                outcome = failed_job(jobs[i], outcome)
+            frames[i] = outcome
+            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
+                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
             bar.update()
+    runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
-    summary = add_relative_rms(pd.concat(summaries, ignore_index=True))
-    cols = ["scenario", "observer", "state", "state_name", "rms_radius", "rel_rms", "step_ms",
-            "hull_ms", "design_s", contained_column(cfg.containment), "violations",
-            "first_violation_step", "status", "failed_step", "message", "family", "set_type",
-            "timing", "guaranteed"]
-    summary = summary[cols]
+    summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
+    summary["timed"] = "serial" if executor.workers == 1 else "parallel"
+    summary = summary[summary_columns(cfg.containment)]
     if out is not None:
         write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, {
             "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
@@ -280,6 +376,8 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                 "description": sc.description, "source": sc.source,
                 "state_names": list(sc.state_names), "tolerance": sc.tolerance,
             } for sc in cfg.scenarios},
+            "executor": {"name": executor.name, "workers": executor.workers,
+                         "jobs": len(jobs)},
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "versions": environment(),
         })

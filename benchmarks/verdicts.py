@@ -90,14 +90,16 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     lines : list of str
         One line per kind of failure.
     """
-    pairs = summary.drop_duplicates(["scenario", "observer"])
+    # one row per run (a sweep: per seed and option variant too)
+    pairs = summary.drop_duplicates([c for c in ("scenario", "seed", "observer", "variant")
+                                     if c in summary.columns])
     bad = pairs[violating(pairs)]
     crashed = pairs[pairs["status"] == "error"]
     lines = []
     if len(bad):
         lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
-            f"{o} on {s}" for s, o in sorted(zip(bad["scenario"], bad["observer"],
-                                                 strict=True))))
+            f"{o} on {s}" for s, o in sorted(set(zip(bad["scenario"], bad["observer"],
+                                                     strict=True)))))
     if len(crashed):
         lines.append("CRASHED: " + ", ".join(
             f"{r.observer} on {r.scenario} ({_where(r.failed_step)})"

@@ -18,7 +18,10 @@ A design is keyed by a SHA-256 hash of its kind, a design version string, the in
 (system matrices, set generators), the design parameters and the versions of cvxpy, Clarabel
 and numpy.  ``make bench`` therefore re-solves a design only when something it depends on
 changed.  Failed designs are cached too (as their failure message), so an infeasible LMI is
-not re-attempted on every run.
+not re-attempted on every run.  Entries are written atomically (temporary file, then
+rename), and a design is computed once per key even by concurrent processes (``run --jobs``,
+Dask workers sharing a folder): the first takes an exclusive lock on ``<key>.lock`` and the
+others wait for it, then load its result.
 
 The folder is ``$SETOBS_CACHE_DIR`` if set, else ``~/.cache/setobs-bench/designs``; set
 ``SETOBS_CACHE_DIR=off`` to disable caching.
@@ -26,6 +29,7 @@ The folder is ``$SETOBS_CACHE_DIR`` if set, else ``~/.cache/setobs-bench/designs
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -42,6 +46,9 @@ from .options import Matrix
 
 # -- design cache ---------------------------------------------------------------------------
 _FAILED = "__design_failed__"
+#: designs of this process loaded from the cache instead of computed, per kind (so that a
+#: design time can be told apart from a cache read, e.g. by the scaling study)
+CACHE_LOADS: dict[str, int] = {}
 
 
 def cache_dir() -> Path | None:
@@ -93,23 +100,55 @@ def cached_design(
     if folder is None:
         return compute()
     path = folder / f"{kind}-{design_key(kind, version, arrays, params)}.npz"
-    if path.is_file():
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                result = {k: data[k] for k in data.files}
-        except (OSError, ValueError):
-            result = None  # unreadable cache entry: recompute
-        if result is not None:
-            if _FAILED in result:
-                raise DesignFailed(str(result[_FAILED]))
-            return result
-    try:
-        result = compute()
-    except DesignFailed as exc:
-        _store(path, {_FAILED: np.array(str(exc))})
-        raise
-    _store(path, result)
+    result = _load(path)
+    if result is not None:
+        CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
+    else:
+        # one writer per key: concurrent workers wanting the same design wait for the first
+        # one and then load its result instead of solving the same SDP again
+        with _key_lock(path):
+            result = _load(path)
+            if result is not None:
+                CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
+            else:
+                try:
+                    result = compute()
+                except DesignFailed as exc:
+                    _store(path, {_FAILED: np.array(str(exc))})
+                    raise
+                _store(path, result)
+    if _FAILED in result:
+        raise DesignFailed(str(result[_FAILED]))
     return result
+
+
+def _load(path: Path) -> dict[str, np.ndarray] | None:
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError):
+        return None  # unreadable cache entry: recompute
+
+
+@contextlib.contextmanager
+def _key_lock(path: Path):
+    """An exclusive advisory lock on ``path.lock`` (POSIX ``flock``; released if the holder
+    dies); without ``fcntl`` or a writable folder, no lock (writes stay atomic)."""
+    try:
+        import fcntl
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(path.with_suffix(".lock"), "a")  # noqa: SIM115 - closed below
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
+    finally:
+        fh.close()  # closing releases the lock
 
 
 def _store(path: Path, arrays: dict[str, np.ndarray]) -> None:

@@ -188,3 +188,28 @@ def test_reports_index_in_headless_chromium(browser, results, tmp_path):
     browser.find_elements(By.CSS_SELECTOR, "#reports a")[1].click()  # follow it offline
     assert browser.title == "Small HTML test"
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+
+
+def test_markdown_tables_of_a_sweep_become_sortable_html():
+    from benchmarks.html import markdown_to_html
+
+    lines = ["## tank6-linear (3 seeds)", "", "| Observer | rel. RMS mean |", "|---|---|",
+             "| FRad-A | 1.25 |", "| CZN-A | **2** |", ""]
+    out = markdown_to_html(lines)
+    assert out[0] == "<h2>tank6-linear (3 seeds)</h2>"
+    assert out[1].startswith('<table class="sortable">') and "<th>rel. RMS mean</th>" in out[1]
+    assert "<td>FRad-A</td><td>1.25</td>" in out[1] and "<strong>2</strong>" in out[1]
+    assert "---" not in out[1] and len(out) == 2
+
+
+def test_sweep_report_has_the_aggregated_tables(tmp_path):
+    cfg = tmp_path / "sweep.yaml"
+    cfg.write_text("name: sweep\nscenarios: [{name: alamo2d-sim, steps: 12}]\n"
+                   "observers: [FRad-A, FRad-C]\ncontainment: hull\n"
+                   "sweep: {seeds: [0, 1], grid: {FRad-A: {order: [5, 20]}}}\n")
+    out = tmp_path / "o"
+    assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 0
+    assert main(["report", str(out)]) == 0
+    page = (out / "index.html").read_text()
+    assert "<h2>alamo2d-sim (2 seeds)</h2>" in page and "<th>rel. RMS mean</th>" in page
+    assert "Ranking summary" not in page  # per-seed rankings are not mixed into one

@@ -1,0 +1,345 @@
+"""Executors: named strategies that run the independent jobs of a benchmark.
+
+A job is a picklable value, ``fn`` a module-level function; an executor yields
+``(index, outcome)`` pairs as the jobs finish, where ``outcome`` is either ``fn(job)`` or a
+:class:`JobFailure` (the job raised, its worker process died, or it exceeded its time budget).
+One failed job never stops the others.
+
+``serial``
+    in this process, one job after the other (the default; the honest timing mode).
+``processes``
+    a local pool of ``jobs`` worker processes (``run --jobs N``).  Each worker holds one job
+    at a time, so a worker that dies is attributed to its job exactly (``error``, with the
+    exit code), and a job running longer than ``timeout`` seconds is stopped by ending its
+    worker (``timeout``); a new worker takes its place.
+``dask``
+    a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
+    ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
+    loopback interface started for the run.  A task whose worker died (the scheduler's
+    ``KilledWorker``) may only have shared the worker with the culprit: after the other jobs,
+    each such task runs again alone on the cluster, and if its worker dies again it becomes
+    that job's ``error``.
+
+Local workers are forked from a clean server process that preloaded the harness (the
+``forkserver`` method; ``spawn`` where there is none), never from the parent itself (whose
+threads a fork would not carry over), and have the parent's environment, hence the same BLAS
+settings (see :mod:`benchmarks`).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import time
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import wait
+from typing import Any
+
+from .errors import ConfigError
+
+EXECUTORS = ("serial", "processes", "dask")
+_KILLED = object()  # a Dask task whose worker died
+
+
+@dataclass(frozen=True)
+class JobFailure:
+    """A job that produced no result: ``status`` is ``error`` or ``timeout``."""
+
+    status: str
+    message: str
+
+
+def _describe(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}"
+
+
+def default_jobs() -> int:
+    """Worker processes by default: the number of cores."""
+    return max(1, os.cpu_count() or 1)
+
+
+class SerialExecutor:
+    """Every job in this process, in order."""
+
+    name = "serial"
+    workers = 1
+
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` in job order."""
+        for i, job in enumerate(jobs):
+            try:
+                out = fn(job)
+            except ConfigError:
+                raise
+            except Exception as exc:
+                out = JobFailure("error", _describe(exc))
+            yield i, out
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def _worker_loop(conn) -> None:  # pragma: no cover - runs in the worker process
+    while True:
+        try:
+            msg = conn.recv()
+        except EOFError:
+            return
+        if msg is None:
+            return
+        fn, job = msg
+        conn.send(("started", None))  # the budget counts from here (not the worker start)
+        try:
+            out = ("ok", fn(job))
+        except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
+            out = ("config", str(exc))
+        except Exception as exc:
+            out = ("raised", _describe(exc))
+        try:
+            conn.send(out)
+        except Exception as exc:  # an unpicklable result
+            conn.send(("raised", f"result not transferable: {_describe(exc)}"))
+
+
+class _Worker:
+    def __init__(self, ctx):
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker_loop, args=(child,), daemon=True)
+        self.proc.start()
+        child.close()
+        self.index: int | None = None
+        self.started: float | None = None
+
+    def give(self, fn, index: int, job) -> None:
+        self.index, self.started = index, None
+        self.conn.send((fn, job))
+
+    def end(self, kill: bool = False) -> None:
+        if kill:
+            self.proc.kill()
+        else:
+            try:
+                self.conn.send(None)
+            except OSError:
+                pass
+        self.proc.join(timeout=5)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join()
+        self.conn.close()
+
+
+def _exit_reason(code: int | None) -> str:
+    if code is not None and code < 0:
+        return f"signal {-code}"
+    return f"exit code {code}"
+
+
+def _context():
+    """``forkserver`` with the harness preloaded where available (a new worker is then a fork
+    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["benchmarks.runner"])
+        return ctx
+    return mp.get_context("spawn")
+
+
+class ProcessExecutor:
+    """A pool of ``jobs`` local worker processes, one job per worker at a time.
+
+    Parameters
+    ----------
+    jobs : int
+        Number of worker processes (>= 1).
+    timeout : float, optional
+        Budget in seconds per job; a job over it is stopped (its worker ended) and reported
+        as ``timeout``.
+    """
+
+    name = "processes"
+
+    def __init__(self, jobs: int, timeout: float | None = None):
+        if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+            raise ConfigError(f"--jobs must be an integer >= 1, got {jobs!r}")
+        if timeout is not None and not timeout > 0:
+            raise ConfigError(f"the job time budget must be positive, got {timeout!r}")
+        self.workers = jobs
+        self.timeout = timeout
+        self._ctx = _context()
+        self._idle: list[_Worker] = []
+
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` as the jobs finish."""
+        pending = deque(enumerate(jobs))
+        busy: dict[Any, _Worker] = {}
+        try:
+            while pending or busy:
+                while pending and len(busy) < self.workers:
+                    w = self._idle.pop() if self._idle else _Worker(self._ctx)
+                    i, job = pending.popleft()
+                    try:
+                        w.give(fn, i, job)
+                    except Exception as exc:  # the job itself cannot be sent (pickling)
+                        self._idle.append(w)
+                        yield i, JobFailure("error", f"job not transferable: {_describe(exc)}")
+                        continue
+                    busy[w.conn] = w
+                wait_s = None
+                running = [w.started for w in busy.values() if w.started is not None]
+                if self.timeout is not None and running:
+                    wait_s = max(0.0, min(running) + self.timeout - time.monotonic())
+                for conn in wait(list(busy), timeout=wait_s):
+                    w = busy.pop(conn)
+                    try:
+                        kind, value = conn.recv()
+                        if kind == "started":
+                            w.started = time.monotonic()
+                            busy[conn] = w
+                            continue
+                    except (EOFError, OSError):
+                        w.proc.join(timeout=5)
+                        reason = _exit_reason(w.proc.exitcode)
+                        w.end(kill=True)
+                        yield w.index, JobFailure(
+                            "error", f"worker process died while running this job ({reason})")
+                        continue
+                    self._idle.append(w)
+                    if kind == "config":
+                        raise ConfigError(value)
+                    yield w.index, value if kind == "ok" else JobFailure("error", value)
+                if self.timeout is not None:
+                    now = time.monotonic()
+                    for conn, w in list(busy.items()):
+                        if w.started is not None and now - w.started >= self.timeout:
+                            del busy[conn]
+                            w.end(kill=True)
+                            yield w.index, JobFailure(
+                                "timeout", f"stopped after the budget of {self.timeout:g} s")
+        finally:
+            for w in busy.values():
+                w.end(kill=True)
+
+    def close(self) -> None:
+        """End the idle workers."""
+        while self._idle:
+            self._idle.pop().end()
+
+
+class DaskExecutor:
+    """Jobs as tasks of a Dask cluster (``distributed``).
+
+    Parameters
+    ----------
+    address : str, optional
+        Scheduler address (``tcp://HOST:PORT``); without it a ``LocalCluster`` listening on
+        127.0.0.1 only is started with ``jobs`` single-threaded worker processes.
+    jobs : int
+        Workers of the local cluster.
+    """
+
+    name = "dask"
+
+    def __init__(self, address: str | None = None, jobs: int | None = None):
+        try:
+            import dask
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise ConfigError("--executor dask needs the optional 'distributed' package "
+                              "(pip install 'setobs-bench[dask]')") from None
+        self.cluster = None
+        if address is None:
+            self.workers = jobs or default_jobs()
+            # one task per worker thread at a time (no queued tasks on a worker that dies),
+            # and a task whose worker died is not retried on another one: reported at once
+            with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                                  "distributed.scheduler.worker-saturation": 1.0}):
+                self.cluster = LocalCluster(
+                    n_workers=self.workers, threads_per_worker=1, processes=True,
+                    host="127.0.0.1", dashboard_address=None, silence_logs=40)
+            self.client = Client(self.cluster)
+        else:
+            try:
+                self.client = Client(address, timeout="10s")
+            except (OSError, TimeoutError) as exc:
+                raise ConfigError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+            self.workers = max(1, sum(self.client.nthreads().values()))
+        self.address = self.client.scheduler.address
+
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` as the tasks finish."""
+        from distributed import as_completed
+
+        futures = {self.client.submit(fn, job, pure=False): i for i, job in enumerate(jobs)}
+        suspects = []
+        try:
+            for fut in as_completed(futures):
+                i = futures.pop(fut)
+                out = self._outcome(fut)
+                if out is _KILLED:
+                    suspects.append(i)
+                else:
+                    yield i, out
+            # a task may only have shared its worker with the one that killed it: run each
+            # suspect again, alone on the cluster; one that kills its worker then is the cause
+            for i in suspects:
+                fut = self.client.submit(fn, jobs[i], pure=False)
+                futures[fut] = i
+                out = self._outcome(fut)
+                del futures[fut]
+                yield i, (out if out is not _KILLED else JobFailure(
+                    "error", "worker process died while running this job (twice, the second "
+                             "time alone on the cluster)"))
+        finally:
+            self.client.cancel(list(futures))
+
+    @staticmethod
+    def _outcome(fut):
+        try:
+            return fut.result()
+        except ConfigError:
+            raise
+        except Exception as exc:
+            if type(exc).__name__ == "KilledWorker":
+                return _KILLED
+            return JobFailure("error", _describe(exc))
+
+    def close(self) -> None:
+        """Close the client (and the local cluster if this executor started it)."""
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def from_args(kind: str | None, jobs: int | None, address: str | None):
+    """The executor of ``run [--executor K] [--jobs [N]] [--address A]``.
+
+    No option: serial.  ``--jobs`` alone: local processes (``--jobs`` without a number, i.e.
+    ``jobs == 0``: one per core).  ``--address`` alone implies ``dask``.
+    """
+    if jobs == 0:
+        jobs = default_jobs()
+    if kind is None:
+        kind = "dask" if address else ("processes" if jobs is not None else "serial")
+    return make_executor(kind, jobs, address)
+
+
+def make_executor(kind: str = "serial", jobs: int | None = None, address: str | None = None):
+    """The executor named ``kind`` (one of :data:`EXECUTORS`).
+
+    ``kind="processes"`` with ``jobs=1`` is the serial executor; ``address`` is only for
+    ``dask``.
+    """
+    if kind not in EXECUTORS:
+        raise ConfigError(f"unknown executor '{kind}' (known: {', '.join(EXECUTORS)})")
+    if address is not None and kind != "dask":
+        raise ConfigError("--address needs --executor dask")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ConfigError(f"--jobs must be an integer >= 1, got {jobs!r}")
+    if kind == "dask":
+        return DaskExecutor(address, jobs)
+    if kind == "processes" and (jobs or default_jobs()) > 1:
+        return ProcessExecutor(jobs or default_jobs())
+    return SerialExecutor()

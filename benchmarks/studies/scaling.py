@@ -1,0 +1,395 @@
+"""Scaling study: how the observers' costs and accuracy grow with the number of states.
+
+``python -m benchmarks.studies.scaling`` (run by ``make bench``) runs every observer of the
+harness (all but the stochastic and data-driven families) on the linear and the nonlinear
+n-tank system (``tank<n>-linear``, ``tank<n>-nonlinear``) for n in :data:`SIZES` and writes
+``reports/scaling.md``, a log-log figure beside it and the tidy table
+``results/scaling/scaling.csv``:
+
+* per-step time of ``step()``, interval-hull time, offline design time and relative RMS
+  radius (mean over the states of eq. 9, against the best observer at the same n) per
+  observer and size;
+* a fitted cost exponent per observer: the slope ``p`` of ``log(step + hull) = a + p log n``
+  (least squares over the sizes it ran at, at least 3);
+* the budget: each offline design runs in a worker process with a budget of ``--design-budget``
+  seconds and each run of ``--steps`` steps with ``--run-budget`` seconds; one over it is
+  stopped (its worker ended) and reported ``timeout``; larger sizes of that observer are then
+  not attempted (``not run``, with the reason).  A scenario that does not exist (yet) is
+  listed as ``not run: scenario not available``.
+
+Jobs run one at a time (honest single-threaded timing, see :mod:`benchmarks`); the offline
+designs come from the design cache when present (the design time is then that of the cache
+read, marked ``cached``).  The real-time limit is the sampling time of the tank model
+(:data:`REALTIME_MS`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+import observers  # noqa: E402
+from observers import offline  # noqa: E402
+from observers.registry import table_order  # noqa: E402
+from systems import ModelError  # noqa: E402
+
+from ..executors import JobFailure, ProcessExecutor  # noqa: E402
+from ..io import (  # noqa: E402
+    atomic_savefig,
+    atomic_write_csv,
+    atomic_write_json,
+    atomic_write_text,
+    environment,
+)
+from ..metrics import add_relative_rms  # noqa: E402
+from ..runner import Job, design_observer, execute_job  # noqa: E402
+from ..specs import build_scenario  # noqa: E402
+
+SIZES = (6, 12, 30, 60, 100, 200)
+VARIANTS = ("linear", "nonlinear")
+REALTIME_MS = 500.0  # sampling time of the tank model
+DESIGN_BUDGET_S = 60.0
+RUN_BUDGET_S = 30.0
+STEPS = 40
+#: design times below this are no offline design (nothing to fit an exponent to)
+MIN_DESIGN_S = 1e-2
+COLUMNS = ["variant", "n", "observer", "set_type", "status", "message", "design_s",
+           "design_cached", "step_ms", "hull_ms", "total_ms", "rel_rms", "violations"]
+
+
+def default_observers() -> list[str]:
+    """Every registered observer except the stochastic and data-driven families."""
+    return [i.name for i in observers.available()
+            if i.family not in ("stochastic", "data-driven")]
+
+
+def design_only(job: Job) -> dict:
+    """The offline design of ``job`` alone (in a worker): status, message, seconds, and
+    whether it was read from the design cache."""
+    from ..runner import _job_options, _scenario
+
+    sc = _scenario(job)
+    observers.available()  # the plugin imports are not part of a design's time
+    loads = sum(offline.CACHE_LOADS.values())
+    t0 = time.perf_counter()
+    obs, status, message = design_observer(job.observer, sc, _job_options(job, sc))
+    seconds = time.perf_counter() - t0
+    return {"status": status, "message": message, "design_s": seconds,
+            "design_cached": sum(offline.CACHE_LOADS.values()) > loads}
+
+
+def _job(variant: str, n: int, name: str, steps: int) -> Job:
+    spec = {"name": f"tank{n}-{variant}", "steps": steps}
+    return Job(spec, None, name, observers.get(name).cls.__module__, {}, {}, "hull", None, "")
+
+
+def _row(variant, n, name, status, message="", **values) -> dict:
+    row = dict.fromkeys(COLUMNS, np.nan)
+    row.update(variant=variant, n=n, observer=name, set_type=observers.get(name).set_type,
+               status=status, message=message, design_cached=False, violations=np.nan)
+    row.update(values)
+    return row
+
+
+def run_study(sizes=SIZES, names=None, variants=VARIANTS, steps: int = STEPS,
+              design_budget: float = DESIGN_BUDGET_S, run_budget: float = RUN_BUDGET_S,
+              log=print) -> pd.DataFrame:
+    """Run the study; one row per variant, size and observer (see :data:`COLUMNS`)."""
+    names = names or default_observers()
+    design_ex = ProcessExecutor(1, timeout=design_budget)
+    run_ex = ProcessExecutor(1, timeout=run_budget)
+    rows = []
+    try:
+        for variant in variants:
+            available = {}
+            for n in sizes:
+                try:
+                    build_scenario({"name": f"tank{n}-{variant}", "steps": steps}, None)
+                    available[n] = True
+                except Exception as exc:  # noqa: BLE001 - any failure: not available
+                    available[n] = f"{type(exc).__name__}: {exc}"
+            for name in names:
+                stopped = ""
+                for n in sizes:
+                    if available[n] is not True:
+                        rows.append(_row(variant, n, name, "not run",
+                                         f"scenario not available ({available[n]})"))
+                        continue
+                    if stopped:
+                        rows.append(_row(variant, n, name, "not run", stopped))
+                        continue
+                    rows.append(_one(variant, n, name, steps, design_ex, run_ex))
+                    r = rows[-1]
+                    log(f"{variant} n={n} {name}: {r['status']} "
+                        f"(design {r['design_s']:.3g} s, step {r['total_ms']:.3g} ms)")
+                    if r["status"] == "timeout":
+                        stopped = f"not attempted: timeout at n={n}"
+    finally:
+        design_ex.close()
+        run_ex.close()
+    return relative(pd.DataFrame(rows))
+
+
+def _one(variant, n, name, steps, design_ex, run_ex) -> dict:
+    job = _job(variant, n, name, steps)
+    (_, d), = design_ex.map(design_only, [job])
+    if isinstance(d, JobFailure):
+        what = "design " if d.status == "timeout" else ""
+        return _row(variant, n, name, d.status, what + d.message)
+    if d["status"] != "ok":
+        return _row(variant, n, name, d["status"], d["message"], design_s=d["design_s"])
+    (_, out), = run_ex.map(execute_job, [job])
+    design = {"design_s": d["design_s"], "design_cached": d["design_cached"]}
+    if isinstance(out, JobFailure):
+        what = f"run of {steps} steps " if out.status == "timeout" else ""
+        return _row(variant, n, name, out.status, what + out.message, **design)
+    s = out[1]
+    first = s.iloc[0]
+    return _row(variant, n, name, first["status"], first["message"] or "", **design,
+                step_ms=first["step_ms"], hull_ms=first["hull_ms"],
+                total_ms=first["step_ms"] + first["hull_ms"],
+                violations=first["violations"], _rms=s["rms_radius"].to_numpy(float),
+                guaranteed=bool(first["guaranteed"]))
+
+
+def relative(df: pd.DataFrame) -> pd.DataFrame:
+    """``rel_rms``: per run, the mean over the states of its RMS radius divided by the
+    smallest among the successful guaranteed observers of the same variant and size."""
+    if "_rms" not in df.columns:
+        return df[COLUMNS]
+    per_state = []
+    for r in df.to_dict("records"):
+        rms = r["_rms"]
+        if isinstance(rms, np.ndarray):
+            per_state.append(pd.DataFrame({
+                "scenario": f"{r['variant']}/{r['n']}", "observer": r["observer"],
+                "state": np.arange(rms.size), "rms_radius": rms, "status": r["status"],
+                "guaranteed": bool(r["guaranteed"])}))
+    out = df.drop(columns=[c for c in ("_rms", "guaranteed") if c in df.columns])
+    if per_state:
+        rel = add_relative_rms(pd.concat(per_state, ignore_index=True))
+        mean = rel.groupby(["scenario", "observer"])["rel_rms"].mean()
+        key = out["variant"] + "/" + out["n"].astype(str)
+        out["rel_rms"] = [mean.get((k, o), np.nan) for k, o in zip(key, out["observer"],
+                                                                     strict=True)]
+    return out[COLUMNS]
+
+
+def exponents(df: pd.DataFrame) -> pd.DataFrame:
+    """Fitted cost exponents per variant and observer: slope of log(step + hull time) and of
+    log(design time, computed not cached) against log n (NaN below 3 sizes)."""
+    rows = []
+    for (variant, name), g in df.groupby(["variant", "observer"], sort=False):
+        row = {"variant": variant, "observer": name}
+        ok = g[(g["status"] == "ok") & (g["total_ms"] > 0)]
+        row["step_exponent"] = _slope(ok["n"], ok["total_ms"])
+        d = g[(g["status"] == "ok") & ~g["design_cached"].astype(bool)
+              & (g["design_s"] >= MIN_DESIGN_S)]
+        row["design_exponent"] = _slope(d["n"], d["design_s"])
+        row["largest_n"] = int(ok["n"].max()) if len(ok) else np.nan
+        fast = ok[ok["total_ms"] <= REALTIME_MS]
+        row["largest_realtime_n"] = int(fast["n"].max()) if len(fast) else np.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _slope(n, t) -> float:
+    n, t = np.asarray(n, float), np.asarray(t, float)
+    if n.size < 3:
+        return float("nan")
+    return float(np.polyfit(np.log(n), np.log(t), 1)[0])
+
+
+def _fmt(x, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "-"
+    return f"{float(x):.{digits}g}"
+
+
+def _cell(r, value: str) -> str:
+    if r.status == "ok":
+        return value + ("" if not r.violations or pd.isna(r.violations)
+                        else f" (**{int(r.violations)} violations**)")
+    return {"timeout": "timeout", "not run": "not run"}.get(r.status, r.status)
+
+
+def _table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
+    head = ["Observer"] + [f"n={n}" for n in sizes]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    g = df[df["variant"] == variant]
+    for name in table_order(g["observer"].unique()):
+        cells = [name]
+        for n in sizes:
+            r = g[(g["observer"] == name) & (g["n"] == n)]
+            if not len(r):
+                cells.append("-")
+                continue
+            r = next(r.itertuples(index=False))
+            if what == "time":
+                value = f"{_fmt(r.step_ms)} + {_fmt(r.hull_ms)}"
+            elif what == "design":
+                value = _fmt(r.design_s) + (" (cached)" if r.design_cached else "")
+            else:
+                value = _fmt(r.rel_rms)
+            cells.append(_cell(r, value))
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def failures(g: pd.DataFrame) -> list[str]:
+    """Markdown list: per observer, each status other than ok with its sizes and the message
+    (of the smallest size)."""
+    bad = g[g["status"] != "ok"]
+    if not len(bad):
+        return []
+    out = ["What did not run, and why:", ""]
+    for name in table_order(bad["observer"].unique()):
+        h = bad[bad["observer"] == name]
+        for status, k in h.groupby("status", sort=False):
+            sizes = ", ".join(str(n) for n in k["n"])
+            out.append(f"- {name}, {status} at n = {sizes}: {k['message'].iloc[0]}")
+    return out + [""]
+
+
+def figure(df: pd.DataFrame, path: Path, variants=VARIANTS) -> Path:
+    """Log-log plot of step + hull time against n per observer, one panel per variant, with
+    the real-time limit."""
+    fig, axes = plt.subplots(1, len(variants), figsize=(6.5 * len(variants), 5), squeeze=False)
+    for ax, variant in zip(axes[0], variants, strict=True):
+        g = df[(df["variant"] == variant) & (df["status"] == "ok")]
+        colors = plt.get_cmap("tab20").colors
+        for k, name in enumerate(table_order(g["observer"].unique())):
+            h = g[g["observer"] == name].sort_values("n")
+            ax.loglog(h["n"], h["total_ms"], marker="osD^v"[k % 5], color=colors[k % 20],
+                      label=name)
+        if not len(g):
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlim(min(df["n"]), max(df["n"]))
+            ax.text(0.5, 0.4, "no observer ran (see the report)", ha="center",
+                    transform=ax.transAxes)
+        ax.axhline(REALTIME_MS, color="k", linestyle="--", linewidth=1.2,
+                   label=f"real time ({REALTIME_MS:g} ms)")
+        ax.set_title(f"{variant} n-tank")
+        ax.set_xlabel("states n")
+        ax.set_ylabel("step + hull time per step [ms]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, ncol=2, loc="lower right")
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budget,
+           run_budget, elapsed: float) -> str:
+    """The Markdown report."""
+    env = environment()
+    exp = exponents(df)
+    parts = [
+        "# Scaling study: linear and nonlinear n-tank, n = " + ", ".join(map(str, sizes)), "",
+        f"Every observer (all but the stochastic and data-driven ones) on `tank<n>-linear` and "
+        f"`tank<n>-nonlinear` ({steps} simulated steps, seed 0), one job at a time "
+        "(single-threaded BLAS). Budget: offline design "
+        f"{design_budget:g} s, run {run_budget:g} s ({steps} steps, i.e. "
+        f"{1e3 * run_budget / steps:.0f} ms per step including the interval hull and the "
+        "containment check); a design or run over it is stopped and marked `timeout`, and the "
+        "larger sizes of that observer are then `not run`. Real-time limit: the sampling time, "
+        f"{REALTIME_MS:g} ms per step. Produced by `python -m benchmarks.studies.scaling` "
+        f"in {elapsed / 60:.0f} min (git {env.get('git', '?')}); timings on a shared 2-core "
+        "machine are indicative.", "",
+        f"![step time against n]({fig.relative_to(out.parent).as_posix()})", "",
+        "## Fitted cost exponents", "",
+        "Slope p of log(step + hull time) against log n (time ~ n^p) over the sizes each "
+        "observer ran at (at least 3), of the offline design time likewise (computed designs "
+        f"of at least {MIN_DESIGN_S:g} s only, not cache reads), the largest n that ran and "
+        "the largest within the real-time limit.", "",
+        "| Observer | variant | p (step) | p (design) | largest n | largest n in real time |",
+        "|---|---|---|---|---|---|",
+    ]
+    for variant in df["variant"].unique():
+        e = exp[exp["variant"] == variant]
+        for name in table_order(e["observer"].unique()):
+            r = next(e[e["observer"] == name].itertuples(index=False))
+            if pd.isna(r.largest_n):
+                continue  # never ran: see the tables below
+            parts.append(f"| {name} | {variant} | {_fmt(r.step_exponent)} | "
+                         f"{_fmt(r.design_exponent)} | {_fmt(r.largest_n)} | "
+                         f"{_fmt(r.largest_realtime_n)} |")
+    parts.append("")
+    for variant in df["variant"].unique():
+        g = df[df["variant"] == variant]
+        if len(g) and (g["status"] == g["status"].iloc[0]).all() and g["status"].iloc[0] != "ok":
+            r = g.iloc[0]
+            parts += [f"## {variant} n-tank", "", f"No observer ran: every one is "
+                      f"`{r['status']}` at every size, e.g. {r['observer']}: {r['message']}", ""]
+            continue
+        parts += [f"## {variant} n-tank", "", "Per-step time, `step()` + interval hull (ms, "
+                  "medians):", ""] + _table(df, variant, sizes, "time") + [
+            "", "Offline design time (s):", ""] + _table(df, variant, sizes, "design") + [
+            "", "Relative RMS radius (mean over the states, against the best observer at the "
+            "same n):", ""] + _table(df, variant, sizes, "rms") + [""]
+        parts += failures(g)
+    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), ""]
+    return "\n".join(parts)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line of the study."""
+    p = argparse.ArgumentParser(prog="python -m benchmarks.studies.scaling",
+                                description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
+    p.add_argument("--observers", nargs="+", help="observer names (default: see the docstring)")
+    p.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
+    p.add_argument("--steps", type=int, default=STEPS)
+    p.add_argument("--design-budget", type=float, default=DESIGN_BUDGET_S, metavar="S")
+    p.add_argument("--run-budget", type=float, default=RUN_BUDGET_S, metavar="S")
+    p.add_argument("--out", default="reports/scaling.md", help="Markdown report")
+    p.add_argument("--results", default="results/scaling", help="folder of scaling.csv")
+    p.add_argument("--report-only", action="store_true",
+                   help="rewrite the report and figure from the results of an earlier run")
+    args = p.parse_args(argv)
+    if min(args.sizes) < 2 or args.steps < 2 or args.design_budget <= 0 or args.run_budget <= 0:
+        print("error: sizes must be >= 2, steps >= 2 and the budgets positive", file=sys.stderr)
+        return 2
+    try:
+        names = [observers.get(n).name for n in args.observers] if args.observers else None
+    except (observers.UnknownObserver, ModelError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    results = Path(args.results)
+    if args.report_only:  # rewrite the report from an earlier run's table
+        try:
+            df = pd.read_csv(results / "scaling.csv", keep_default_na=False,
+                             na_values=[""]).fillna({"message": ""})
+            run = json.loads((results / "scaling.json").read_text())
+        except (OSError, ValueError) as exc:
+            print(f"error: no earlier study in {results}: {exc}", file=sys.stderr)
+            return 2
+    else:
+        t0 = time.perf_counter()
+        df = run_study(args.sizes, names, args.variants, args.steps, args.design_budget,
+                       args.run_budget, log=lambda m: print(m, file=sys.stderr))
+        run = {"sizes": args.sizes, "steps": args.steps, "design_budget": args.design_budget,
+               "run_budget": args.run_budget, "elapsed": time.perf_counter() - t0}
+        atomic_write_csv(results / "scaling.csv", df)
+        atomic_write_json(results / "scaling.json", run)
+    out = Path(args.out)
+    fig = figure(df, out.with_suffix(".png"), list(df["variant"].unique()))
+    atomic_write_text(out, report(df, fig, out, **run))
+    print(f"wrote {out}, {fig} and {Path(args.results) / 'scaling.csv'}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Test-only observer plugins, importable by worker processes (``tests.plugins.X``)."""

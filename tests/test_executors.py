@@ -1,0 +1,194 @@
+"""Parallel and distributed runs: identical results, per-job failures, a shared design cache."""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing as mp
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from benchmarks import load_config
+from benchmarks.cli import main
+from benchmarks.errors import ConfigError
+from benchmarks.executors import JobFailure, ProcessExecutor, SerialExecutor, from_args
+from benchmarks.verdicts import EXIT_CRASH
+from observers import registry
+from observers.offline import cached_design
+
+TIMING = ["step_ms", "hull_ms", "design_s", "timed"]
+RUN_ID = ["run_id"]  # the identifier of each run's generation of result files
+SWEEP = {
+    "name": "sweep",
+    "scenarios": [{"name": "alamo2d-sim", "steps": 12}, {"name": "tank{n}-linear", "steps": 15}],
+    "observers": ["FRad-A", "FRad-C", "PRad-B", "CZN-A", "Hinf-G"],
+    "containment": "hull",
+    "sweep": {"seeds": [0, 1], "sizes": [4], "grid": {"FRad-A": {"order": [5, 20]}}},
+}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A real Dask LocalCluster on the loopback interface, two single-threaded workers."""
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                     host="127.0.0.1", dashboard_address=None,
+                                     silence_logs=40) as c:
+        yield c
+
+
+def _run(tmp_path, name, cfg, *extra, code=0) -> pd.DataFrame:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    out = tmp_path / name
+    assert main(["run", str(path), "--out", str(out), "--no-progress", *extra]) == code
+    return pd.read_csv(out / "summary.csv")
+
+
+def test_serial_jobs2_and_dask_give_the_identical_summary(tmp_path):
+    pytest.importorskip("distributed")
+    serial = _run(tmp_path, "serial", SWEEP)
+    # the tidy table: every scenario x seed x observer x variant x state
+    assert len(serial) == 2 * (2 + 4) * 6
+    assert set(serial["variant"].fillna("")) == {"", "order=5", "order=20"}
+    assert (serial["status"] == "ok").all() and (serial["timed"] == "serial").all()
+    jobs2 = _run(tmp_path, "jobs2", SWEEP, "--jobs", "2")
+    dask = _run(tmp_path, "dask", SWEEP, "--executor", "dask", "--jobs", "2")  # LocalCluster
+    assert (jobs2["timed"] == "parallel").all() and (dask["timed"] == "parallel").all()
+    pd.testing.assert_frame_equal(serial.drop(columns=TIMING + RUN_ID),
+                                  jobs2.drop(columns=TIMING + RUN_ID))
+    pd.testing.assert_frame_equal(serial.drop(columns=TIMING + RUN_ID),
+                                  dask.drop(columns=TIMING + RUN_ID))
+    runs = [pd.read_csv(tmp_path / d / "runs.csv").drop(columns=RUN_ID, errors="ignore")
+            for d in ("serial", "jobs2", "dask")]
+    pd.testing.assert_frame_equal(runs[0], runs[1])
+    pd.testing.assert_frame_equal(runs[0], runs[2])
+
+
+@pytest.fixture
+def crash_observer():
+    import tests.plugins.crash
+
+    importlib.reload(tests.plugins.crash)  # (re-)registers Test-Crash
+    yield "Test-Crash"
+    registry._REGISTRY.pop("Test-Crash", None)
+
+
+@pytest.mark.parametrize("executor", ["processes", "dask"])
+def test_a_worker_that_dies_is_that_jobs_error_and_the_run_completes(
+        tmp_path, crash_observer, executor, capsys, request):
+    """A job that kills its worker process mid-sweep: that job is an error row, the rest ok
+    (Dask: a running LocalCluster, reached by its address)."""
+    args = ["--jobs", "2"] if executor == "processes" else [
+        "--address", request.getfixturevalue("cluster").scheduler_address]
+    cfg = {"name": "crash", "scenarios": [{"name": "alamo2d-sim", "steps": 10}],
+           "observers": ["FRad-A", crash_observer, "FRad-C"], "containment": "hull",
+           "sweep": {"seeds": [0, 1]}}
+    summary = _run(tmp_path, "crash", cfg, *args, code=EXIT_CRASH)  # complete, one crashed
+    jobs = summary.drop_duplicates(["seed", "observer"]).set_index(["observer", "seed"])
+    assert len(jobs) == 6
+    crashed = jobs.loc[crash_observer]
+    assert (crashed["status"] == "error").all()
+    assert crashed["message"].str.contains("worker process died").all()
+    others = jobs.drop(index=crash_observer, level=0)
+    assert (others["status"] == "ok").all()
+    assert "Test-Crash on alamo2d-sim: error: worker process died" in capsys.readouterr().err
+
+
+def _sleepy(seconds):
+    time.sleep(seconds)
+    return seconds
+
+
+def test_a_job_over_its_budget_is_stopped_and_reported_as_timeout():
+    ex = ProcessExecutor(2, timeout=1.0)
+    try:
+        t0 = time.monotonic()
+        out = dict(ex.map(_sleepy, [0.0, 60.0, 0.1]))
+        assert time.monotonic() - t0 < 30  # stopped, not waited for
+    finally:
+        ex.close()
+    assert out[0] == 0.0 and out[2] == 0.1
+    assert out[1] == JobFailure("timeout", "stopped after the budget of 1 s")
+
+
+def _raises(x):
+    raise ValueError(f"bad {x}")
+
+
+@pytest.mark.parametrize("ex", [SerialExecutor(), ProcessExecutor(1)], ids=["serial", "proc"])
+def test_a_job_that_raises_is_an_error_outcome(ex):
+    try:
+        out = dict(ex.map(_raises, [3]))
+    finally:
+        ex.close()
+    assert out == {0: JobFailure("error", "ValueError: bad 3")}
+
+
+def test_executor_options_are_checked():
+    with pytest.raises(ConfigError, match="--jobs must be an integer >= 1"):
+        from_args(None, -1, None)
+    with pytest.raises(ConfigError, match="--address needs --executor dask"):
+        from_args("processes", 2, "tcp://127.0.0.1:1")
+    assert isinstance(from_args(None, None, None), SerialExecutor)
+    assert from_args(None, 0, None).workers >= 1  # --jobs without N: the cores
+
+
+def test_sweep_config_errors(tmp_path):
+    bad = dict(SWEEP, sweep={"seeds": [0, 0]})
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(bad))
+    with pytest.raises(ConfigError, match="seeds: a value appears twice"):
+        load_config(path)
+    path.write_text(yaml.safe_dump(dict(SWEEP, sweep={"grid": {"FRad-A": {"nope": [1]}}})))
+    with pytest.raises(ConfigError, match=r"grid: FRad-A has no option\(s\) \['nope'\]"):
+        load_config(path)
+    path.write_text(yaml.safe_dump(dict(SWEEP, sweep={"seeds": [1]})))
+    with pytest.raises(ConfigError, match=r"has \{n\} but the sweep gives no sizes"):
+        load_config(path)
+
+
+# -- design cache under concurrent writers --------------------------------------------------
+def _design_in_process(args):
+    cache, log = args
+    import os
+
+    os.environ["SETOBS_CACHE_DIR"] = cache
+
+    def compute():
+        with open(log, "a") as fh:
+            fh.write("computed\n")
+        time.sleep(0.5)  # long enough for the other process to ask for the same key
+        return {"gain": np.arange(4.0)}
+
+    return cached_design("Test", "1", {"A": np.eye(2)}, {"p": 1}, compute)["gain"].tolist()
+
+
+def test_design_is_computed_once_by_concurrent_processes(tmp_path):
+    log = tmp_path / "log.txt"
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["observers.offline"])
+    with ctx.Pool(3) as pool:
+        results = pool.map(_design_in_process, [(str(tmp_path / "cache"), str(log))] * 3)
+    assert results == [[0.0, 1.0, 2.0, 3.0]] * 3
+    assert log.read_text().count("computed") == 1
+    assert not list((tmp_path / "cache").glob("*.tmp"))
+
+
+def test_bad_option_value_in_a_worker_ends_the_run_without_results(tmp_path, capsys):
+    """Bad input found in a worker is a one-line error (exit 2), and no partial results."""
+    cfg = {"name": "bad", "scenarios": [{"name": "alamo2d-sim", "steps": 5}],
+           "observers": ["FRad-A", "FRad-C"], "options": {"order": -3}}
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "bad"
+    assert main(["run", str(path), "--out", str(out), "--no-progress", "--jobs", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "order" in err
+    assert not (out / "summary.csv").exists() and not (out / "runs.csv").exists()
