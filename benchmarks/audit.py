@@ -59,7 +59,8 @@ from .membership import MembershipTester
 from .progress import progress_bar
 from .runner import run_observer
 
-AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim")
+AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim",
+                   "tank6-nonlinear", "vanderpol-sim")
 KINDS = ("uniform", "gaussian", "vertex", "vertex-hold", "worst-input")
 NOISE_OF_KIND = {"uniform": "uniform", "gaussian": "gaussian-truncated", "vertex": "vertex"}
 #: relative part of the membership tolerance: the LP resolves distances to ~1e-9 on the

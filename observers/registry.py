@@ -26,8 +26,8 @@ ENTRY_POINT_GROUP = "observers"
 #: row order of the papers' tables; other observers follow alphabetically
 CANONICAL_ORDER = (
     "VolMin-A", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRad-C-I", "PRad-C-II",
-    "PRad-D", "CZN-A", "CZN-B", "ESO-A", "ESO-B", "FRad-C", "PRad-E", "Nom-G", "ESO-C", "ESO-D",
-    "Hinf-G",
+    "PRad-D", "CZN-A", "CZN-B", "CZN-MV", "ESO-A", "ESO-B", "FRad-C", "PRad-E", "Nom-G",
+    "ESO-C", "ESO-D", "Hinf-G",
 )
 
 FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic")

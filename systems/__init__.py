@@ -4,7 +4,8 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 """
 
 from .alamo import alamo2d
-from .errors import ModelError
+from .derivatives import SYMBOLIC
+from .errors import DomainError, ModelError
 from .memory import available_memory
 from .model import LinearSystem, NonlinearSystem, observability_matrix
 from .rotating import rotating_target
@@ -12,10 +13,13 @@ from .scenarios import Scenario, check_steps, register_scenario, scenario, scena
 from .simulate import NOISE_MODELS, Simulation, simulate
 from .tank import tank, tank_input
 from .training import Training, offline_experiment
+from .vanderpol import vanderpol
 from .vehicle import lane_change_input, vehicle
 
 __all__ = [
+    "DomainError",
     "NOISE_MODELS",
+    "SYMBOLIC",
     "LinearSystem",
     "ModelError",
     "NonlinearSystem",
@@ -35,5 +39,6 @@ __all__ = [
     "simulate",
     "tank",
     "tank_input",
+    "vanderpol",
     "vehicle",
 ]

@@ -14,7 +14,7 @@ import numpy as np
 
 from observers.sets import Interval, SetError, Zonotope
 
-from .errors import ModelError
+from .errors import DomainError, ModelError
 
 
 def _matrix(M, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -174,39 +174,110 @@ class LinearSystem:
 class NonlinearSystem:
     """Nonlinear discrete-time system ``x+ = f(x, u) + w``, ``y = C x + v``.
 
-    ``jacobian(x, u)`` returns ``(df/dx, df/du)``; it is used for linearisations.
+    Parameters
+    ----------
+    f : callable
+        ``f(x, u, m) -> (n,) array``, explicit (e.g. Euler-discretised) dynamics written with
+        the math namespace ``m`` (``m.sqrt``, ``m.sin``, ...: numpy when evaluated, sympy when
+        derived, see :mod:`systems.derivatives`).
+    n, nu : int
+        State and input dimensions.
+    C, W, V, X0
+        Linear output matrix and the sets, as for :class:`LinearSystem`.
+    jacobian : callable, optional
+        ``jacobian(x, u) -> (df/dx, df/du)``; derived symbolically from ``f`` if omitted.
+    hessian : callable, optional
+        ``hessian(lo, hi, u) -> (idx, Hlo, Hhi)``: the non-zero second derivatives
+        ``d^2 f_i / dx_j dx_k`` as rows ``idx = (i, j, k)`` with ``j <= k`` and bounds
+        ``Hlo <= H <= Hhi`` valid over the box ``[lo, hi]`` (they must be sound, i.e. round
+        outward); derived symbolically from ``f`` if omitted.
+    domain : (lo, hi) of array_like, optional
+        Open box on which ``f`` is smooth (e.g. ``x > 0`` under a square root); a box of
+        states reaching its boundary is refused by :meth:`check_domain`.
+    dt, name
+        As for :class:`LinearSystem`.
     """
 
     is_linear = False
 
-    def __init__(
-        self,
-        f: Callable[[np.ndarray, np.ndarray], np.ndarray],
-        jacobian: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
-        n: int,
-        nu: int,
-        C,
-        W,
-        V,
-        X0,
-        dt: float = 1.0,
-        name: str = "",
-    ):
-        self.f = f
-        self.jacobian = jacobian
-        self.C = _matrix(C, "C", cols=n)
+    def __init__(self, f: Callable, n: int, nu: int, C, W, V, X0, *,
+                 jacobian: Callable | None = None, hessian: Callable | None = None,
+                 domain=None, dt: float = 1.0, name: str = ""):
+        if not callable(f):
+            raise ModelError("f must be a callable f(x, u, m)")
+        self._f = f
         self._n, self._nu = int(n), int(nu)
-        self.W, self.V, self.X0 = _system_sets(W, V, X0, n, self.C.shape[0])
+        self.C = _matrix(C, "C", cols=self._n)
+        self.W, self.V, self.X0 = _system_sets(W, V, X0, self._n, self.C.shape[0])
         self.dt = _sampling_time(dt)
         self.name = name
+        if domain is None:
+            domain = (np.full(self._n, -np.inf), np.full(self._n, np.inf))
+        self.domain = tuple(np.broadcast_to(np.asarray(d, dtype=float), (self._n,)).copy()
+                            for d in domain)
+        self._derived = None
+        self._jacobian = jacobian
+        self._hessian = hessian
 
     n = property(lambda self: self._n, doc="State dimension.")
     nu = property(lambda self: self._nu, doc="Input dimension.")
     ny = property(lambda self: self.C.shape[0], doc="Output dimension.")
 
-    def dynamics(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Noise-free successor ``f(x, u)``."""
-        return self.f(x, u)
+    @property
+    def derived(self):
+        """:class:`~systems.derivatives.SymbolicDerivatives` of ``f`` (built on first use)."""
+        if self._derived is None:
+            from .derivatives import SymbolicDerivatives
+
+            self._derived = SymbolicDerivatives(self._f, self._n, self._nu)
+        return self._derived
+
+    def f(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Noise-free successor ``f(x, u)`` (numpy)."""
+        return np.asarray(self._f(np.asarray(x, dtype=float), np.asarray(u, dtype=float), np),
+                          dtype=float)
+
+    dynamics = f
+
+    def jacobian(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(df/dx, df/du)`` at ``(x, u)`` (given by hand or derived)."""
+        if self._jacobian is not None:
+            return self._jacobian(x, u)
+        return self.derived.jacobian(x, u)
+
+    def check_domain(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Raise :class:`DomainError` naming the first state whose box leaves the domain."""
+        dlo, dhi = self.domain
+        bad = np.flatnonzero((lo <= dlo) | (hi >= dhi) | ~np.isfinite(lo) | ~np.isfinite(hi))
+        if bad.size:
+            i = int(bad[0])
+            raise DomainError(
+                f"the estimate of state x{i + 1} spans [{lo[i]:.6g}, {hi[i]:.6g}], which reaches "
+                f"the boundary of the domain ({dlo[i]:.6g}, {dhi[i]:.6g}) of {self.name or 'f'}",
+                state=i)
+
+    def jacobian_bounds(self, lo: np.ndarray, hi: np.ndarray,
+                        u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Interval Jacobian ``(Jlo, Jhi)`` of ``df/dx`` over ``[lo, hi]`` (derived; after
+        :meth:`check_domain`), for the mean-value extension."""
+        self.check_domain(lo, hi)
+        try:
+            return self.derived.jacobian_bounds(lo, hi, u)
+        except SetError as exc:
+            raise DomainError(f"{self.name or 'f'}: {exc} over the estimate's box") from None
+
+    def hessian(self, lo: np.ndarray, hi: np.ndarray,
+                u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bounds of the non-zero second derivatives over ``[lo, hi]`` (after
+        :meth:`check_domain`): ``(idx, Hlo, Hhi)``, see the class parameters."""
+        self.check_domain(lo, hi)
+        if self._hessian is not None:
+            return self._hessian(lo, hi, u)
+        try:
+            H = self.derived.hessian_bounds(lo, hi, u)
+        except SetError as exc:  # interval evaluation left the domain of f
+            raise DomainError(f"{self.name or 'f'}: {exc} over the estimate's box") from None
+        return self.derived.hessian_index, H.lo, H.hi
 
     def __repr__(self) -> str:
         return f"NonlinearSystem({self.name or 'unnamed'}, n={self.n}, nu={self.nu}, ny={self.ny})"

@@ -28,6 +28,7 @@ from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
 from .tank import tank, tank_input
 from .training import offline_experiment
+from .vanderpol import vanderpol
 from .vehicle import STATES as VEHICLE_STATES
 from .vehicle import W_RADII, lane_change_input, vehicle
 
@@ -208,8 +209,35 @@ def tank_nonlinear(n: int, seed: int = 0, noise: str = "uniform", steps: int = 2
         options={"order": 100, "reduction": "pca"},
         description=f"nonlinear {n}-tank system, simulated ({noise} noise, seed {seed})",
         source="CORA tank model equations; record simulated here",
-        paper_table="arch2021_table4_tank6_nonlinear" if n == 6 else None,
+        paper_table=("arch2021_table4_tank6_nonlinear" if n == 6
+                     else "arch2021_table5_6_tank_scaling"),
         state_names=_tank_states(n),
+    )
+
+
+def tank6_nonlinear_cora() -> Scenario:
+    """CORA's 20-step record of the nonlinear 6-tank system (unit test, no true states)."""
+    d = _yaml("tank6_nonlin_cora_u_y.yaml")
+    return _make(
+        name="tank6-nonlinear-cora", system=tank(6, linear=False), u=np.array(d["u"]).T,
+        y=np.array(d["y"]).T, x_true=None, options={"order": 100, "reduction": "pca"},
+        description="nonlinear 6-tank system, CORA's 20-step unit-test record",
+        source="CORA unitTests/contDynamics/nonlinearSysDT/test_nonlinearSysDT_observe_01_tank.m",
+        state_names=_tank_states(6),
+    )
+
+
+def vanderpol_sim(seed: int = 0, noise: str = "uniform", steps: int = 200) -> Scenario:
+    """Van der Pol oscillator (Euler, position measured) with a seeded simulated record."""
+    system = vanderpol()
+    u = np.zeros((steps, 1))
+    sim = simulate(system, u, steps=steps, seed=seed, noise=noise)
+    return _make(
+        name="vanderpol-sim", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 20, "reduction": "pca"},
+        description=f"Van der Pol oscillator (mu = 1, h = 0.05), simulated ({noise} noise, "
+                    f"seed {seed})",
+        source="systems/vanderpol.py; record simulated here", state_names=("x1", "x2"),
     )
 
 
@@ -260,6 +288,8 @@ _FIXED: dict[str, Callable[..., Scenario]] = {
     "vehicle2d-cora": vehicle2d_cora,
     "vehicle6d-cora": vehicle6d_cora,
     "tank30-linear-cora": tank30_linear_cora,
+    "tank6-nonlinear-cora": tank6_nonlinear_cora,
+    "vanderpol-sim": vanderpol_sim,
     "alamo2d": alamo2d_published,
     "alamo2d-sim": alamo2d_sim,
     "rotating-target": rotating_target_scenario,
@@ -272,7 +302,8 @@ _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
 _LISTED = [
     "vehicle2d-cora", "vehicle6d-cora", "tank30-linear-cora", "tank6-linear", "alamo2d",
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
-    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "rotating-target",
+    "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "tank12-nonlinear",
+    "tank30-nonlinear", "tank6-nonlinear-cora", "vanderpol-sim", "rotating-target",
 ]
 
 
@@ -319,4 +350,4 @@ def scenario(name: str, **kwargs: Any) -> Scenario:
     except TypeError as exc:
         raise ModelError(f"scenario '{name}': {exc}") from None
     raise ModelError(f"unknown scenario '{name}' (available: {', '.join(scenario_names())}; "
-                     "tank<n>-linear for any n >= 2)")
+                     "tank<n>-linear and tank<n>-nonlinear for any n >= 2)")

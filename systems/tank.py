@@ -11,6 +11,17 @@ Tanks in a cascade with Torricelli outflow, explicit Euler with ``h = 0.5`` s,
 Measured tanks and inflow tanks follow ARCH Table 2 (indices beyond n ignored).  For n > 30
 the pattern of tanks 25-30 repeats every 6 tanks (our extension; no published model).
 
+The paper's text differs from these equations (it states ``k = 0.015`` for every tank and
+``(B u + w)_i / A_i``); CORA's published numbers come from the code, so we follow it.
+
+The nonlinear model (``linear=False``) ships hand-derived derivatives: the Jacobian
+(diagonal ``1 - c_i / (2 sqrt(x_i))``, sub-diagonal ``c_i / (2 sqrt(x_{i-1}))``, with ``c_i``
+the coefficient of tank i's square-root difference) and the non-zero second derivatives
+``d^2 f_i / dx_i^2 = c_i x_i^(-3/2) / 4`` and ``d^2 f_i / dx_{i-1}^2 = -c_i x_{i-1}^(-3/2) / 4``,
+bounded over a box with outward rounding; ``tests/test_nonlinear.py`` checks them against
+the symbolic derivation of ``f`` (:mod:`systems.derivatives`).  Its domain is ``x > 0``: an
+estimate whose box reaches a non-positive level is refused (``DomainError``).
+
 The linear model is the Jacobian at ``x = 20`` (the centre of X0), rounded to 3 decimals as in
 CORA's printed matrices; it acts on deviations (``X0`` is centred at 0 with radius 4).
 """
@@ -72,10 +83,10 @@ def _model(n: int):
     for j, i in enumerate(lay["inflow"]):
         Bu[i, j] = H if i == 0 else (1.0 if head[i] else H * K * s2g)
 
-    def f(x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        r = np.sqrt(np.maximum(x, 0.0))
+    def f(x, u, m=np):
+        r = m.sqrt(x)
         xn = x - coef * r
-        xn[1:] += coef[1:] * r[:-1]
+        xn[1:] = xn[1:] + coef[1:] * r[:-1]
         return xn + Bu @ u
 
     def jacobian(x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -84,9 +95,28 @@ def _model(n: int):
         J[np.arange(1, n), np.arange(n - 1)] = d[:-1] * coef[1:] / coef[:-1]
         return J, Bu.copy()
 
+    # non-zero second derivatives: d^2 f_i / dx_i^2 = coef_i x_i^(-3/2) / 4 (own outflow) and
+    # d^2 f_i / dx_{i-1}^2 = -coef_i x_{i-1}^(-3/2) / 4 (inflow from the tank above)
+    i_own = np.arange(n)
+    i_up = np.arange(1, n)
+    hess_idx = np.vstack([np.column_stack([i_own, i_own, i_own]),
+                          np.column_stack([i_up, i_up - 1, i_up - 1])])
+    q = np.concatenate([0.25 * coef, -0.25 * coef[1:]])
+
+    def hessian(lo, hi, u):
+        # x^(-3/2) is decreasing: its range over [lo, hi] is [hi^-1.5, lo^-1.5]; numpy's pow
+        # is within 1 ulp, the product with q adds one more: 3 ulps outward cover both
+        lo_x = lo[hess_idx[:, 1]]
+        hi_x = hi[hess_idx[:, 1]]
+        a, b = q * hi_x**-1.5, q * lo_x**-1.5
+        Hlo, Hhi = np.minimum(a, b), np.maximum(a, b)
+        for _ in range(3):
+            Hlo, Hhi = np.nextafter(Hlo, -np.inf), np.nextafter(Hhi, np.inf)
+        return hess_idx, Hlo, Hhi
+
     C = np.zeros((len(lay["measured"]), n))
     C[np.arange(C.shape[0]), lay["measured"]] = 1.0
-    return f, jacobian, Bu, C
+    return f, jacobian, hessian, Bu, C
 
 
 def tank(n: int = 6, linear: bool = True, x_op: float = 20.0, decimals: int | None = 3):
@@ -103,9 +133,10 @@ def tank(n: int = 6, linear: bool = True, x_op: float = 20.0, decimals: int | No
     decimals : int or None
         Rounding of the linear matrices (CORA prints and uses 3 decimals); None keeps them exact.
     """
-    f, jacobian, Bu, C = _model(n)
+    f, jacobian, hessian, Bu, C = _model(n)
     if not linear:
-        return NonlinearSystem(f, jacobian, n, Bu.shape[1], C, dt=H, name=f"tank{n}",
+        return NonlinearSystem(f, n, Bu.shape[1], C, jacobian=jacobian, hessian=hessian,
+                               domain=(0.0, np.inf), dt=H, name=f"tank{n}",
                                **_sets(n, C.shape[0], 20.0))
     A, B = jacobian(np.full(n, float(x_op)), np.zeros(Bu.shape[1]))
     if decimals is not None:

@@ -147,10 +147,20 @@ def test_scenario_defaults_apply_only_to_declared_options():
 def test_linear_model_observers_are_unsupported_on_nonlinear_systems(tmp_path):
     cfg = load_config(write_cfg(tmp_path, {"scenarios": [{"name": "tank6-nonlinear",
                                                           "steps": 20}],
-                                           "observers": ["FRad-A"], "containment": "hull"}))
+                                           "observers": ["PRad-B"], "containment": "hull"}))
     _, summary = run_config(cfg, progress=False)
     assert set(summary["status"]) == {"unsupported"}
     assert "missing: A, B" in summary["message"].iloc[0]
+
+
+def test_nonlinear_capable_observers_run_on_nonlinear_systems(tmp_path):
+    cfg = load_config(write_cfg(tmp_path, {"scenarios": [{"name": "tank6-nonlinear",
+                                                          "steps": 20}],
+                                           "observers": ["FRad-A", "FRad-C"],
+                                           "containment": "hull"}))
+    _, summary = run_config(cfg, progress=False)
+    assert set(summary["status"]) == {"ok"}
+    assert (summary["contained_hull"] == "yes").all() and (summary["violations"] == 0).all()
 
 
 def test_paper_relative_uses_only_the_observers_the_paper_compares():

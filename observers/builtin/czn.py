@@ -34,7 +34,7 @@ from abc import abstractmethod
 
 import numpy as np
 
-from ..families import ZonotopeObserver
+from ..families import Linearised, ZonotopeObserver
 from ..options import Choice, Integer, Number
 from ..registry import register
 from ..sets import ConZonotope, HullLP
@@ -46,8 +46,12 @@ from .frad import WangGainVariant
 DEFAULT_CONSTRAINT_STEPS = 2
 
 
-class ConZonotopeStripObserver(ZonotopeObserver):
+class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
     """Shared loop: predict, intersect exactly, bound the constraints, lifted reduction.
+
+    Nonlinear systems: the prediction linearises at the centre of the constrained zonotope
+    and encloses the remainder over the interval hull of its zonotope ``(c, G)`` (a superset
+    of the constrained zonotope, so the enclosure stays sound).
 
     Options
     -------
@@ -108,9 +112,13 @@ class ConZonotopeStripObserver(ZonotopeObserver):
         else:
             u = self._input(u_prev)
             c, G, A, b = self._state
-            c = self.A @ c + self.B @ u + self.W.c
-            G = np.hstack([self.A @ G, self.E])
-            A = np.hstack([A, np.zeros((A.shape[0], self.E.shape[1]))])
+            # the prediction strategy linearises at the centre c (for a nonlinear system its
+            # remainder box is taken over the interval hull of the zonotope (c, G), which
+            # encloses the constrained zonotope)
+            self.A, d, R = self.prediction(c, G, u, self.k)
+            c = self.A @ c + d + self.W.c
+            G = np.hstack([self.A @ G, self.E, R])
+            A = np.hstack([A, np.zeros((A.shape[0], self.E.shape[1] + R.shape[1]))])
             if self.max_constraints is None:  # CORA: intersect, then reduce
                 c, G, A, b = self.intersect(c, G, A, b, y)
                 c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
@@ -156,4 +164,23 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
     """
 
     def intersect(self, c, G, A, b, y):
-        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(G))
+        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(c, G))
+
+
+@register(
+    "CZN-MV", family="strip", set_type="conzonotope", ready_for_control=False,
+    reference="Rego, Raffo, Scott, Raimondo, Automatica 111, 108614, 2020 (mean-value "
+              "extension); Scott et al. 2016",
+)
+class CZNMV(CZNA):
+    """CZN-A with the mean-value extension of Rego et al. (2020) as prediction.
+
+    Beyond CORA.  For a nonlinear system the prediction encloses ``f(x) - f(c)`` by the
+    interval Jacobian over the box of the estimate, ``J(B) (x - c)``: its midpoint is applied
+    to the set and its radius adds the box ``rad J(B) |x - c|``
+    (:class:`observers.prediction.MeanValuePrediction`).  It needs first derivatives only
+    (no Hessian), and is tighter than the second-order remainder when the curvature is large
+    relative to the set; on linear systems it is CZN-A.
+    """
+
+    LINEARISATION = "mean-value"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..families import AllStripsObserver, PerStripObserver, PropagationObserver
+from ..families import AllStripsObserver, Linearised, PerStripObserver, PropagationObserver
 from ..numerics.frad import alamo_frad_gain, alamo_frad_strips, combastel_gain, wang_frad_gain
 from ..options import Choice
 from ..registry import register
@@ -14,7 +14,7 @@ from ..registry import register
     "FRad-A", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6",
 )
-class FRadA(PerStripObserver):
+class FRadA(Linearised, PerStripObserver):
     """Strip by strip with the closed-form F-radius gain of Alamo et al. (online)."""
 
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
@@ -38,9 +38,11 @@ class WangGainVariant:
 
     OPTIONS = {"variant": Choice("cora", ("cora", "textbook"))}
 
-    def wang_gain(self, G: np.ndarray) -> np.ndarray:
-        """Gain (n x m) for the predicted set's generators ``G``."""
-        A = self.A if self.options["variant"] == "cora" else None
+    def wang_gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """Gain (n x m) for the predicted set ``(c, G)``; for a nonlinear system ``A`` is the
+        Jacobian at the predicted centre ``c`` (as CORA, whose stored results this reproduces
+        to 1e-9)."""
+        A = self.prediction.jacobian(c) if self.options["variant"] == "cora" else None
         return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
 
 
@@ -48,7 +50,7 @@ class WangGainVariant:
     "FRad-B", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
-class FRadB(WangGainVariant, AllStripsObserver):
+class FRadB(Linearised, WangGainVariant, AllStripsObserver):
     """All strips at once with the F-radius gain of Wang et al. (online).
 
     Options
@@ -58,14 +60,14 @@ class FRadB(WangGainVariant, AllStripsObserver):
     """
 
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
-        return self.wang_gain(G)
+        return self.wang_gain(c, G)
 
 
 @register(
     "FRad-C", family="propagation", set_type="zonotope", ready_for_control=True,
     reference="Combastel, Automatica 55, 2015, Sec. 4.3",
 )
-class FRadC(PropagationObserver):
+class FRadC(Linearised, PropagationObserver):
     """Set propagation with the online F-radius gain of Combastel (Kalman-like)."""
 
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from ..errors import DesignFailed
-from ..families import PerStripObserver, StripBasedObserver
+from ..families import Linearised, PerStripObserver, StripBasedObserver
 from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
 from ..options import Integer
 from ..registry import register
@@ -36,7 +36,7 @@ from ..registry import register
     "VolMin-A", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6.2",
 )
-class VolMinA(PerStripObserver):
+class VolMinA(Linearised, PerStripObserver):
     """Strip by strip with the volume-minimising gain of Alamo et al. (one LP per strip).
 
     Options
@@ -69,8 +69,9 @@ class VolMinA(PerStripObserver):
     "VolMin-B", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Bravo, Alamo, Camacho, IEEE TAC 51(7), 2006, Sec. III.B",
 )
-class VolMinB(StripBasedObserver):
+class VolMinB(Linearised, StripBasedObserver):
     """Strip by strip, choosing Bravo's candidate zonotope of least det(T T') (online)."""
+
 
     def design(self) -> None:
         super().design()
