@@ -12,7 +12,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report reports check baseline audit audit-short speed scaling clean
+.PHONY: help install test lint bench bench-quick report reports check baseline history audit audit-short speed scaling clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -35,7 +35,7 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## every config -> results/<config>/, reports/<config>.md; then speed.md, scaling.md
+bench: $(STAMP)  ## every config -> results/<config>/ (+ index.html), reports/<config>.md; speed.md, scaling.md, index.html
 	$(PY) -m benchmarks designs $(CONFIGS_ALL)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
@@ -45,11 +45,12 @@ bench: $(STAMP)  ## every config -> results/<config>/, reports/<config>.md; then
 	done
 	$(PY) -m benchmarks speed
 	$(MAKE) scaling
+	$(PY) -m benchmarks index reports --results $(RESULTS)
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
 
-bench-quick: $(STAMP)  ## a < 2 minute subset (results/quick/)
+bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
 
@@ -65,13 +66,16 @@ baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures B
 reports: bench audit  ## regenerate every committed report (bench, audit, data-driven study)
 	$(PY) -m benchmarks.studies.alanwar2022 --out reports/datadriven.md
 
+history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
+	$(PY) -m benchmarks history
+
 audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
 	$(PY) -m benchmarks audit
 
 audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
 	$(PY) -m benchmarks audit --short --no-progress
 
-report: $(STAMP)  ## (re)write Markdown tables and figures for every results/<config>/
+report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/
 	@for dir in $(RESULTS)/*/; do \
 		[ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
 	done

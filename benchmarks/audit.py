@@ -57,7 +57,7 @@ from .config import BenchConfig
 from .errors import ConfigError
 from .io import atomic_write_csv, atomic_write_text, environment
 from .membership import MembershipTester
-from .progress import Progress
+from .progress import progress_bar
 from .runner import run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim",
@@ -263,16 +263,18 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
                           f"(known: {', '.join(KINDS)})")
     tasks = [(sc, name, count, tuple(kinds)) for sc in scenarios for name in names]
     rows: list[dict] = []
-    with Progress(len(tasks), "audit", enabled=progress) as bar:
+    with progress_bar(len(tasks), "audit", progress) as bar:
         if jobs == 1:
             for task in tasks:
                 rows += _audit_task(task)
-                bar.advance(f"{task[0]}: {task[1]}")
+                bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
+                bar.update()
         else:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 for task, out in zip(tasks, pool.map(_audit_task, tasks), strict=True):
                     rows += out
-                    bar.advance(f"{task[0]}: {task[1]}")
+                    bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
+                    bar.update()
     return pd.DataFrame(rows, columns=RESULT_COLUMNS)
 
 

@@ -1,5 +1,5 @@
-"""Command line: ``python -m benchmarks COMMAND ...`` (run, report, list, check, baseline, audit,
-time, speed, designs).
+"""Command line: ``setobs-bench`` (or ``python -m benchmarks``) with the sub-commands
+``run, report, index, history, list, check, baseline, audit, time, speed, designs``.
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2 (nothing is
 written); a regression (``check``) or a containment violation of a guaranteed observer
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from importlib import metadata
 from pathlib import Path
 
 import observers
@@ -19,9 +20,10 @@ from observers.errors import ObserverError
 from observers.sets import SetError
 from systems import ModelError, scenario_names
 
-from . import audit, designs, executors, freshness, regression, speed, timing, verdicts
-from .config import load_config
+from . import audit, designs, executors, freshness, history, regression, speed, timing, verdicts
+from .config import BenchConfig, load_config, parse_config
 from .errors import ConfigError
+from .html import write_html, write_index
 from .io import atomic_write_csv, atomic_write_json, blas_corename, check_output_dir
 from .report import write_report
 from .runner import run_config
@@ -29,10 +31,22 @@ from .runner import run_config
 USER_ERRORS = (ConfigError, ModelError, ObserverError, SetError)
 
 
+def _inline_config(args) -> BenchConfig:
+    """The configuration of a run given on the command line (``--observer``, ``--scenario``)."""
+    if not args.scenario:
+        raise ConfigError("run: give a YAML config or at least one --scenario")
+    raw = {"name": args.name or "cli", "title": "Command-line run: " + ", ".join(args.scenario),
+           "scenarios": list(args.scenario),
+           "observers": list(args.observer) if args.observer else "all"}
+    return parse_config(raw, raw["name"])
+
+
 def _cmd_run(args) -> int:
+    if args.config and (args.observer or args.scenario):
+        raise ConfigError("run: give either a YAML config or --observer/--scenario, not both")
     if args.out:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
-    cfg = load_config(args.config)
+    cfg = load_config(args.config) if args.config else _inline_config(args)
     out = Path(args.out) if args.out else Path("results") / cfg.name
     executor = executors.from_args(args.executor, args.jobs, args.address)
     try:
@@ -202,6 +216,20 @@ def _cmd_speed(args) -> int:
 def _cmd_report(args) -> int:
     path = write_report(args.dir, args.out, figures=not args.no_figures)
     print(f"wrote {path}")
+    if args.out is None:  # DIR/index.html beside DIR/report.md
+        print(f"wrote {write_html(args.dir, figures=not args.no_figures)}")
+    return 0
+
+
+def _cmd_index(args) -> int:
+    print(f"wrote {write_index(args.reports, args.results)}")
+    return 0
+
+
+def _cmd_history(args) -> int:
+    path, table = history.write_history(args.baseline, args.out)
+    print(f"wrote {path} ({table['commit'].nunique()} commits, "
+          f"{table['observer'].nunique()} observers)")
     return 0
 
 
@@ -217,16 +245,32 @@ def _cmd_list(args) -> int:
     return 0
 
 
+def _version() -> str:
+    try:
+        return metadata.version("setobs-bench")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (sub-commands run, report, list, check, baseline, audit, time, speed,
-    designs)."""
-    p = argparse.ArgumentParser(prog="python -m benchmarks",
-                                description="Guaranteed state estimator benchmarks")
+    """The argument parser (see the module docstring for the sub-commands)."""
+    p = argparse.ArgumentParser(prog="setobs-bench",
+                                description="Guaranteed state estimator benchmarks "
+                                            "(also: python -m benchmarks)")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("run", help="run a YAML benchmark config", epilog=verdicts.EXIT_CODES_HELP,
-                       description="Run every observer of a config on its scenarios and write "
-                                   "runs.csv, summary.csv and meta.json (one generation).")
-    r.add_argument("config", help="path to a YAML config (see benchmarks/configs/)")
+    r = sub.add_parser("run", help="run a YAML benchmark config, or observers on scenarios",
+                       epilog=verdicts.EXIT_CODES_HELP,
+                       description="Run every observer of a config (or the --observer names) on "
+                                   "its scenarios (or the --scenario names) and write runs.csv, "
+                                   "summary.csv and meta.json (one generation).")
+    r.add_argument("config", nargs="?",
+                   help="path to a YAML config (see benchmarks/configs/); or use --scenario")
+    r.add_argument("--observer", action="append", metavar="NAME",
+                   help="without a config: an observer to run (repeatable; default all)")
+    r.add_argument("--scenario", action="append", metavar="S",
+                   help="without a config: a named scenario (repeatable)")
+    r.add_argument("--name", help="without a config: the run's name (default cli)")
     r.add_argument("--out", help="output folder (default results/<config name>)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--jobs", type=int, nargs="?", const=0, metavar="N",
@@ -237,11 +281,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--address", metavar="tcp://HOST:PORT",
                    help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
     r.set_defaults(func=_cmd_run)
-    rep = sub.add_parser("report", help="write the Markdown report and figures of a results dir")
+    rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")
-    rep.add_argument("--out", help="Markdown file to write (default DIR/report.md)")
+    rep.add_argument("--out", help="Markdown file to write (default DIR/report.md; without "
+                                   "--out DIR/index.html is written too)")
     rep.add_argument("--no-figures", action="store_true", help="tables only")
     rep.set_defaults(func=_cmd_report)
+    ix = sub.add_parser("index", help="write REPORTS/index.html linking every report")
+    ix.add_argument("reports", nargs="?", default="reports", help="folder of the Markdown "
+                    "reports (default reports)")
+    ix.add_argument("--results", default="results",
+                    help="folder of the runs whose DIR/index.html to link (default results)")
+    ix.set_defaults(func=_cmd_index)
+    hi = sub.add_parser("history", help="relative RMS and violations of the golden summaries "
+                                        "across the git history (HTML page)")
+    hi.add_argument("--baseline", default=str(regression.DEFAULT_BASELINE),
+                    help="folder of the golden files in the repository (default results/baseline)")
+    hi.add_argument("--out", default=str(Path("results") / "history"),
+                    help="output folder of index.html (default results/history)")
+    hi.set_defaults(func=_cmd_history)
     ls = sub.add_parser("list", help="list observers and scenarios")
     ls.add_argument("what", nargs="?", default="all", choices=["observers", "scenarios", "all"])
     ls.set_defaults(func=_cmd_list)

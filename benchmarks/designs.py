@@ -23,7 +23,7 @@ from observers.offline import OfflineGain, cache_dir
 
 from .config import load_config
 from .errors import ConfigError
-from .progress import Progress
+from .progress import progress_bar
 from .runner import design_observer
 
 #: one design: (config path, scenario index in the config, observer name)
@@ -83,10 +83,11 @@ def prewarm(paths: list[str | Path], jobs: int = 2, progress: bool | None = None
     out = []
     pool = ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else None
     try:
-        with Progress(len(tasks), "designs", enabled=progress) as bar:
+        with progress_bar(len(tasks), "designs", progress) as bar:
             for res in (pool.map if pool else map)(design_task, tasks):
                 out.append(res)
-                bar.advance(f"{res[0]}: {res[1]} {res[2]}")
+                bar.set_postfix_str(f"{res[0]}: {res[1]} {res[2]}", refresh=False)
+                bar.update()
     finally:
         if pool is not None:
             pool.shutdown()

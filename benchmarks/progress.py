@@ -1,45 +1,25 @@
-"""A dependency-free progress bar on stderr (silent when stderr is not a terminal unless
-forced)."""
+"""Progress bars (tqdm) for the runner and the audit, on stderr.
+
+Shown on a terminal and in a Jupyter notebook (tqdm's widget where ``ipywidgets`` is
+installed, else its text bar); hidden in pipes, CI logs and files unless asked for, so that
+redirected output stays clean.
+"""
 
 from __future__ import annotations
 
 import sys
-import time
+
+from tqdm.auto import tqdm
 
 
-class Progress:
-    """``with Progress(total, "label") as p: ... p.advance(note)``."""
+def progress_enabled(progress: bool | None) -> bool:
+    """``progress`` if given, else whether stderr is a terminal or we run in a notebook."""
+    if progress is not None:
+        return bool(progress)
+    return sys.stderr.isatty() or "ipykernel" in sys.modules
 
-    def __init__(self, total: int, label: str = "", enabled: bool | None = None, width: int = 28):
-        self.total = max(int(total), 1)
-        self.label = label
-        self.width = width
-        self.done = 0
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self._t0 = time.perf_counter()
 
-    def __enter__(self) -> Progress:
-        self._draw("")
-        return self
-
-    def advance(self, note: str = "") -> None:
-        """Count one unit of work as done and redraw."""
-        self.done += 1
-        self._draw(note)
-
-    def _draw(self, note: str) -> None:
-        if not self.enabled:
-            return
-        frac = self.done / self.total
-        bar = "#" * int(frac * self.width)
-        elapsed = time.perf_counter() - self._t0
-        eta = elapsed / frac - elapsed if frac > 0 else 0.0
-        line = (f"\r{self.label} [{bar:<{self.width}}] {self.done}/{self.total} "
-                f"{elapsed:5.1f}s eta {eta:5.1f}s {note[:40]:<40}")
-        sys.stderr.write(line)
-        sys.stderr.flush()
-
-    def __exit__(self, *exc) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+def progress_bar(total: int, desc: str, progress: bool | None = None) -> tqdm:
+    """A tqdm bar of ``total`` runs; use ``bar.set_postfix_str(note)`` and ``bar.update()``."""
+    return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True,
+                disable=not progress_enabled(progress))

@@ -22,6 +22,19 @@ from .paper import paper_rows, paper_status  # noqa: E402
 from .verdicts import NA, NO, contained_column, reference_rows, violating  # noqa: E402
 
 MAX_FIGURE_STATES = 6
+#: the paragraph that opens the Markdown and the HTML report
+INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state; the "
+         "published value is in parentheses where a paper table exists, and then our ratios "
+         "are taken against the best of the observers that table compares (so both share "
+         "their reference; observers the paper did not run, e.g. CZN in ARCH 2021, can be "
+         "below 1). `rel_rms` in summary.csv is against all observers of the run. Times "
+         "are medians "
+         "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: "
+         "`yes` if the true state lies in every estimated set (exact membership test; "
+         "`contained (hull only)`: in every interval hull), `no` with the number of "
+         "violating steps, `n/a` where it was not checked (no true state in the record). "
+         "A row marked (unsound) violates containment and is never the reference of a "
+         "ratio.")
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -68,13 +81,25 @@ def paper_relative(df: pd.DataFrame, paper_names) -> pd.Series:
     return df["rms_radius"] / df["state"].map(best)
 
 
+def markdown_table(head: list[str], rows: list[list[str]]) -> str:
+    """Render a header and rows of cell strings as a Markdown table."""
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in rows])
+
+
 def scenario_table(df: pd.DataFrame, meta: dict) -> str:
-    """Markdown table of one scenario: relative RMS per state (paper value in parentheses),
-    average, per-step time, design time and containment.
+    """Markdown table of one scenario (:func:`scenario_table_data`)."""
+    return markdown_table(*scenario_table_data(df, meta))
+
+
+def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]]:
+    """Header and rows (cell strings) of one scenario's table: relative RMS per state (paper
+    value in parentheses), average, per-step time, design time and containment.
 
     Where a paper table exists, the ratios are taken against the best of the observers that
     table compares (:func:`paper_relative`), like the paper's own;
-    otherwise against all observers of the run (``rel_rms``)."""
+    otherwise against all observers of the run (``rel_rms``). The Markdown and the HTML
+    report both render these cells."""
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
     n = int(df["state"].max()) + 1
@@ -87,7 +112,7 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
         "contained (hull only)")
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
             "design s", contained])
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"],
                    _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
@@ -102,28 +127,46 @@ def scenario_table(df: pd.DataFrame, meta: dict) -> str:
         cells.append(_pair(avg, p.avg if p else None) if not pstat else f"{_fmt(avg)} ({pstat})")
         cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
         cells += [_fmt(g["hull_ms"].iloc[0]), _fmt(g["design_s"].iloc[0]), _status_cell(g)]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append(cells)
+    return head, rows
 
 
 def absolute_table(df: pd.DataFrame, meta: dict) -> str:
-    """Absolute RMS radii (paper: relative value times its smallest absolute radius)."""
+    """Markdown table of absolute RMS radii (:func:`absolute_table_data`); ``""`` if none."""
+    data = absolute_table_data(df, meta)
+    return markdown_table(*data) if data else ""
+
+
+def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]] | None:
+    """Header and rows of the absolute RMS radii (paper: relative value times its smallest
+    absolute radius); ``None`` above 8 states."""
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
     n = int(df["state"].max()) + 1
     if n > 8:
-        return ""
+        return None
     paper = paper_rows(info.get("paper_table"), n)
     head = ["Observer"] + [f"r{i + 1}" for i in range(n)]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         r = g["rms_radius"].to_numpy(float)
-        lines.append("| " + " | ".join(
-            [obs] + [_pair(r[i], p.absolute[i] if p and p.absolute else None) for i in range(n)]
-        ) + " |")
-    return "\n".join(lines)
+        rows.append([obs] + [_pair(r[i], p.absolute[i] if p and p.absolute else None)
+                             for i in range(n)])
+    return head, rows
+
+
+def scenario_notes(full: pd.DataFrame) -> list[str]:
+    """One line per observer that failed on a scenario (status and reason), and one listing
+    the observers that do not apply to it (``unsupported``, left out of the tables)."""
+    unsupported = full[full["status"] == "unsupported"].drop_duplicates("observer")
+    failures = full[~full["status"].isin(["ok", "unsupported"])].drop_duplicates("observer")
+    notes = [f"{r['observer']}: {r['status']}: {r['message']}" for _, r in failures.iterrows()]
+    if len(unsupported):
+        notes.append("not applicable here (unsupported): " + ", ".join(
+            f"{r['observer']} ({r['message']})" for _, r in unsupported.iterrows()))
+    return notes
 
 
 def bounds_figure(runs: pd.DataFrame, scenario: str, observer: str, meta: dict, path: Path):
@@ -163,19 +206,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     out = Path(out) if out else results_dir / "report.md"
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)
-    parts = [f"# {title}", "",
-             "Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state; the "
-             "published value is in parentheses where a paper table exists, and then our ratios "
-             "are taken against the best of the observers that table compares (so both share "
-             "their reference; observers the paper did not run, e.g. CZN in ARCH 2021, can be "
-             "below 1). `rel_rms` in summary.csv is against all observers of the run. Times "
-             "are medians "
-             "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: "
-             "`yes` if the true state lies in every estimated set (exact membership test; "
-             "`contained (hull only)`: in every interval hull), `no` with the number of "
-             "violating steps, `n/a` where it was not checked (no true state in the record). "
-             "A row marked (unsound) violates containment and is never the reference of a "
-             "ratio.", ""]
+    parts = [f"# {title}", "", INTRO, ""]
     if "timed" in summary.columns and (summary["timed"] == "parallel").any():
         ex = meta.get("executor", {})
         parts += [f"Times were measured while {ex.get('workers', 'several')} jobs ran "
@@ -192,21 +223,14 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         runs = pd.read_csv(results_dir / "runs.csv")
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
-        unsupported = full[full["status"] == "unsupported"].drop_duplicates("observer")
         df = full[full["status"] != "unsupported"]  # listed below the tables instead
         parts += [f"## {sc}", "", info.get("description", ""), "", scenario_table(df, meta), ""]
         abs_table = absolute_table(df, meta)
         if abs_table:
             parts += ["Absolute RMS radii (published: relative value x smallest radius):", "",
                       abs_table, ""]
-        failures = df[df["status"] != "ok"].drop_duplicates("observer")
-        for _, row in failures.iterrows():
-            parts.append(f"- {row['observer']}: {row['status']}: {row['message']}")
-        if len(unsupported):
-            parts.append("- not applicable here (unsupported): " + ", ".join(
-                f"{r['observer']} ({r['message']})" for _, r in unsupported.iterrows()))
-        if len(failures) or len(unsupported):
-            parts.append("")
+        notes = scenario_notes(full)
+        parts += [f"- {note}" for note in notes] + ([""] if notes else [])
         if runs is not None:
             links = []
             for obs in table_order(df["observer"].unique()):

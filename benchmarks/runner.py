@@ -29,7 +29,7 @@ from .executors import JobFailure, SerialExecutor
 from .io import check_output_dir, environment, write_results
 from .membership import MembershipTester
 from .metrics import add_relative_rms, median_ms, rms_radius
-from .progress import Progress
+from .progress import progress_bar
 from .specs import build_scenario
 from .verdicts import contained_column, containment_verdict
 
@@ -366,13 +366,14 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     executor = executor or SerialExecutor()
     jobs = make_jobs(cfg)
     frames: list = [None] * len(jobs)
-    with Progress(len(jobs), cfg.name, enabled=progress) as bar:
+    with progress_bar(len(jobs), cfg.name, progress) as bar:
         for i, outcome in executor.map(execute_job, jobs):
             if isinstance(outcome, JobFailure):
                 outcome = failed_job(jobs[i], outcome)
             frames[i] = outcome
-            bar.advance(f"{jobs[i].spec['name']}: {jobs[i].observer} "
-                        f"{outcome[1]['status'].iloc[0]}")
+            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
+                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
+            bar.update()
     runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
     summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
