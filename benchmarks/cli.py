@@ -201,6 +201,7 @@ def _cmd_designs(args) -> int:
         print("no design to compute (none of these observers has a cached offline design, "
               "or SETOBS_CACHE_DIR=off)")
         return 0
+    print(designs.timing_table(done, top=args.top))
     failed = sum(status != "ok" for _, _, status, _ in done)
     print(f"{len(done)} designs in the cache ({failed} failed, reported by the runs) in "
           f"{time.perf_counter() - t0:.0f} s with {jobs} worker(s)")
@@ -369,6 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
     de.add_argument("configs", nargs="+", metavar="CONFIG", help="YAML configs")
     de.add_argument("--jobs", type=int, help="worker processes (default: cores, at most 2)")
     de.add_argument("--no-progress", action="store_true", help="no progress bar")
+    de.add_argument("--top", type=int, default=None,
+                    help="list only the N slowest designs (default: all)")
     de.set_defaults(func=_cmd_designs)
     sp = sub.add_parser("speed", help="time the cases of the speed table -> reports/speed.md",
                         description=speed.__doc__.splitlines()[0])

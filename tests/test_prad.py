@@ -278,3 +278,51 @@ def test_centre_design_is_solved_once_for_c1_c2_and_d(tmp_path, monkeypatch):
     np.testing.assert_array_equal(gains[0], gains[2])
     observers.create("PRad-D", sc.system, alpha=0.9, **sc.options)  # another rate: new design
     assert len(calls) == 2
+
+
+# -- the numpy Newton method of the analytic centre -------------------------------------------
+def test_analytic_centre_of_hand_solved_problems():
+    from observers.numerics.lmi import analytic_centre
+
+    # max sum log x_i  s.t.  a' x = 1: x_i = 1 / (n a_i) (Lagrange, by hand)
+    a = np.array([1.0, 2.0, 4.0])
+    diag = [np.array([[[1.0 if i == k else 0.0]] for i in range(3)]) for k in range(3)]
+    x = analytic_centre(diag, np.array([0.9, 0.03, 0.01]), a, "test")  # a' x0 = 1
+    np.testing.assert_allclose(x, 1 / (3 * a), rtol=1e-10)
+    # max log det X over symmetric 2 x 2 X with tr X = 1: X = I / 2
+    basis = np.array([[[1.0, 0], [0, 0]], [[0, 1.0], [1.0, 0]], [[0, 0], [0, 1.0]]])
+    x = analytic_centre([basis], np.array([0.9, 0.2, 0.1]), np.array([1.0, 0, 1.0]), "test")
+    np.testing.assert_allclose(x, [0.5, 0.0, 0.5], atol=1e-12)
+    with pytest.raises(DesignFailed, match="infeasible"):
+        analytic_centre([basis], np.array([0.5, 1.0, 0.5]), np.array([1.0, 0, 1.0]), "test")
+
+
+@pytest.mark.parametrize("name", ["vehicle6d-cora", "tank6-linear"])
+def test_newton_centre_is_the_optimum_clarabel_approaches(name):
+    from observers.numerics import prad
+
+    s = systems.scenario(name).system
+    A, C, _, _ = _arrays(s)
+    rate = cora_bisection_end()
+
+    def objective(P, Y):
+        M = (P - Y @ C) @ A
+        D = np.block([[rate * P, M.T], [M, P]])
+        return np.linalg.slogdet(0.5 * (D + D.T))[1] + np.linalg.slogdet(P)[1]
+
+    Pn, Yn = prad._centre_newton(A, C, rate, name)
+    Pc, Yc = prad._centre_clarabel(A, C, rate, name)
+    assert abs(np.trace(Pn) - 1) < 1e-12
+    # the same point up to Clarabel's accuracy, and Newton's is not worse
+    assert objective(Pn, Yn) >= objective(Pc, Yc) - 1e-9
+    Ln, Lc = np.linalg.solve(Pn, Yn), np.linalg.solve(0.5 * (Pc + Pc.T), Yc)
+    np.testing.assert_allclose(Ln, Lc, atol=1e-3 * np.abs(Lc).max())
+
+
+def test_centre_start_refuses_a_mode_too_slow_to_correct():
+    from observers.numerics import prad
+
+    A = np.diag([0.5, 0.999])  # the second state is not measured and decays slower than 0.996
+    C = np.array([[1.0, 0.0]])
+    with pytest.raises(DesignFailed, match="cannot correct"):
+        prad._centre_start(A, C, cora_bisection_end(), "test")

@@ -67,11 +67,11 @@ Known behaviour
   single point (the 6-tank system), gains optimal to 1e-6 give RMS radii from 0.6x to 1.1x
   those of ARCH 2021 Table 3; Clarabel returns the limit of its central path, another solver
   (the table's) another optimal point.  On the 2-D vehicle the optimum is unique.
-* **Default design of PRad-C-I/C-II/D (``design: centre``)**: the analytic centre of CORA's
-  cone at its final rate 0.9921875 (:func:`~observers.numerics.prad.centre_gain`, one
-  solve).  It reproduces the published rows: 6-tank average 1.336 (ARCH 2021 Table 3: PRad-C
-  1.326, PRad-D 1.298), absolute radii within 4 % of the published ones on every tank.  The
-  three observers share this gain (CORA has one PRad-C; the noise weights that distinguish
+* **Default design of PRad-C-I/C-II/D (``design: centre``)**: the analytic centre of CORA's cone
+  at its final rate 0.9921875 (:func:`~observers.numerics.prad.centre_gain`, a damped Newton
+  method in numpy).  It reproduces the published rows: 6-tank average 1.336 (ARCH 2021 Table 3:
+  PRad-C 1.326, PRad-D 1.298), absolute radii within 4 % of the published ones on every tank.
+  The three observers share this gain (CORA has one PRad-C; the noise weights that distinguish
   CORA's PRad-D drop out of the centre).  The certified-bound designs (``radius-bound``,
   ``ellipsoid-trace``, ``max-gamma``) minimise one P-radius bound, which the unmeasured last
   tank (eigenvalue 0.996, forcing ``beta >= 0.992``) dominates: their radii of the measured
@@ -209,16 +209,16 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     design : {"centre", "radius-bound"}
         ``centre`` (default): the analytic centre of CORA's PRad-C cone at its final
         ``beta = 0.9921875``, normalised by ``tr P = 1``
-        (:func:`~observers.numerics.prad.centre_gain`, one solve); it reproduces the PRad-C rows of
-        ARCH 2021 Table 3 and the Automatica table.  ``radius-bound``: the gain of least
-        certified asymptotic radius bound with ``P >= I`` and a line search on ``beta``
-        (:func:`~observers.numerics.prad.wang_c1_gain`, 17-22 SDP solves).
+        (:func:`~observers.numerics.prad.centre_gain`, a numpy Newton method); it reproduces
+        the PRad-C rows of ARCH 2021 Table 3 and the Automatica table.  ``radius-bound``: the
+        gain of least certified asymptotic radius bound with ``P >= I`` and a line search on
+        ``beta`` (:func:`~observers.numerics.prad.wang_c1_gain`, 17-22 SDP solves).
     beta_tol : float
         Tolerance of CORA's bisection on ``beta`` (``centre`` only).
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "radius-bound"))}
-    DESIGN_VERSION = "3"
+    DESIGN_VERSION = "4"
 
     def bound_gain(self) -> np.ndarray:
         return wang_c1_gain(self.A, self.C, self.E, self.F).L
@@ -243,7 +243,7 @@ class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
-    DESIGN_VERSION = "3"
+    DESIGN_VERSION = "4"
 
     def bound_gain(self) -> np.ndarray:
         return wang_c2_gain(self.A, self.C, self.E, self.F).L
@@ -260,8 +260,8 @@ class PRadD(_Centre, _ConstantAllStrips):
     -------
     design : {"centre", "max-gamma"}
         ``centre`` (default): the analytic centre of the cone of CORA's PRad-D inequality
-        (:func:`~observers.numerics.prad.centre_gain`, one solve; ``beta`` drops out); it
-        reproduces the PRad-D row of ARCH 2021 Table 3.  ``max-gamma``: the largest
+        (:func:`~observers.numerics.prad.centre_gain`, a numpy Newton method; ``beta`` drops
+        out); it reproduces the PRad-D row of ARCH 2021 Table 3.  ``max-gamma``: the largest
         ``P >= gamma^2 I`` (least certified radius bound,
         :func:`~observers.numerics.prad.wang_d_gain`).
     alpha : float or None
@@ -274,7 +274,7 @@ class PRadD(_Centre, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "max-gamma")),
                "alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
-    DESIGN_VERSION = "3"
+    DESIGN_VERSION = "4"
 
     def centre_rate(self) -> float:
         alpha = self.options["alpha"]

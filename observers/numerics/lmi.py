@@ -205,3 +205,75 @@ def range_basis(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
     """Orthonormal basis of the range of ``G`` (n x rank)."""
     F = range_factor(G, rtol)
     return F / np.linalg.norm(F, axis=0) if F.shape[1] else F
+
+
+def analytic_centre(
+    blocks: list[np.ndarray],
+    x0: np.ndarray,
+    a_eq: np.ndarray,
+    what: str,
+    tol: float = 1e-13,
+    max_iter: int = 200,
+) -> np.ndarray:
+    """Maximise ``sum_j log det F_j(x)`` subject to ``a_eq' x = a_eq' x0`` by damped Newton.
+
+    ``F_j(x) = sum_i x_i blocks[j][i]`` are linear symmetric matrix functions (``blocks[j]``:
+    an array of shape ``(N, k_j, k_j)``, one symmetric matrix per variable) and ``x0`` must be
+    strictly feasible (every ``F_j(x0)`` positive definite).  The objective is self-concordant,
+    so the damped Newton method (backtracking on the Armijo condition and on positive
+    definiteness, checked by Cholesky factorisations) converges from any strictly feasible
+    point, quadratically near the optimum; the iteration stops with a last full step when the
+    squared Newton decrement falls below ``tol``.  Gradient and Hessian come from the whitened
+    matrices
+    ``K_i = L^-1 F_i L^-T`` (``F = L L'``): ``g_i = tr K_i``, ``H_ij = -<K_i, K_j>``.
+
+    Returns the maximiser; raises :class:`DesignFailed` if the iteration does not converge
+    within ``max_iter`` steps (the point returned by a caller is verified in numpy anyway).
+    """
+    x = np.asarray(x0, dtype=float).copy()
+    a = np.asarray(a_eq, dtype=float)
+
+    def value(z: np.ndarray) -> float | None:
+        total = 0.0
+        for B in blocks:
+            try:
+                Lc = np.linalg.cholesky(np.tensordot(z, B, axes=1))
+            except np.linalg.LinAlgError:
+                return None
+            total += 2.0 * float(np.log(np.diag(Lc)).sum())
+        return total
+
+    f = value(x)
+    if f is None:
+        raise DesignFailed(f"{what}: the starting point of the analytic centre is infeasible")
+    N = x.size
+    for _ in range(max_iter):
+        g = np.zeros(N)
+        H = np.zeros((N, N))
+        for B in blocks:
+            Lc = np.linalg.cholesky(np.tensordot(x, B, axes=1))
+            Li = np.linalg.inv(Lc)
+            K = (Li @ B @ Li.T).reshape(N, -1)
+            k = B.shape[1]
+            g += K[:, :: k + 1].sum(axis=1)
+            H -= K @ K.T
+        # Newton step on the hyperplane a' x = const: KKT system of -H (positive definite)
+        kkt = np.block([[-H, a[:, None]], [a[None, :], np.zeros((1, 1))]])
+        step = np.linalg.solve(kkt, np.concatenate([g, [0.0]]))[:N]
+        decrement = float(g @ step)
+        if not np.isfinite(decrement):
+            break
+        if decrement < tol:  # one last full step: quadratic convergence from here
+            return x + step if value(x + step) is not None else x
+        t = 1.0
+        while t > 1e-12:
+            fz = value(x + t * step)
+            if fz is not None and fz >= f + 0.25 * t * decrement:
+                break
+            t *= 0.5
+        else:  # no progress at rounding level: accept a point that is already near the optimum
+            if decrement < 1e-8:
+                return x
+            break
+        x, f = x + t * step, fz
+    raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")

@@ -306,7 +306,11 @@ def wang_d_gain(
 
 
 # -- analytic centre of CORA's PRad-C/PRad-D cone (the published rows) ----------------------------
-#: Clarabel settings tried in turn by :func:`centre_gain` until one converges
+#: largest problem (variables x entries of the LMI matrix) that :func:`centre_gain` solves by
+#: the numpy Newton method (its basis array holds that many floats: 128 MB); larger ones go to
+#: Clarabel
+NEWTON_MAX_ENTRIES = 16_000_000
+#: Clarabel settings tried in turn by :func:`_centre_clarabel` until one converges
 CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
                   {"static_regularization_enable": False, "equilibrate_enable": False},
                   {"equilibrate_enable": False})
@@ -334,8 +338,13 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
         max  log det [[rate P, ((P - Y C) A)'], [(P - Y C) A, P]] + log det P
         s.t. tr P = 1,
 
-    which is what this function solves (one solve; strictly concave in ``P`` and, when
-    ``C A`` has full row rank, in ``Y``: a unique optimum).  It weights each state by how much
+    which is what this function solves (strictly concave in ``P`` and, when ``C A`` has full
+    row rank, in ``Y``: a unique optimum).  It is solved by a damped Newton method in numpy
+    (:func:`~observers.numerics.lmi.analytic_centre`, started from the steady-state Kalman gain
+    of the system slowed down by ``sqrt(rate)``; about 15 iterations, 20 s at 30 tanks against
+    minutes for Clarabel's log-det cone, and more accurate: Clarabel's point is 1e-7 below the
+    optimum, 1e-4 away from it in ``L``); systems above :data:`NEWTON_MAX_ENTRIES` go to
+    Clarabel.  It weights each state by how much
     ``P`` can grow there, most on the measured states, so the gain trusts the measurements
     there, as the published PRad-C/PRad-D rows do; the noise weights of CORA's PRad-C and
     PRad-D both drop out in this limit, so the two rows get the same gain at the same rate.
@@ -347,12 +356,98 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     mode that the outputs cannot correct decays more slowly than ``sqrt(rate)``) the design
     fails (:class:`~observers.errors.DesignFailed`).
     """
-    import cvxpy as cp
-
-    from .lmi import min_eig, solve, sym
+    from .lmi import sym
 
     A, C, E, F = _as_arrays(A, C, E, F)
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
+    N = n * (n + 1) // 2 + n * m
+    if N * (2 * n) ** 2 <= NEWTON_MAX_ENTRIES:
+        Pv, Yv = _centre_newton(A, C, rate, what)
+    else:
+        Pv, Yv = _centre_clarabel(A, C, rate, what)
+    Pv = sym(Pv)
+    L = gain_from(Pv, Yv, what)
+    # least common noise weight g that certifies (*) at (P, L)
+    Ac = (Pv - Pv @ L @ C) @ A
+    S = sym(Pv - Ac @ np.linalg.solve(rate * Pv, Ac.T))
+    lam, U = np.linalg.eigh(S)
+    if lam[0] <= 1e-12 * max(lam[-1], 1e-300):
+        raise DesignFailed(f"{what}: no strict P-radius decay at rate {rate} "
+                           f"(smallest eigenvalue {lam[0]:.3g})")
+    Mn = np.hstack([(Pv - Pv @ L @ C) @ E, Pv @ L @ F])
+    K = (U / np.sqrt(lam)).T @ Mn
+    g = float(np.linalg.eigvalsh(K @ K.T)[-1]) * (1 + 1e-6) if Mn.size else 0.0
+    verify_decay(Pv, L, A, C, E, F, rate * Pv, g * np.eye(nw), g * np.eye(nv), what)
+    bound = g * (nw + nv) / ((1 - rate) * np.linalg.eigvalsh(Pv)[0])
+    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g,
+                              "radius_bound": float(np.sqrt(bound))})
+
+
+def _centre_start(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """A strictly feasible point of the centre problem: the steady-state Kalman gain of the
+    system slowed down by ``sqrt(rate)`` (so that ``(I - L C) A / sqrt(rate)`` is stable, if
+    any gain makes it so) and the P of the Stein equation ``rate P - A_L' P A_L = I``,
+    scaled to ``tr P = 1``."""
+    import scipy.linalg as sla
+
+    n = A.shape[0]
+    s = np.sqrt(rate)
+    At, Ht = A / s, (C @ A) / s
+    try:
+        X = sla.solve_discrete_are(At.T, Ht.T, np.eye(n), np.eye(C.shape[0]))
+        L = At @ X @ Ht.T @ np.linalg.inv(Ht @ X @ Ht.T + np.eye(C.shape[0]))
+        Al = A - L @ C @ A
+        P = sla.solve_discrete_lyapunov(Al.T / s, np.eye(n) / rate)
+    except (np.linalg.LinAlgError, ValueError):
+        P = None
+    if P is None or not np.all(np.isfinite(P)) or np.linalg.eigvalsh(0.5 * (P + P.T))[0] <= 0:
+        raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius decay at rate {rate} (a "
+                           "mode that the outputs cannot correct decays more slowly than "
+                           f"{s:.6g} per step)")
+    P = 0.5 * (P + P.T) / np.trace(P)
+    return P, P @ L
+
+
+def _centre_newton(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The centre by :func:`~observers.numerics.lmi.analytic_centre` (numpy Newton) on the
+    variables ``(P, Y)``: the upper triangle of P, then Y column by column."""
+    from .lmi import analytic_centre
+
+    n, m = C.shape[1], C.shape[0]
+    H = C @ A
+    iu = np.triu_indices(n)
+    nP = iu[0].size
+    N = nP + n * m
+    D = np.zeros((N, 2 * n, 2 * n))
+    Pb = np.zeros((N, n, n))
+    for k, (i, j) in enumerate(zip(*iu, strict=True)):
+        Pb[k, i, j] = Pb[k, j, i] = 1.0
+    for k in range(n * m):
+        i, j = k % n, k // n
+        D[nP + k, n + i, :n] = -H[j]  # block (2,1): -E_ij C A
+    D[:nP, :n, :n] = rate * Pb[:nP]
+    D[:nP, n:, :n] = Pb[:nP] @ A
+    D[:nP, n:, n:] = Pb[:nP]
+    D[:, :n, n:] = np.swapaxes(D[:, n:, :n], 1, 2)
+    P0, Y0 = _centre_start(A, C, rate, what)
+    x0 = np.concatenate([P0[iu], Y0.ravel(order="F")])
+    trace = np.zeros(N)
+    trace[:nP] = (iu[0] == iu[1])
+    x = analytic_centre([D, Pb], x0, trace, what)
+    P = np.zeros((n, n))
+    P[iu] = x[:nP]
+    P = P + np.triu(P, 1).T
+    return P, x[nP:].reshape((n, m), order="F")
+
+
+def _centre_clarabel(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The centre as a cvxpy log-det problem solved by Clarabel (systems too large for the
+    dense Newton method)."""
+    import cvxpy as cp
+
+    from .lmi import min_eig
+
+    n, m = C.shape[1], C.shape[0]
     P, Y = _variables(n, m)
     M1 = (P - Y @ C) @ A
     D0 = bmat([[rate * P, M1.T], [M1, P]])
@@ -370,19 +465,4 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
             continue
         if problem.status == "optimal" and min_eig(D0.value) > 0:
             break
-    Pv = sym(P.value)
-    L = gain_from(Pv, Y.value, what)
-    # least common noise weight g that certifies (*) at (P, L)
-    Ac = (Pv - Pv @ L @ C) @ A
-    S = sym(Pv - Ac @ np.linalg.solve(rate * Pv, Ac.T))
-    lam, U = np.linalg.eigh(S)
-    if lam[0] <= 1e-12 * max(lam[-1], 1e-300):
-        raise DesignFailed(f"{what}: no strict P-radius decay at rate {rate} "
-                           f"(smallest eigenvalue {lam[0]:.3g})")
-    Mn = np.hstack([(Pv - Pv @ L @ C) @ E, Pv @ L @ F])
-    K = (U / np.sqrt(lam)).T @ Mn
-    g = float(np.linalg.eigvalsh(K @ K.T)[-1]) * (1 + 1e-6) if Mn.size else 0.0
-    verify_decay(Pv, L, A, C, E, F, rate * Pv, g * np.eye(nw), g * np.eye(nv), what)
-    bound = g * (nw + nv) / ((1 - rate) * np.linalg.eigvalsh(Pv)[0])
-    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g,
-                              "radius_bound": float(np.sqrt(bound))})
+    return P.value, Y.value
