@@ -326,3 +326,21 @@ def test_centre_start_refuses_a_mode_too_slow_to_correct():
     C = np.array([[1.0, 0.0]])
     with pytest.raises(DesignFailed, match="cannot correct"):
         prad._centre_start(A, C, cora_bisection_end(), "test")
+
+
+def test_c1_objective_at_cora_rate_comes_close_to_the_automatica_c1_row():
+    # Automatica 2021 Table 3 (vehicle, 6 states): the published PRad-C-I radii, as absolute
+    # values v * smallest radius, average 3.89 x; the C-I objective at CORA's final beta gives
+    # the row's pattern on x1 and x5 and its average within 25 % (measured 3.36); the centre
+    # (default; it reproduces the ARCH tank row instead) stays far below (1.6)
+    tab = paper_table("automatica2021_table3_vehicle6")
+    smallest = np.array(tab["smallest_absolute_radii"])
+    published = np.array(tab["rows"]["PRad-C-I"]["v"])
+    sc = systems.scenario("vehicle6d-cora")
+    obs = observers.create("PRad-C-I", sc.system, design="radius-bound-cora-rate", **sc.options)
+    v = rms_radius(observers.run(obs, sc.u, sc.y).radius) / smallest
+    assert abs(v.mean() / published.mean() - 1) < 0.25
+    np.testing.assert_allclose(v[[0, 4]], published[[0, 4]], rtol=0.15)
+    centre = observers.create("PRad-C-I", sc.system, **sc.options)
+    assert (rms_radius(observers.run(centre, sc.u, sc.y).radius) / smallest).mean() < (
+        0.6 * v.mean())
