@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -146,8 +147,14 @@ def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkey
     monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path / "cache"))
     tasks = designs.design_tasks([cfg])
     assert [t[2] for t in tasks] == ["Nom-G", "PRad-B"]  # FRad-A has no offline design
-    assert main(["designs", str(cfg), "--jobs", "2", "--no-progress"]) == 0
-    assert "2 designs in the cache (0 failed" in capsys.readouterr().out
+    assert main(["designs", str(cfg), "--jobs", "2", "--no-progress", "--top", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "2 designs in the cache (0 failed" in out
+    # the per-design times: a header and the slowest design only (--top 1)
+    lines = out.splitlines()
+    assert lines[0].split() == ["design", "status", "seconds"]
+    assert re.fullmatch(r"vehicle2d-cora: (Nom-G|PRad-B) +ok +\d+\.\d", lines[1])
+    assert lines[2].startswith("2 designs")
     assert len(list((tmp_path / "cache").glob("*.npz"))) == 2
     system = systems.scenario("vehicle2d-cora").system
     cached = {n: observers.create(n, system).L for n in ("Nom-G", "PRad-B")}
