@@ -175,7 +175,7 @@ def _context():
     of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["benchmarks.runner"])
+        ctx.set_forkserver_preload(["benchmarks.workerinit"])
         return ctx
     return mp.get_context("spawn")
 
