@@ -203,6 +203,10 @@ class ProcessExecutor:
         self.timeout = timeout
         self._ctx = _context()
         self._idle: list[_Worker] = []
+        if self._ctx.get_start_method() == "forkserver":
+            # start the server now: it preloads the harness while the caller reads its config
+            from multiprocessing import forkserver
+            forkserver.ensure_running()
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
             keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
