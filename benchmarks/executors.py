@@ -8,10 +8,11 @@ One failed job never stops the others.
 ``serial``
     in this process, one job after the other (the default; the honest timing mode).
 ``processes``
-    a local pool of ``jobs`` worker processes (``run --jobs N``).  Each worker holds one job
-    at a time, so a worker that dies is attributed to its job exactly (``error``, with the
-    exit code), and a job running longer than ``timeout`` seconds is stopped by ending its
-    worker (``timeout``); a new worker takes its place.
+    a local pool of ``jobs`` worker processes (``run --jobs N``).  A worker is given a chunk
+    of jobs but runs and reports them one at a time, so a worker that dies is attributed to
+    the job it was running exactly (``error``, with the exit code), and a job running longer
+    than ``timeout`` seconds is stopped by ending its worker (``timeout``); a new worker
+    takes its place and the rest of the chunk.
 ``dask``
     a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
     ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
@@ -20,10 +21,20 @@ One failed job never stops the others.
     each such task runs again alone on the cluster, and if its worker dies again it becomes
     that job's ``error``.
 
-Local workers are forked from a clean server process that preloaded the harness (the
-``forkserver`` method; ``spawn`` where there is none), never from the parent itself (whose
-threads a fork would not carry over), and have the parent's environment, hence the same BLAS
-settings (see :mod:`benchmarks`).
+Local workers are forked from a server process that preloaded the harness, every observer
+plugin and the compiled LP kernel (:mod:`benchmarks.workerinit`; the ``forkserver`` method,
+``spawn`` where there is none).  Why not ``fork`` from the parent: the parent may hold
+threads (a progress bar's monitor, a Dask client), which a fork does not carry over (locks
+they hold stay locked in the child); and why not ``spawn``: each worker would import
+everything again (about 3 s of CPU here).  The server is started when the executor is made
+(:class:`ProcessExecutor`), so its imports overlap the reading of the config.  Workers take
+the parent's environment when they start, and the BLAS thread counts are already pinned to 1
+in the server (see :mod:`benchmarks`): no oversubscription by N workers.
+
+Jobs are handed to local workers in chunks (:func:`chunks`): the jobs of one scenario
+instance go to one worker together, so that it builds the scenario and what its observers
+share (the data-driven observers' learned model, a quarter of the sweep's CPU) once, as the serial
+run does, and a result travels back per job (its failure, budget and row stay per job).
 """
 
 from __future__ import annotations
@@ -82,7 +93,11 @@ class SerialExecutor:
         """Nothing to release."""
 
 
-def _worker_loop(conn) -> None:  # pragma: no cover - runs in the worker process
+def _worker_loop(conn, env: dict[str, str]) -> None:  # pragma: no cover - in the worker
+    # the parent's environment now (the server forked from may have started with another one:
+    # settings read when used, like SETOBS_CACHE_DIR, then follow the parent)
+    os.environ.clear()
+    os.environ.update(env)
     while True:
         try:
             msg = conn.recv()
@@ -110,7 +125,8 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_loop, args=(child,), daemon=True)
+        self.proc = ctx.Process(target=_worker_loop, args=(child, dict(os.environ)),
+                                daemon=True)
         self.proc.start()
         child.close()
         self.chunk: deque = deque()
@@ -375,6 +391,32 @@ class DaskExecutor:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+
+
+def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], jobs: int,
+              done: Callable[[Any, Any], None] | None = None) -> list[Any]:
+    """``[fn(task) for task in tasks]`` in ``jobs`` local worker processes (in this process if
+    ``jobs`` is 1), for commands whose tasks must all succeed (``audit``, ``designs``).
+
+    ``done(task, result)`` is called as each task finishes (e.g. a progress bar).
+
+    Raises
+    ------
+    RuntimeError
+        At the first task that failed (raised, its worker died, ...): the others are stopped.
+    """
+    executor = make_executor("processes", jobs)
+    out: list[Any] = [None] * len(tasks)
+    try:
+        for i, res in executor.map(fn, tasks):
+            if isinstance(res, JobFailure):
+                raise RuntimeError(f"task {tasks[i]!r} failed: {res.message}")
+            out[i] = res
+            if done is not None:
+                done(tasks[i], res)
+    finally:
+        executor.close()
+    return out
 
 
 def from_args(kind: str | None, jobs: int | None, address: str | None):

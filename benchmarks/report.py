@@ -18,6 +18,7 @@ from observers.registry import table_order  # noqa: E402
 from . import freshness  # noqa: E402
 from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
+from .metrics import timed_in_parallel  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
 from .verdicts import NA, NO, contained_column, reference_rows, violating  # noqa: E402
 
@@ -110,8 +111,10 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     show = list(range(n)) if n <= 8 else []
     contained = "contained" if _contained_col(df) == contained_column("exact") else (
         "contained (hull only)")
-    head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
-            "design s", contained])
+    # times of jobs that ran concurrently (``run --jobs``) are marked in the header itself
+    par = " (parallel)" if timed_in_parallel(df) else ""
+    head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show]
+            + ["avg", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained])
     rows = []
     df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"],
                    _bad=violating(df))
@@ -207,11 +210,12 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)
     parts = [f"# {title}", "", INTRO, ""]
-    if "timed" in summary.columns and (summary["timed"] == "parallel").any():
+    if timed_in_parallel(summary):
         ex = meta.get("executor", {})
-        parts += [f"Times were measured while {ex.get('workers', 'several')} jobs ran "
-                  f"concurrently ({ex.get('name', 'parallel')} executor): indicative only; a "
-                  "serial run gives the comparable per-step times.", ""]
+        parts += [f"Times marked *(parallel)* were measured while {ex.get('workers', 'several')}"
+                  f" jobs ran concurrently ({ex.get('name', 'parallel')} executor): indicative "
+                  "only; a serial run (`run` without `--jobs`) gives the comparable per-step "
+                  "times, and `reports/speed.md` is always timed serially.", ""]
     if is_sweep(summary):  # aggregated over the seeds, one row per observer and variant
         parts += ["Sweep: relative RMS radius (mean over the states of eq. 9, against the "
                   "best observer of the same seed) over the seeds: mean, standard deviation, "

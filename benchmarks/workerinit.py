@@ -2,7 +2,7 @@
 (:func:`benchmarks.executors._context`), so that every worker starts with what the jobs need.
 
 Importing this module imports the harness (:mod:`benchmarks.runner`), every observer plugin
-(with their solvers: cvxpy, HiGHS, scipy.stats, ...) and loads the compiled (numba) simplex
+(with what they import: HiGHS, scipy.stats, numba, ...) and loads the compiled (numba) simplex
 kernel from its disk cache by solving one tiny hull LP.  A worker forked from that server
 then pays none of it: without this, each worker spent about 2.5 s of CPU importing the
 plugins and loading the kernel at its first job (measured on the 3 x 22 x 20 sweep).
