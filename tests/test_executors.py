@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from benchmarks import load_config
+from benchmarks import load_config, write_report
 from benchmarks.cli import main
 from benchmarks.errors import ConfigError
 from benchmarks.executors import (
@@ -76,6 +76,10 @@ def test_serial_jobs2_and_dask_give_the_identical_summary(tmp_path):
             for d in ("serial", "jobs2", "dask")]
     pd.testing.assert_frame_equal(runs[0], runs[1])
     pd.testing.assert_frame_equal(runs[0], runs[2])
+    # the reports say which times were measured with jobs running concurrently
+    texts = {d: write_report(tmp_path / d, figures=False).read_text() for d in ("serial", "jobs2")}
+    assert "step ms (parallel)" in texts["jobs2"] and "measured while 2 jobs ran" in texts["jobs2"]
+    assert "(parallel)" not in texts["serial"] and "| step ms |" in texts["serial"]
 
 
 @pytest.fixture
