@@ -40,8 +40,6 @@ reduction, the interval hull); the default takes the one of least volume.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from observers.sets import EmptySet
@@ -97,7 +95,7 @@ def strip_cut(
         return c, T
     # exact extent [l_j, u_j] of xi_j over the intersection
     sj = s - aq
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):  # q_j = 0 (masked below) or tiny: +-inf, clipped
         t1, t2 = (alpha - sj) / q, (beta + sj) / q
     lo_j = np.where(q != 0, np.maximum(np.minimum(t1, t2), -1.0), -1.0)
     hi_j = np.where(q != 0, np.minimum(np.maximum(t1, t2), 1.0), 1.0)
@@ -130,8 +128,11 @@ def measurement_update(
     return c, T
 
 
-def outer_parallelotope(G: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, float] | None:
-    """Tightest parallelotope with axes ``B`` (columns) around the generators ``G``.
+def outer_parallelotope(
+    G: np.ndarray, B: np.ndarray, orthonormal: bool = False
+) -> tuple[np.ndarray, float] | None:
+    """Tightest parallelotope with axes ``B`` (columns) around the generators ``G``
+    (``orthonormal=True``: ``B`` is known to be orthonormal, no conditioning check).
 
     Returns
     -------
@@ -139,6 +140,10 @@ def outer_parallelotope(G: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, float
         ``T = B diag(r)`` with ``r = |B^-1 G| 1`` and ``log(|det B| prod r)`` (``-inf`` for a
         flat result); ``None`` if ``B`` is (numerically) singular.
     """
+    if orthonormal:
+        r = np.abs(B.T @ G).sum(axis=1)
+        with np.errstate(divide="ignore"):
+            return B * r, float(np.log(r).sum())
     norms = np.linalg.norm(B, axis=0)
     if not np.all(norms > 0) or not np.all(np.isfinite(B)):
         return None
@@ -152,16 +157,17 @@ def outer_parallelotope(G: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, float
 
 
 def candidate_bases(basis: str, G: np.ndarray, propagated: np.ndarray | None) -> list:
-    """The axes tried by the time update for the option ``basis`` (:data:`BASIS_CHOICES`)."""
+    """The axes tried by the time update for the option ``basis`` (:data:`BASIS_CHOICES`):
+    ``(B, orthonormal)`` pairs."""
     names = BASES if basis == "min-volume" else (basis,)
     out = []
     for name in names:
         if name == "propagated" and propagated is not None:
-            out.append(propagated)
+            out.append((propagated, False))
         elif name == "pca":
-            out.append(principal_axes(G))
+            out.append((principal_axes(G), True))
         elif name == "box":
-            out.append(np.eye(G.shape[0]))
+            out.append((np.eye(G.shape[0]), True))
     return out
 
 
@@ -173,8 +179,8 @@ def enclose(G: np.ndarray, basis: str, propagated: np.ndarray | None = None) -> 
     principal axes are always invertible, so a singular propagated basis falls back to them
     (and, with ``basis="propagated"``, to the coordinate axes)."""
     best = None
-    for B in candidate_bases(basis, G, propagated):
-        got = outer_parallelotope(G, B)
+    for B, orthonormal in candidate_bases(basis, G, propagated):
+        got = outer_parallelotope(G, B, orthonormal)
         if got is None:
             continue
         T, logv = got
@@ -182,7 +188,7 @@ def enclose(G: np.ndarray, basis: str, propagated: np.ndarray | None = None) -> 
         if best is None or key < best[0]:
             best = (key, T)
     if best is None:  # only a singular propagated basis was asked for
-        return outer_parallelotope(G, np.eye(G.shape[0]))[0]
+        return outer_parallelotope(G, np.eye(G.shape[0]), True)[0]
     return best[1]
 
 
@@ -194,9 +200,3 @@ def time_update(
     AT = A @ T
     G = np.hstack([AT, E]) if E.shape[1] else AT
     return A @ c + d, enclose(G, basis, AT)
-
-
-def log_volume(T: np.ndarray) -> float:
-    """``log |det T|`` (``-inf`` for a flat parallelotope)."""
-    sign, logdet = np.linalg.slogdet(T)
-    return float(logdet) if sign != 0 else -math.inf
