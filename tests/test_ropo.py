@@ -131,7 +131,7 @@ def test_pca_basis_radii_by_hand():
                                rtol=1e-4)
 
 
-@pytest.mark.parametrize("basis", ["min-volume", "propagated", "pca", "box"])
+@pytest.mark.parametrize("basis", ["min-volume", "generators", "propagated", "pca", "box"])
 @pytest.mark.parametrize("seed", range(4))
 def test_time_update_encloses_the_prediction(basis, seed):
     rng = np.random.default_rng(100 + seed)
@@ -169,7 +169,7 @@ def test_ropo_contains_the_true_state(scenario):
     _contained(systems.scenario(scenario))
 
 
-@pytest.mark.parametrize("basis", ["propagated", "pca", "box"])
+@pytest.mark.parametrize("basis", ["generators", "propagated", "pca", "box"])
 def test_ropo_bases_contain_the_true_state(basis):
     _contained(systems.scenario("vehicle6d-sim", steps=100), basis=basis)
 
@@ -213,3 +213,23 @@ def test_bad_options_and_systems_are_refused_by_name():
     nl = systems.scenario("tank6-nonlinear-cora")
     with pytest.raises(observers.errors.Unsupported, match="ROPO needs a system with attrib"):
         observers.create("ROPO", nl.system)
+
+
+def test_generator_axes_hand_example():
+    # A T = [[1, 1], [0, 0.1]] (a thin parallelogram), E = (0, 1)'.  Parallelotopes whose axes
+    # are two of the three generators g1 = (1, 0), g2 = (1, 0.1), e = (0, 1) (|det T| =
+    # |det B| prod_i sum_k |(B^-1 G)_ik|): {g1, g2}: B^-1 e = (-10, 10), 0.1 * 11 * 11 = 12.1;
+    # {g1, e}: the box (2, 1.1), 2.2; {g2, e}: B^-1 g1 = (1, -0.1) (axes g2, e), r = (2, 1.1),
+    # 1 * 2 * 1.1 = 2.2.  The exchange from A T reaches the least, 2.2.
+    AT = np.array([[1.0, 1.0], [0.0, 0.1]])
+    _, T = time_update(np.zeros(2), np.eye(2), AT, np.zeros(2), np.array([[0.0], [1.0]]),
+                       "generators")
+    assert abs(np.linalg.det(T)) == pytest.approx(2.2, rel=1e-12)
+    corners = np.array([a * AT[:, 0] + b * AT[:, 1] + [0.0, e] for a in (-1, 1)
+                        for b in (-1, 1) for e in (-1, 1)])
+    assert _inside(np.zeros(2), T, corners)
+    # the shear example above: every exchange is a tie or worse (volumes 1.32, 2.52, 2.31
+    # against 1.32 for A diag(1.2, 1.1), in units of 4), so the generators keep A T
+    _, T = time_update(np.zeros(2), np.eye(2), A_SHEAR, np.zeros(2), 0.1 * np.eye(2),
+                       "generators")
+    np.testing.assert_allclose(T, [[1.2, 1.1], [0.0, 1.1]], rtol=1e-13)

@@ -35,11 +35,14 @@ class ROPO(LinearModelObserver):
 
     Options
     -------
-    basis : {"min-volume", "propagated", "pca", "box"}
+    basis : {"min-volume", "generators", "propagated", "pca", "box"}
         Axes of the parallelotope enclosing the prediction: ``"propagated"`` the columns of
-        ``A T`` (exact without process noise), ``"pca"`` the principal axes of the
-        generators, ``"box"`` the coordinate axes, ``"min-volume"`` (default) the one of
-        least volume among the three.
+        ``A T`` (exact without process noise), ``"generators"`` n of the generators of
+        ``[A T, E]`` (exchanged from ``A T`` while the volume drops; Chisci et al.),
+        ``"pca"`` the principal axes of the generators, ``"box"`` the coordinate axes,
+        ``"min-volume"`` (default) the one of least volume among generators, pca and box.
+        Least volume can keep very thin parallelotopes with large interval hulls (on the
+        6-tank system its unmeasured x6; see :mod:`observers.numerics.ropo`).
     """
 
     OPTIONS = {"basis": Choice("min-volume", BASIS_CHOICES)}
