@@ -195,29 +195,28 @@ def generator_axes(G: np.ndarray, n: int) -> np.ndarray | None:
     idx = np.arange(n)
     with np.errstate(divide="ignore"):
         current = float(np.log(np.abs(M).sum(axis=1)).sum())  # log volume - log|det B0|
+    rows = np.arange(n)
     for _ in range(MAX_EXCHANGES * n):
         out = np.setdiff1d(np.arange(G.shape[1]), idx)
-        best = (current - 1e-9, -1, -1)
-        absM = np.abs(M)
-        for k in out:
-            p = M[:, k]
-            ap = np.abs(p)
-            piv = np.flatnonzero(ap > PIVOT_RTOL * ap.max()) if ap.any() else ap[:0]
-            if not piv.size:
-                continue
-            # tableau rows after pivoting on (i, k), for every candidate i at once:
-            # row l -> M_l - (p_l / p_i) M_i, row i -> M_i / p_i
-            ratio = p[None, :] / p[piv, None]  # (pivots, n)
-            sums = np.abs(M[None, :, :] - ratio[:, :, None] * M[piv, None, :]).sum(axis=2)
-            sums[np.arange(piv.size), piv] = absM[piv].sum(axis=1) / ap[piv]
-            with np.errstate(divide="ignore"):
-                scores = np.log(ap[piv]) + np.log(sums).sum(axis=1)
-            j = int(np.argmin(scores))
-            if scores[j] < best[0]:
-                best = (float(scores[j]), int(piv[j]), int(k))
-        if best[1] < 0:
+        P = M[:, out].T  # (K, n): the pivot column of every generator outside the axes
+        aP = np.abs(P)
+        ok = aP > PIVOT_RTOL * aP.max(axis=1, keepdims=True)
+        ok &= aP > 0
+        if not ok.any():
             break
-        current, i, k = best
+        Pv = np.where(ok, P, 1.0)
+        # tableau rows after pivoting on (i, k), all candidates at once:
+        # row l -> M_l - (P_kl / P_ki) M_i (K x n_i x n_l x r), row i -> M_i / P_ki
+        ratio = P[:, None, :] / Pv[:, :, None]
+        sums = np.abs(M[None, None, :, :] - ratio[..., None] * M[None, :, None, :]).sum(axis=3)
+        sums[:, rows, rows] = np.abs(M).sum(axis=1)[None, :] / np.where(ok, aP, 1.0)
+        with np.errstate(divide="ignore"):
+            scores = np.log(np.where(ok, aP, 1.0)) + np.log(sums).sum(axis=2)
+        scores[~ok] = np.inf
+        kk, i = np.unravel_index(int(np.argmin(scores)), scores.shape)
+        if not scores[kk, i] < current - 1e-9:
+            break
+        current, k = float(scores[kk, i]), int(out[kk])
         p, pivot_row = M[:, k].copy(), M[i].copy()
         M -= np.outer(p / p[i], pivot_row)
         M[i] = pivot_row / p[i]
