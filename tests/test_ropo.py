@@ -233,3 +233,13 @@ def test_generator_axes_hand_example():
     _, T = time_update(np.zeros(2), np.eye(2), A_SHEAR, np.zeros(2), 0.1 * np.eye(2),
                        "generators")
     np.testing.assert_allclose(T, [[1.2, 1.1], [0.0, 1.1]], rtol=1e-13)
+
+
+def test_near_ties_keep_the_first_candidate():
+    # a relative difference of 1e-12 is a tie (TIE_RTOL = 1e-9): the first index wins
+    from observers.numerics.ropo import first_best
+    assert first_best(np.array([1.0 + 1e-12, 1.0, 2.0])) == 0
+    assert first_best(np.array([1.0 + 1e-6, 1.0, 2.0])) == 1
+    # the corner triangle above with a strip 1e-13 narrower: still the box (a near-tie)
+    c, T = strip_cut(np.zeros(2), np.eye(2), np.array([1.0, 1.0]), 1.5 + 1e-13, 2.0)
+    assert np.count_nonzero(T) == 2
