@@ -20,9 +20,12 @@ class ROPO(LinearModelObserver):
     """Parallelotopes of least volume, strip by strip (Vicino & Zappa 1996; Chisci et al. 1996).
 
     The estimate is always a parallelotope (a zonotope with n generators): the "reduced
-    order" of the name, and a constant cost per step (O(n^2) per measured output, O(n^3)
-    per prediction).  Each step predicts ``A P + B u + W`` and encloses it in a
-    parallelotope (``basis``), then cuts it with the strip of each measured output in turn:
+    order" of the name, and a cost per step that does not grow with time (O(n^2) per
+    measured output; O(n^3) per prediction for the propagated, PCA and box axes, and
+    O(n^3 (n + n_w)) per exchange of the generator-axes search, at most 2n exchanges:
+    measured 0.4 ms per step on the 6-tank system, 22 ms at 30 tanks, 2.3 s at 100).
+    Each step predicts ``A P + B u + W`` and encloses it in a parallelotope (``basis``),
+    then cuts it with the strip of each measured output in turn:
     the parallelotope's n strips and the measurement strip are tightened to their exact
     extent over the intersection, and of the n + 1 parallelotopes left by dropping one strip
     the one of least volume is kept (:mod:`observers.numerics.ropo`).  The first estimate is

@@ -67,6 +67,9 @@ MIN_VOLUME = ("generators", "pca", "box")
 COND_MAX = 1e10
 #: exchanges of the generator-axes search per time update, in units of n
 MAX_EXCHANGES = 2
+#: largest temporary array (elements) of the generator-axes search: its exchanges are
+#: scored in blocks of generators of at most this size
+CHUNK_ELEMENTS = 1 << 21
 #: pivots of the generator-axes search below this fraction of their column's largest entry
 #: are not tried (an ill-conditioned exchange)
 PIVOT_RTOL = 1e-6
@@ -217,14 +220,20 @@ def generator_axes(G: np.ndarray, n: int) -> np.ndarray | None:
         ok &= aP > 0
         if not ok.any():
             break
+        aPv = np.where(ok, aP, 1.0)
         Pv = np.where(ok, P, 1.0)
-        # tableau rows after pivoting on (i, k), all candidates at once:
-        # row l -> M_l - (P_kl / P_ki) M_i (K x n_i x n_l x r), row i -> M_i / P_ki
-        ratio = P[:, None, :] / Pv[:, :, None]
-        sums = np.abs(M[None, None, :, :] - ratio[..., None] * M[None, :, None, :]).sum(axis=3)
-        sums[:, rows, rows] = np.abs(M).sum(axis=1)[None, :] / np.where(ok, aP, 1.0)
-        with np.errstate(divide="ignore"):
-            scores = np.log(np.where(ok, aP, 1.0)) + np.log(sums).sum(axis=2)
+        row_sums = np.abs(M).sum(axis=1)
+        scores = np.empty_like(P)
+        step = max(1, CHUNK_ELEMENTS // M.size // n)  # generators scored per block
+        for a in range(0, P.shape[0], step):
+            b = slice(a, a + step)
+            # tableau rows after pivoting on (i, k) for the generators k of this block:
+            # row l -> M_l - (P_kl / P_ki) M_i (k x n_i x n_l x r), row i -> M_i / P_ki
+            ratio = P[b, None, :] / Pv[b, :, None]
+            sums = np.abs(M[None, None, :, :] - ratio[..., None] * M[None, :, None, :]).sum(3)
+            sums[:, rows, rows] = row_sums[None, :] / aPv[b]
+            with np.errstate(divide="ignore"):
+                scores[b] = np.log(aPv[b]) + np.log(sums).sum(axis=2)
         scores[~ok] = np.inf
         if not np.isfinite(scores).any():
             break
