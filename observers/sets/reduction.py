@@ -45,6 +45,7 @@ from typing import Protocol
 
 import numpy as np
 
+from . import _reduction_jit as _jit
 from .errors import SetError
 
 
@@ -106,6 +107,35 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
 
 
+_USE_COMPILED = [True]
+
+
+def use_compiled() -> bool:
+    """Whether the built-in reductions run the compiled kernel :func:`._reduction_jit.reduce`
+    (numba installed and not disabled by ``SETOBS_NUMBA=0``; :func:`set_compiled` switches it
+    for tests and timings)."""
+    return _jit.AVAILABLE and _USE_COMPILED[0]
+
+
+def set_compiled(on: bool) -> bool:
+    """Use the compiled reductions (if available) or the numpy ones; returns the old setting."""
+    old = _USE_COMPILED[0]
+    _USE_COMPILED[0] = bool(on)
+    return old
+
+
+def _compiled(G: np.ndarray, order: float, method: int) -> np.ndarray | None:
+    """The compiled reduction of ``G`` (a float matrix), or ``None`` where the numpy path must
+    decide (numba off, or a non-finite entry)."""
+    if not (_jit.AVAILABLE and _USE_COMPILED[0]):
+        return None
+    check_order(order)
+    if G.dtype != np.float64 or G.ndim != 2:
+        return None
+    out, ok = _jit.reduce(G, float(order), method, CLUSTER_RTOL, PIVOT_RTOL)
+    return out if ok else None
+
+
 def check_order(order: float) -> None:
     """Reject orders below 1 (a zonotope in R^n needs at least n generators to be reduced to)."""
     if not isinstance(order, (int, float, np.integer, np.floating)) or not math.isfinite(order):
@@ -120,6 +150,9 @@ class Girard:
     name = "girard"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
+        out = _compiled(G, order, _jit.GIRARD)
+        if out is not None:
+            return out
         keep, red, abs_red = _split(G, order)
         if abs_red is None:
             return keep
@@ -172,6 +205,9 @@ class PCA:
     name = "pca"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
+        out = _compiled(G, order, _jit.PCA)
+        if out is not None:
+            return out
         keep, red, abs_red = _split(G, order)
         if abs_red is None:
             return keep
