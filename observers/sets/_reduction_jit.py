@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from ._dual_simplex_jit import AVAILABLE, numba
+from ._jit import AVAILABLE, numba
 
 GIRARD, PCA = 0, 1
 

@@ -45,6 +45,7 @@ from typing import Protocol
 
 import numpy as np
 
+from . import _jit as _switch
 from . import _reduction_jit as _jit
 from .errors import SetError
 
@@ -107,27 +108,16 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
 
 
-_USE_COMPILED = [True]
-
-
 def use_compiled() -> bool:
     """Whether the built-in reductions run the compiled kernel :func:`._reduction_jit.reduce`
-    (numba installed and not disabled by ``SETOBS_NUMBA=0``; :func:`set_compiled` switches it
-    for tests and timings)."""
-    return _jit.AVAILABLE and _USE_COMPILED[0]
-
-
-def set_compiled(on: bool) -> bool:
-    """Use the compiled reductions (if available) or the numpy ones; returns the old setting."""
-    old = _USE_COMPILED[0]
-    _USE_COMPILED[0] = bool(on)
-    return old
+    (:func:`._jit.use_compiled`: numba installed and not disabled by ``SETOBS_NUMBA=0``)."""
+    return _switch.use_compiled()
 
 
 def _compiled(G: np.ndarray, order: float, method: int) -> np.ndarray | None:
     """The compiled reduction of ``G`` (a float matrix), or ``None`` where the numpy path must
     decide (numba off, or a non-finite entry)."""
-    if not (_jit.AVAILABLE and _USE_COMPILED[0]):
+    if not _switch.use_compiled():
         return None
     check_order(order)
     if G.dtype != np.float64 or G.ndim != 2:
@@ -238,6 +228,12 @@ def get_reduction(method: str | Reduction) -> Reduction:
     if not hasattr(method, "reduce"):
         raise SetError(f"reduction method must be a name or have .reduce(G, order), got {method!r}")
     return method
+
+
+def kernel_method(strategy: Reduction) -> int | None:
+    """The method id of the compiled kernel computing ``strategy`` (the built-in
+    :class:`Girard` and :class:`PCA`), ``None`` for any other strategy."""
+    return {Girard: _jit.GIRARD, PCA: _jit.PCA}.get(type(strategy))
 
 
 def reduction_names() -> list[str]:
