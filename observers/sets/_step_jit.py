@@ -5,7 +5,7 @@ On the 6-state vehicle (a 6 x ~600 generator matrix) a step of a zonotope observ
 tens of thousands of flops, and the numpy path spends most of its time in per-call overhead
 (about 1 us per call).  The kernels run the formulas of :mod:`observers.families` and
 :mod:`observers.numerics.frad` in the same order of operations, then the order reduction of
-:mod:`._reduction_jit`, so the sets are those of the numpy path up to rounding:
+:func:`reduce` (below), so the sets are those of the numpy path up to rounding:
 
 * :func:`strip_step`: prediction ``(A c + d + c_W, [A G, E])``, intersection with the
   strips ``|C x - y| <= sigma`` (:func:`observers.families.strip_update`) with the gain chosen
@@ -23,16 +23,276 @@ Gain modes of :func:`strip_step`: :data:`GIVEN` (``L``, all strips at once: PRad
 A kernel returns ``ok = False`` when it cannot vouch for the numpy path's result (a
 non-finite entry, a singular matrix in a gain): the caller then runs the numpy path for that
 step, which knows the fallbacks (pseudo-inverse, zero gain).
+
+Order reductions (:func:`reduce`, also used alone by :class:`.reduction.Girard` and
+:class:`.reduction.PCA`): as one kernel call each.
+
+On the 6-state vehicle (order 100: a 6 x ~610 generator matrix) the numpy reductions cost
+about 70 numpy calls of a microsecond or more each (zero-column scan, metric, partition,
+gathers, the QR and SVD, the cluster bases of :func:`.reduction.principal_axes`), most of the
+step of every zonotope observer.  :func:`reduce` runs the same definition in machine code:
+
+1. all-zero columns dropped;
+2. nothing else if at most ``n * order`` columns remain;
+3. else the ``r - floor(n (order - 1))`` columns with the smallest ``||g||_1 - ||g||_inf``
+   (stable sort: ties by column index) are reduced, the others kept in their order;
+4. ``[G_kept, box]``: the diagonal box of the reduced columns (Girard) or the box aligned with
+   their principal axes, computed as in :func:`.reduction.principal_axes` (SVD of the
+   triangular factor of a QR of ``G_red'`` when there are more columns than rows, clusters of
+   repeated singular values, the pivoted-Cholesky basis of each cluster's projector).
+
+The result is the same set as the numpy path up to rounding (numba's LAPACK is SciPy's
+OpenBLAS, numpy's its own: summation orders differ in the last bits).  A matrix with a
+non-finite entry is left to the numpy path (status ``False``), whose stable sort decides
+where NaNs go.
+
+The reduction and step kernels share this module on purpose: numba's on-disk cache is keyed by
+the source file of the cached function only, and a step kernel links the reduction into its
+machine code, so a reduction kept in another file could change without invalidating the
+cached step kernels.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from . import _reduction_jit as _red
-from ._jit import njit
+from ._jit import AVAILABLE, njit
 
 GIVEN, PER_STRIP, ALAMO, WANG, COMBASTEL = 0, 1, 2, 3, 4
+#: reduction methods of :func:`reduce`
+GIRARD, PCA = 0, 1
+
+
+def _cluster_basis_into(P, out, col0, m, pivot_rtol):
+    """Pivoted-Cholesky basis of the projector ``P`` (n x n, rank ``m``) into
+    ``out[:, col0:col0 + m]`` (:func:`.reduction._cluster_basis`; ``P`` is overwritten)."""
+    n = P.shape[0]
+    for i in range(m):
+        dmax = -np.inf
+        for a in range(n):
+            if P[a, a] > dmax:
+                dmax = P[a, a]
+        thr = (1.0 - pivot_rtol) * dmax
+        j = 0
+        for a in range(n):
+            if P[a, a] >= thr:
+                j = a
+                break
+        s = math.sqrt(P[j, j])
+        for a in range(n):
+            out[a, col0 + i] = P[a, j] / s
+        for a in range(n):
+            va = out[a, col0 + i]
+            for b in range(n):
+                P[a, b] -= va * out[b, col0 + i]
+
+
+def _pairwise_block(a, start, m):
+    """``a[start:start + m].sum()`` for ``m <= 128`` in numpy's order of operations (eight
+    accumulators)."""
+    if m < 8:
+        res = 0.0
+        for i in range(m):
+            res += a[start + i]
+        return res
+    r0 = a[start]
+    r1 = a[start + 1]
+    r2 = a[start + 2]
+    r3 = a[start + 3]
+    r4 = a[start + 4]
+    r5 = a[start + 5]
+    r6 = a[start + 6]
+    r7 = a[start + 7]
+    i = 8
+    while i < m - (m % 8):
+        r0 += a[start + i]
+        r1 += a[start + i + 1]
+        r2 += a[start + i + 2]
+        r3 += a[start + i + 3]
+        r4 += a[start + i + 4]
+        r5 += a[start + i + 5]
+        r6 += a[start + i + 6]
+        r7 += a[start + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < m:
+        res += a[start + i]
+        i += 1
+    return res
+
+
+def _pairwise_sum(a, m):
+    """``a[:m].sum()`` in numpy's order of operations (pairwise summation: halves rounded down
+    to a multiple of 8 above 128 entries, :func:`_pairwise_block` below), so that the Girard
+    box equals numpy's bit for bit.  Iterative (an explicit stack): numba's on-disk cache
+    mishandles recursive functions."""
+    if m <= 128:
+        return _pairwise_block(a, 0, m)
+    st_start = np.empty(64, dtype=np.int64)
+    st_m = np.empty(64, dtype=np.int64)
+    st_phase = np.zeros(64, dtype=np.int64)
+    st_left = np.empty(64)
+    sp = 1
+    st_start[0], st_m[0], st_phase[0] = 0, m, 0
+    result = 0.0
+    while sp > 0:
+        top = sp - 1
+        s, mm = st_start[top], st_m[top]
+        half = mm // 2
+        half -= half % 8
+        if mm <= 128 or st_phase[top] == 2:
+            if mm <= 128:
+                val = _pairwise_block(a, s, mm)
+            else:
+                val = st_left[top]
+            sp -= 1
+            if sp == 0:
+                result = val
+            elif st_phase[sp - 1] == 1:
+                st_left[sp - 1] = val
+            else:  # the right half of the parent: its sum is left + right
+                st_left[sp - 1] = st_left[sp - 1] + val
+        elif st_phase[top] == 0:
+            st_phase[top] = 1
+            st_start[sp], st_m[sp], st_phase[sp] = s, half, 0
+            sp += 1
+        else:
+            st_phase[top] = 2
+            st_start[sp], st_m[sp], st_phase[sp] = s + half, mm - half, 0
+            sp += 1
+    return result
+
+
+def _smallest(h, r, k):
+    """Indices of the ``k`` smallest of ``h[:r]`` in the order of a stable sort (ties by
+    index), then the others: ``argsort(h[:r], kind="stable")`` with the first ``k`` found by
+    insertion into a sorted buffer (``k`` is usually a few percent of ``r``)."""
+    if 4 * k >= r:
+        return np.argsort(h[:r], kind="mergesort")
+    buf = np.empty(k, dtype=np.int64)
+    m = 0
+    for j in range(r):
+        v = h[j]
+        if m == k:
+            if not (v < h[buf[k - 1]]):  # later index: equal values lose
+                continue
+            m -= 1
+        q = m
+        while q > 0 and v < h[buf[q - 1]]:
+            buf[q] = buf[q - 1]
+            q -= 1
+        buf[q] = j
+        m += 1
+    out = np.empty(r, dtype=np.int64)
+    out[:k] = buf
+    return out
+
+
+def _principal_axes(red, cluster_rtol, pivot_rtol):
+    """:func:`.reduction.principal_axes` (n x n orthonormal axes of the columns ``red``)."""
+    n, k = red.shape
+    if k > n:
+        _, R = np.linalg.qr(np.ascontiguousarray(red.T))
+        U, s0, _ = np.linalg.svd(np.ascontiguousarray(R.T))
+    else:
+        U, s0, _ = np.linalg.svd(red)
+    s = np.zeros(n)
+    s[: s0.size] = s0
+    tol = cluster_rtol * s[0]
+    out = np.empty((n, n))
+    P = np.empty((n, n))
+    a = 0
+    while a < n:
+        b = a + 1
+        while b < n and not (s[b - 1] - s[b] > tol):
+            b += 1
+        for i in range(n):  # P = V V' with V = U[:, a:b]
+            for j in range(n):
+                acc = 0.0
+                for q in range(a, b):
+                    acc += U[i, q] * U[j, q]
+                P[i, j] = acc
+        _cluster_basis_into(P, out, a, b - a, pivot_rtol)
+        a = b
+    return out
+
+
+def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
+    """The reduced generators and ``True``, or an empty matrix and ``False`` when ``G`` has a
+    non-finite entry (left to the numpy path).  ``order`` is checked by the caller."""
+    n, r0 = G.shape
+    norm1 = np.empty(r0)
+    h = np.empty(r0)
+    nz = np.empty(r0, dtype=np.int64)
+    r = 0
+    for j in range(r0):
+        s1 = 0.0
+        mx = 0.0
+        for i in range(n):
+            v = abs(G[i, j])
+            s1 += v
+            if v > mx:
+                mx = v
+        if not math.isfinite(s1):
+            return np.empty((n, 0)), False
+        norm1[j] = s1
+        if s1 != 0.0:
+            nz[r] = j
+            h[r] = s1 - mx
+            r += 1
+    if r <= n * order:
+        out = np.empty((n, r))
+        for q in range(r):
+            for i in range(n):
+                out[i, q] = G[i, nz[q]]
+        return out, True
+    n_keep = int(math.floor(n * (order - 1)))
+    n_red = r - n_keep
+    ranked = _smallest(h, r, n_red)
+    is_red = np.zeros(r, dtype=np.bool_)
+    for q in range(n_red):
+        is_red[ranked[q]] = True
+    out = np.zeros((n, n_keep + n))
+    q = 0
+    for p in range(r):
+        if not is_red[p]:
+            j = nz[p]
+            for i in range(n):
+                out[i, q] = G[i, j]
+            q += 1
+    if method == GIRARD:
+        row = np.empty(n_red)
+        for i in range(n):
+            for q in range(n_red):
+                row[q] = abs(G[i, nz[ranked[q]]])
+            out[i, n_keep + i] = _pairwise_sum(row, n_red)
+        return out, True
+    red = np.empty((n, n_red))
+    for q in range(n_red):
+        j = nz[ranked[q]]
+        for i in range(n):
+            red[i, q] = G[i, j]
+    U = _principal_axes(red, cluster_rtol, pivot_rtol)
+    proj = np.dot(np.ascontiguousarray(U.T), red)
+    for a in range(n):
+        box = 0.0
+        for q in range(n_red):
+            box += abs(proj[a, q])
+        for i in range(n):
+            out[i, n_keep + a] = U[i, a] * box
+    return out, True
+
+
+if AVAILABLE:
+    _pairwise_block = njit(_pairwise_block)
+    _pairwise_sum = njit(_pairwise_sum)
+    _smallest = njit(_smallest)
+    _cluster_basis_into = njit(_cluster_basis_into)
+    _principal_axes = njit(_principal_axes)
+#: the compiled :func:`_reduce_py` (``None`` without numba)
+reduce = njit(_reduce_py, error_model="numpy")
 
 
 def _finite(a):
@@ -132,7 +392,7 @@ def _strip_step_py(c, G, A, d, cW, E, C, y, sigma, L, F, mode, wang_cora, order,
         for a in range(n):
             for j in range(m):
                 Gn[a, rp + j] = Lm[a, j] * sigma[j]
-    out, ok = _red.reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
     return cn, out, ok
 
 
@@ -158,12 +418,13 @@ def _propagate_step_py(c, G, A, d, C, L, F, y, cV, cW, E, mode, order, method, c
     Gn[:, :r] = np.dot(M, G)
     Gn[:, r:r + rv] = np.dot(-Lg, F)
     Gn[:, r + rv:] = E
-    out, ok = _red.reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
     return cn, out, ok
 
 
-strip_step = njit(_strip_step_py, error_model="numpy")
-propagate_step = njit(_propagate_step_py, error_model="numpy")
-if strip_step is not None:
+if AVAILABLE:
     _finite = njit(_finite)
     _solve_t = njit(_solve_t)
+#: the compiled :func:`_strip_step_py` and :func:`_propagate_step_py` (``None`` without numba)
+strip_step = njit(_strip_step_py, error_model="numpy")
+propagate_step = njit(_propagate_step_py, error_model="numpy")

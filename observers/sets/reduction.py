@@ -46,7 +46,7 @@ from typing import Protocol
 import numpy as np
 
 from . import _jit as _switch
-from . import _reduction_jit as _jit
+from . import _step_jit as _jit
 from .errors import SetError
 
 
@@ -109,7 +109,7 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def use_compiled() -> bool:
-    """Whether the built-in reductions run the compiled kernel :func:`._reduction_jit.reduce`
+    """Whether the built-in reductions run the compiled kernel :func:`._step_jit.reduce`
     (:func:`._jit.use_compiled`: numba installed and not disabled by ``SETOBS_NUMBA=0``)."""
     return _switch.use_compiled()
 
