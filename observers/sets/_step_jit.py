@@ -124,10 +124,10 @@ def _pairwise_block(a, start, m):
 
 
 def _pairwise_sum(a, m):
-    """``a[:m].sum()`` in numpy's order of operations (pairwise summation: halves rounded down
-    to a multiple of 8 above 128 entries, :func:`_pairwise_block` below), so that the Girard
-    box equals numpy's bit for bit.  Iterative (an explicit stack): numba's on-disk cache
-    mishandles recursive functions."""
+    """``a[:m].sum()`` of a contiguous ``a`` in numpy's order of operations (pairwise
+    summation: halves rounded down to a multiple of 8 above 128 entries, :func:`_pairwise_block`
+    below), so that the Girard box of a one-row matrix equals numpy's bit for bit.  Iterative
+    (an explicit stack): numba's on-disk cache mishandles recursive functions."""
     if m <= 128:
         return _pairwise_block(a, 0, m)
     st_start = np.empty(64, dtype=np.int64)
@@ -263,11 +263,18 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
                 out[i, q] = G[i, j]
             q += 1
     if method == GIRARD:
-        row = np.empty(n_red)
-        for i in range(n):
+        # numpy sums |G_red| (a column gather: Fortran-ordered) column after column, except
+        # for a single row (then also C-contiguous: pairwise summation); the same order here
+        if n == 1:
+            row = np.empty(n_red)
             for q in range(n_red):
-                row[q] = abs(G[i, nz[ranked[q]]])
-            out[i, n_keep + i] = _pairwise_sum(row, n_red)
+                row[q] = abs(G[0, nz[ranked[q]]])
+            out[0, n_keep] = _pairwise_sum(row, n_red)
+        else:
+            for q in range(n_red):
+                j = nz[ranked[q]]
+                for i in range(n):
+                    out[i, n_keep + i] += abs(G[i, j])
         return out, True
     red = np.empty((n, n_red))
     for q in range(n_red):
