@@ -260,6 +260,12 @@ class StripBasedObserver(ZonotopeObserver):
             return None
         mode, L, A, B, cW, E, C, sigma, F, _ = args
         try:
+            if mode == _kernels.BRAVO:  # L: the null-space bases of the rows of C
+                c, G, ok = _kernels.bravo_step(
+                    self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L,
+                    _kernels.BRAVO_ZERO_PROJECTION, self.order, self._kernel_method,
+                    CLUSTER_RTOL, PIVOT_RTOL)
+                return (c, G) if ok else None
             c, G, ok = _kernels.strip_step(
                 self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L, F, mode,
                 self._wang_cora, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)

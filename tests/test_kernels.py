@@ -78,7 +78,7 @@ def test_pairwise_sum_is_numpys():
 
 
 # observer, options: every gain mode of the two kernels (GIVEN, PER_STRIP, ALAMO, WANG with
-# and without the extra A, COMBASTEL, GIVEN propagation), both reductions
+# and without the extra A, COMBASTEL, GIVEN propagation, BRAVO), both reductions
 CASES = [
     ("FRad-A", {"reduction": "pca", "order": 5}),
     ("FRad-A", {"reduction": "girard", "order": 3}),
@@ -88,6 +88,8 @@ CASES = [
     ("PRad-A", {"reduction": "girard", "order": 5}),
     ("PRad-B", {"reduction": "pca", "order": 5}),
     ("Nom-G", {"reduction": "pca", "order": 5}),
+    ("VolMin-B", {"reduction": "pca", "order": 5}),
+    ("VolMin-B", {"reduction": "girard", "order": 3}),
 ]
 
 

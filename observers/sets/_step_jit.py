@@ -11,7 +11,9 @@ tens of thousands of flops, and the numpy path spends most of its time in per-ca
   strips ``|C x - y| <= sigma`` (:func:`observers.families.strip_update`) with the gain chosen
   by ``mode``, reduction;
 * :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W``
-  (:func:`observers.families.propagate`) with a given gain or Combastel's, reduction.
+  (:func:`observers.families.propagate`) with a given gain or Combastel's, reduction;
+* :func:`bravo_step`: prediction, Bravo's choice of the least ``det(T T')`` candidate strip by
+  strip (VolMin-B, :mod:`observers.numerics.volmin`), reduction.
 
 Gain modes of :func:`strip_step`: :data:`GIVEN` (``L``, all strips at once: PRad-B/C/D),
 :data:`PER_STRIP` (column ``i`` of ``L`` for strip ``i``, one strip after the other: PRad-A),
@@ -60,7 +62,10 @@ import numpy as np
 
 from ._jit import AVAILABLE, njit
 
-GIVEN, PER_STRIP, ALAMO, WANG, COMBASTEL = 0, 1, 2, 3, 4
+GIVEN, PER_STRIP, ALAMO, WANG, COMBASTEL, BRAVO = 0, 1, 2, 3, 4, 5
+#: CORA's threshold below which ``c g_j`` counts as zero in Bravo's choice (candidate j = the
+#: unchanged zonotope); :data:`observers.numerics.volmin.ZERO_PROJECTION` is this value
+BRAVO_ZERO_PROJECTION = 1e10 * np.finfo(float).eps
 #: reduction methods of :func:`reduce`
 GIRARD, PCA = 0, 1
 
@@ -429,9 +434,112 @@ def _propagate_step_py(c, G, A, d, C, L, F, y, cV, cW, E, mode, order, method, c
     return cn, out, ok
 
 
+def _adjugate_psd(S):
+    """``(det S, adj S)`` of a symmetric positive semidefinite ``S``
+    (:func:`observers.numerics.volmin._adjugate_psd`: Cholesky and ``det * inv`` when well
+    conditioned, else the eigendecomposition without divisions)."""
+    k = S.shape[0]
+    if k == 0:
+        return 1.0, np.zeros((0, 0))
+    chol_ok = True
+    try:
+        Lc = np.linalg.cholesky(S)
+    except Exception:  # noqa: BLE001 - numba catches no specific class
+        chol_ok = False
+        Lc = np.zeros((k, k))
+    if chol_ok:
+        dmin = np.inf
+        dmax = -np.inf
+        for i in range(k):
+            dmin = min(dmin, Lc[i, i])
+            dmax = max(dmax, Lc[i, i])
+        if dmin > 1e-6 * dmax:
+            det = 1.0
+            for i in range(k):
+                det *= Lc[i, i]
+            det = det**2
+            return det, np.ascontiguousarray(det * np.linalg.inv(S))
+    mu, U = np.linalg.eigh(S)
+    cof = np.empty(k)
+    for i in range(k):
+        p = 1.0
+        for j in range(k):
+            p *= 1.0 if i == j else mu[j]
+        cof[i] = p
+    det = 1.0
+    for j in range(k):
+        det *= mu[j]
+    return det, np.dot(np.ascontiguousarray(U * cof), np.ascontiguousarray(U.T))
+
+
+def _bravo_choice(G, c_row, sigma, B, zero_projection):
+    """:func:`observers.numerics.volmin.bravo_choice`: the index of the candidate of least
+    ``det(T T')`` (0: unchanged zonotope; ties: the first)."""
+    n, r = G.shape
+    scores = np.empty(r + 1)
+    scores[0] = np.linalg.det(np.dot(G, np.ascontiguousarray(G.T)))
+    a = np.dot(c_row, G)
+    q = np.dot(a, a)
+    nvalid = 0
+    for j in range(r):
+        scores[j + 1] = scores[0]
+        if abs(a[j]) > zero_projection:
+            nvalid += 1
+    if q == 0.0 or nvalid == 0:
+        return int(np.argmin(scores))
+    BG = np.dot(np.ascontiguousarray(B.T), G)
+    Ga = np.dot(BG, a)
+    Gt = np.empty_like(BG)
+    for i in range(BG.shape[0]):
+        for j in range(r):
+            Gt[i, j] = BG[i, j] - Ga[i] * (a[j] / q)
+    det_S0, adj = _adjugate_psd(np.dot(Gt, np.ascontiguousarray(Gt.T)))
+    AG = np.dot(adj, Gt)
+    scale = sigma**2 / np.dot(c_row, c_row)
+    for j in range(r):
+        if abs(a[j]) > zero_projection:
+            quad = 0.0
+            for i in range(Gt.shape[0]):
+                quad += Gt[i, j] * AG[i, j]
+            scores[j + 1] = scale * (det_S0 + (q / a[j] ** 2) * quad)
+    return int(np.argmin(scores))
+
+
+def _bravo_step_py(c, G, A, d, cW, E, C, y, sigma, bases, zero_projection, order, method,
+                   cluster_rtol, pivot_rtol):
+    """Prediction, Bravo's strip-by-strip intersection (VolMin-B,
+    :func:`observers.numerics.volmin.bravo_update`), reduction."""
+    n, r = G.shape
+    re = E.shape[1]
+    cn = np.dot(A, c) + d + cW
+    Gn = np.empty((n, r + re))
+    Gn[:, :r] = np.dot(A, G)
+    Gn[:, r:] = E
+    for i in range(C.shape[0]):
+        ci = C[i].copy()
+        j = _bravo_choice(Gn, ci, sigma[i], bases[i], zero_projection)
+        if j == 0:
+            continue
+        a = np.dot(ci, Gn)
+        lam = Gn[:, j - 1] / a[j - 1]
+        cn = cn + lam * (y[i] - np.dot(ci, cn))
+        G2 = np.empty_like(Gn)
+        for p in range(n):
+            for k in range(Gn.shape[1]):
+                G2[p, k] = Gn[p, k] - lam[p] * a[k]
+            G2[p, j - 1] = sigma[i] * lam[p]
+        Gn = G2
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    return cn, out, ok
+
+
 if AVAILABLE:
+    _adjugate_psd = njit(_adjugate_psd)
+    _bravo_choice = njit(_bravo_choice, error_model="numpy")
     _finite = njit(_finite)
     _solve_t = njit(_solve_t)
 #: the compiled :func:`_strip_step_py` and :func:`_propagate_step_py` (``None`` without numba)
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
+#: the compiled :func:`_bravo_step_py` (``None`` without numba)
+bravo_step = njit(_bravo_step_py, error_model="numpy")
