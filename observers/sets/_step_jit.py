@@ -195,16 +195,82 @@ def _smallest(h, r, k):
     return out
 
 
+#: up to this dimension the principal axes come from :func:`_jacobi_left` (no LAPACK call:
+#: the QR and SVD of numba's LAPACK wrappers cost about 15 us of copies and workspace queries
+#: on a 6 x 14 matrix); above it from LAPACK as in the numpy path
+JACOBI_MAX_DIM = 12
+
+
+def _jacobi_left(red):
+    """Left singular vectors ``U`` (n x n, orthonormal) and singular values ``s`` (descending)
+    of ``red`` (n x k) by one-sided Jacobi (Hestenes) on the rows of ``red``: plane rotations
+    ``J'`` make the rows of ``J' red`` orthogonal, so ``red' J = W`` with orthogonal columns,
+    ``U = J`` and ``s`` the row norms (accurate to rounding relative to ``||red||``, like the
+    SVD).  ``J`` stays orthogonal for any rank, so zero singular values get a basis too."""
+    n, k = red.shape
+    Y = red.copy()
+    J = np.eye(n)
+    for _ in range(80):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for i in range(k):
+                    alpha += Y[p, i] * Y[p, i]
+                    beta += Y[q, i] * Y[q, i]
+                    gamma += Y[p, i] * Y[q, i]
+                if gamma == 0.0 or abs(gamma) <= 1e-15 * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = 1.0 / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                if zeta < 0.0:
+                    t = -t
+                cs = 1.0 / math.sqrt(1.0 + t * t)
+                sn = cs * t
+                for i in range(k):
+                    yp = Y[p, i]
+                    yq = Y[q, i]
+                    Y[p, i] = cs * yp - sn * yq
+                    Y[q, i] = sn * yp + cs * yq
+                for i in range(n):
+                    jp = J[i, p]
+                    jq = J[i, q]
+                    J[i, p] = cs * jp - sn * jq
+                    J[i, q] = sn * jp + cs * jq
+        if not rotated:
+            break
+    s = np.empty(n)
+    for p in range(n):
+        acc = 0.0
+        for i in range(k):
+            acc += Y[p, i] * Y[p, i]
+        s[p] = math.sqrt(acc)
+    order = np.argsort(-s, kind="mergesort")
+    U = np.empty((n, n))
+    s_sorted = np.empty(n)
+    for j in range(n):
+        s_sorted[j] = s[order[j]]
+        for i in range(n):
+            U[i, j] = J[i, order[j]]
+    return U, s_sorted
+
+
 def _principal_axes(red, cluster_rtol, pivot_rtol):
     """:func:`.reduction.principal_axes` (n x n orthonormal axes of the columns ``red``)."""
     n, k = red.shape
-    if k > n:
-        _, R = np.linalg.qr(np.ascontiguousarray(red.T))
-        U, s0, _ = np.linalg.svd(np.ascontiguousarray(R.T))
+    if n <= JACOBI_MAX_DIM:
+        U, s = _jacobi_left(red)
     else:
-        U, s0, _ = np.linalg.svd(red)
-    s = np.zeros(n)
-    s[: s0.size] = s0
+        if k > n:
+            _, R = np.linalg.qr(np.ascontiguousarray(red.T))
+            U, s0, _ = np.linalg.svd(np.ascontiguousarray(R.T))
+        else:
+            U, s0, _ = np.linalg.svd(red)
+        s = np.zeros(n)
+        s[: s0.size] = s0
     tol = cluster_rtol * s[0]
     out = np.empty((n, n))
     P = np.empty((n, n))
@@ -248,9 +314,11 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
             h[r] = s1 - mx
             r += 1
     if r <= n * order:
+        if r == r0:
+            return G.copy(), True
         out = np.empty((n, r))
-        for q in range(r):
-            for i in range(n):
+        for i in range(n):
+            for q in range(r):
                 out[i, q] = G[i, nz[q]]
         return out, True
     n_keep = int(math.floor(n * (order - 1)))
@@ -260,13 +328,15 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
     for q in range(n_red):
         is_red[ranked[q]] = True
     out = np.zeros((n, n_keep + n))
+    kept = np.empty(n_keep, dtype=np.int64)
     q = 0
     for p in range(r):
         if not is_red[p]:
-            j = nz[p]
-            for i in range(n):
-                out[i, q] = G[i, j]
+            kept[q] = nz[p]
             q += 1
+    for i in range(n):  # row by row: contiguous reads and writes
+        for q in range(n_keep):
+            out[i, q] = G[i, kept[q]]
     if method == GIRARD:
         # numpy sums |G_red| (a column gather: Fortran-ordered) column after column, except
         # for a single row (then also C-contiguous: pairwise summation); the same order here
@@ -302,6 +372,7 @@ if AVAILABLE:
     _pairwise_sum = njit(_pairwise_sum)
     _smallest = njit(_smallest)
     _cluster_basis_into = njit(_cluster_basis_into)
+    _jacobi_left = njit(_jacobi_left)
     _principal_axes = njit(_principal_axes)
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
