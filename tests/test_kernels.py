@@ -62,9 +62,20 @@ def test_pca_kernel_equals_numpy_to_rounding(seed):
     np.testing.assert_allclose(compiled, plain, rtol=0, atol=1e-11 * max(1.0, abs(G).max()))
 
 
+@pytest.mark.parametrize("seed", range(30))
+def test_jacobi_principal_axes_equal_lapacks(seed):
+    G, _ = random_generators(seed)
+    if G.shape[1] == 0 or not np.abs(G).max() > 0:
+        return
+    lapack = kernels._principal_axes(G, 1e-9, 1e-6, 0)
+    jacobi = kernels._principal_axes(G, 1e-9, 1e-6, 12)
+    np.testing.assert_allclose(jacobi, lapack, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(jacobi.T @ jacobi, np.eye(G.shape[0]), atol=1e-13)
+
+
 def test_reduction_kernel_leaves_non_finite_matrices_to_numpy():
     G = np.array([[1.0, np.nan, 2.0, 0.5], [0.0, 1.0, 1.0, 3.0]])
-    out, ok = kernels.reduce(G, 1.0, kernels.GIRARD, 1e-9, 1e-6)
+    out, ok = kernels.reduce(G, 1.0, kernels.GIRARD, 1e-9, 1e-6, 0)
     assert not ok and out.shape == (2, 0)
     compiled, plain = both_paths(lambda: get_reduction("girard").reduce(G, 1.0))
     np.testing.assert_array_equal(compiled, plain)  # the numpy path decided both

@@ -195,9 +195,12 @@ def _smallest(h, r, k):
     return out
 
 
-#: up to this dimension the principal axes come from :func:`_jacobi_left` (no LAPACK call:
-#: the QR and SVD of numba's LAPACK wrappers cost about 15 us of copies and workspace queries
-#: on a 6 x 14 matrix); above it from LAPACK as in the numpy path
+#: in the step kernels, up to this dimension the principal axes come from :func:`_jacobi_left`
+#: (no LAPACK call: the QR and SVD of numba's LAPACK wrappers cost about 15 us of copies and
+#: workspace queries on a 6 x 14 matrix); above it from LAPACK as in the numpy path.  The
+#: reductions called alone (:class:`.reduction.PCA`, e.g. the lifted reductions of the CZN
+#: observers, whose hulls amplify a 1e-13 change of the axes to 1e-3 of an RMS radius on the
+#: 6-tank record) keep LAPACK's QR and SVD, as the numpy path
 JACOBI_MAX_DIM = 12
 
 
@@ -258,10 +261,11 @@ def _jacobi_left(red):
     return U, s_sorted
 
 
-def _principal_axes(red, cluster_rtol, pivot_rtol):
-    """:func:`.reduction.principal_axes` (n x n orthonormal axes of the columns ``red``)."""
+def _principal_axes(red, cluster_rtol, pivot_rtol, jacobi_dim):
+    """:func:`.reduction.principal_axes` (n x n orthonormal axes of the columns ``red``), by
+    :func:`_jacobi_left` if ``n <= jacobi_dim``."""
     n, k = red.shape
-    if n <= JACOBI_MAX_DIM:
+    if n <= jacobi_dim:
         U, s = _jacobi_left(red)
     else:
         if k > n:
@@ -290,7 +294,7 @@ def _principal_axes(red, cluster_rtol, pivot_rtol):
     return out
 
 
-def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
+def _reduce_py(G, order, method, cluster_rtol, pivot_rtol, jacobi_dim):
     """The reduced generators and ``True``, or an empty matrix and ``False`` when ``G`` has a
     non-finite entry (left to the numpy path).  ``order`` is checked by the caller."""
     n, r0 = G.shape
@@ -356,7 +360,7 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol):
         j = nz[ranked[q]]
         for i in range(n):
             red[i, q] = G[i, j]
-    U = _principal_axes(red, cluster_rtol, pivot_rtol)
+    U = _principal_axes(red, cluster_rtol, pivot_rtol, jacobi_dim)
     proj = np.dot(np.ascontiguousarray(U.T), red)
     for a in range(n):
         box = 0.0
@@ -475,7 +479,7 @@ def _strip_step_py(c, G, A, d, cW, E, C, y, sigma, L, F, mode, wang_cora, order,
         for a in range(n):
             for j in range(m):
                 Gn[a, rp + j] = Lm[a, j] * sigma[j]
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
     return cn, out, ok
 
 
@@ -501,7 +505,7 @@ def _propagate_step_py(c, G, A, d, C, L, F, y, cV, cW, E, mode, order, method, c
     Gn[:, :r] = np.dot(M, G)
     Gn[:, r:r + rv] = np.dot(-Lg, F)
     Gn[:, r + rv:] = E
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
     return cn, out, ok
 
 
@@ -600,7 +604,7 @@ def _bravo_step_py(c, G, A, d, cW, E, C, y, sigma, bases, zero_projection, order
                 G2[p, k] = Gn[p, k] - lam[p] * a[k]
             G2[p, j - 1] = sigma[i] * lam[p]
         Gn = G2
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol)
+    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
     return cn, out, ok
 
 

@@ -122,7 +122,7 @@ def _compiled(G: np.ndarray, order: float, method: int) -> np.ndarray | None:
     check_order(order)
     if G.dtype != np.float64 or G.ndim != 2:
         return None
-    out, ok = _jit.reduce(G, float(order), method, CLUSTER_RTOL, PIVOT_RTOL)
+    out, ok = _jit.reduce(G, float(order), method, CLUSTER_RTOL, PIVOT_RTOL, 0)
     return out if ok else None
 
 
