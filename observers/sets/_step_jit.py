@@ -389,11 +389,117 @@ def _finite(a):
     return True
 
 
+#: up to this size the kernels factor matrices with the small loops below (LU with partial
+#: pivoting, Cholesky) instead of numba's LAPACK wrappers, whose copies and checks cost a few
+#: microseconds per call; the same factorisations, equal up to rounding
+SMALL_DIM = 12
+
+
+def _lu_small(M):
+    """LU factorisation with partial pivoting (the first largest pivot, as LAPACK's getrf):
+    ``(LU, perm, sign, singular)`` with ``M[perm] = L U``."""
+    n = M.shape[0]
+    LU = M.copy()
+    perm = np.arange(n)
+    sign = 1.0
+    singular = False
+    for k in range(n):
+        p = k
+        best = abs(LU[k, k])
+        for i in range(k + 1, n):
+            if abs(LU[i, k]) > best:
+                best = abs(LU[i, k])
+                p = i
+        if best == 0.0:
+            singular = True
+            continue
+        if p != k:
+            for j in range(n):
+                tmp = LU[k, j]
+                LU[k, j] = LU[p, j]
+                LU[p, j] = tmp
+            tp = perm[k]
+            perm[k] = perm[p]
+            perm[p] = tp
+            sign = -sign
+        for i in range(k + 1, n):
+            LU[i, k] /= LU[k, k]
+            f = LU[i, k]
+            for j in range(k + 1, n):
+                LU[i, j] -= f * LU[k, j]
+    return LU, perm, sign, singular
+
+
+def _det(M):
+    """``det M`` (``np.linalg.det``: the product of the LU pivots with the permutation's
+    sign)."""
+    if M.shape[0] > SMALL_DIM:
+        return np.linalg.det(M)
+    LU, _, sign, _ = _lu_small(M)
+    det = sign
+    for i in range(M.shape[0]):
+        det *= LU[i, i]
+    return det
+
+
+def _solve(S, B):
+    """``(S^{-1} B, ok)``; ``ok`` is false for a singular ``S`` (``np.linalg.solve`` raises
+    there) or a non-finite solution."""
+    n = S.shape[0]
+    if n > SMALL_DIM:
+        try:
+            X = np.linalg.solve(S, B)
+        except Exception:  # noqa: BLE001 - numba catches no specific class
+            return np.zeros(B.shape), False
+        return X, _finite(X)
+    LU, perm, _, singular = _lu_small(S)
+    X = np.empty(B.shape)
+    if singular:
+        return X, False
+    for col in range(B.shape[1]):
+        for i in range(n):  # forward substitution, unit lower triangle
+            acc = B[perm[i], col]
+            for j in range(i):
+                acc -= LU[i, j] * X[j, col]
+            X[i, col] = acc
+        for i in range(n - 1, -1, -1):  # back substitution
+            acc = X[i, col]
+            for j in range(i + 1, n):
+                acc -= LU[i, j] * X[j, col]
+            X[i, col] = acc / LU[i, i]
+    return X, _finite(X)
+
+
+def _cholesky(S):
+    """``(L, ok)`` with ``S = L L'`` (``np.linalg.cholesky``); ``ok`` false where ``S`` is not
+    positive definite (numpy raises there)."""
+    k = S.shape[0]
+    if k > SMALL_DIM:
+        try:
+            return np.linalg.cholesky(S), True
+        except Exception:  # noqa: BLE001 - numba catches no specific class
+            return np.zeros((k, k)), False
+    Lc = np.zeros((k, k))
+    for j in range(k):
+        acc = S[j, j]
+        for q in range(j):
+            acc -= Lc[j, q] * Lc[j, q]
+        if not acc > 0.0:
+            return Lc, False
+        Lc[j, j] = math.sqrt(acc)
+        for i in range(j + 1, k):
+            acc = S[i, j]
+            for q in range(j):
+                acc -= Lc[i, q] * Lc[j, q]
+            Lc[i, j] = acc / Lc[j, j]
+    return Lc, True
+
+
 def _solve_t(S, B):
-    """``(S^{-1} B)'`` for a symmetric ``S`` (LU solve), and whether it is finite (a singular
-    ``S`` raises ``LinAlgError``: the caller falls back to the numpy path)."""
-    X = np.linalg.solve(S, B)
-    return np.ascontiguousarray(X.T), _finite(X)
+    """``(S^{-1} B)'`` for a symmetric ``S`` (LU solve), and whether it exists and is finite
+    (else the caller falls back to the numpy path)."""
+    X, ok = _solve(S, B)
+    return np.ascontiguousarray(X.T), ok
 
 
 def _strip_step_py(c, G, A, d, cW, E, C, y, sigma, L, F, mode, wang_cora, order, method,
@@ -516,12 +622,7 @@ def _adjugate_psd(S):
     k = S.shape[0]
     if k == 0:
         return 1.0, np.zeros((0, 0))
-    chol_ok = True
-    try:
-        Lc = np.linalg.cholesky(S)
-    except Exception:  # noqa: BLE001 - numba catches no specific class
-        chol_ok = False
-        Lc = np.zeros((k, k))
+    Lc, chol_ok = _cholesky(S)
     if chol_ok:
         dmin = np.inf
         dmax = -np.inf
@@ -533,7 +634,8 @@ def _adjugate_psd(S):
             for i in range(k):
                 det *= Lc[i, i]
             det = det**2
-            return det, np.ascontiguousarray(det * np.linalg.inv(S))
+            inv, _ = _solve(S, np.eye(k))
+            return det, det * inv
     mu, U = np.linalg.eigh(S)
     cof = np.empty(k)
     for i in range(k):
@@ -552,7 +654,7 @@ def _bravo_choice(G, c_row, sigma, B, zero_projection):
     ``det(T T')`` (0: unchanged zonotope; ties: the first)."""
     n, r = G.shape
     scores = np.empty(r + 1)
-    scores[0] = np.linalg.det(np.dot(G, np.ascontiguousarray(G.T)))
+    scores[0] = _det(np.dot(G, np.ascontiguousarray(G.T)))
     a = np.dot(c_row, G)
     q = np.dot(a, a)
     nvalid = 0
@@ -609,6 +711,10 @@ def _bravo_step_py(c, G, A, d, cW, E, C, y, sigma, bases, zero_projection, order
 
 
 if AVAILABLE:
+    _lu_small = njit(_lu_small)
+    _det = njit(_det)
+    _solve = njit(_solve)
+    _cholesky = njit(_cholesky)
     _adjugate_psd = njit(_adjugate_psd)
     _bravo_choice = njit(_bravo_choice, error_model="numpy")
     _finite = njit(_finite)
