@@ -371,17 +371,6 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol, jacobi_dim):
     return out, True
 
 
-if AVAILABLE:
-    _pairwise_block = njit(_pairwise_block)
-    _pairwise_sum = njit(_pairwise_sum)
-    _smallest = njit(_smallest)
-    _cluster_basis_into = njit(_cluster_basis_into)
-    _jacobi_left = njit(_jacobi_left)
-    _principal_axes = njit(_principal_axes)
-#: the compiled :func:`_reduce_py` (``None`` without numba)
-reduce = njit(_reduce_py, error_model="numpy")
-
-
 def _finite(a):
     for v in a.flat:
         if not np.isfinite(v):
@@ -710,15 +699,16 @@ def _bravo_step_py(c, G, A, d, cW, E, C, y, sigma, bases, zero_projection, order
     return cn, out, ok
 
 
-if AVAILABLE:
-    _lu_small = njit(_lu_small)
-    _det = njit(_det)
-    _solve = njit(_solve)
-    _cholesky = njit(_cholesky)
-    _adjugate_psd = njit(_adjugate_psd)
+if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
+    (_pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
+     _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
+     _solve_t) = (njit(f) for f in (
+         _pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
+         _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
+         _solve_t))
     _bravo_choice = njit(_bravo_choice, error_model="numpy")
-    _finite = njit(_finite)
-    _solve_t = njit(_solve_t)
+#: the compiled :func:`_reduce_py` (``None`` without numba)
+reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled :func:`_strip_step_py` and :func:`_propagate_step_py` (``None`` without numba)
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
