@@ -209,7 +209,7 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     command = "python -m benchmarks speed"
     if Path(out) != DEFAULT_REPORT or Path(json_path) != DEFAULT_JSON:
         command += f" --out {out} --json {json_path}"
-    text = render(results, previous, previous_git, env) + freshness.stamp(command) + "\n"
+    text = render(results, previous, previous_git, env) + "\n" + freshness.stamp(command) + "\n"
     atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]
