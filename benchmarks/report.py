@@ -35,7 +35,9 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "`contained (hull only)`: in every interval hull), `no` with the number of "
          "violating steps, `n/a` where it was not checked (no true state in the record). "
          "A row marked (unsound) violates containment and is never the reference of a "
-         "ratio.")
+         "ratio. `(n/a)` after the average and the time: the observer is not part of the "
+         "published comparison (the paper has no row for it, e.g. ROPO, CZN, the data-driven "
+         "observers), so there is no published value to deviate from.")
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -127,8 +129,12 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
             cells.append(_pair(rel[i], p.v[i] if p and p.v else None))
         avg = float(np.mean(rel)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
-        cells.append(_pair(avg, p.avg if p else None) if not pstat else f"{_fmt(avg)} ({pstat})")
-        cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
+        if paper and p is None and not pstat:  # not part of the published comparison
+            cells += [f"{_fmt(avg)} ({NA})", f"{_fmt(g['step_ms'].iloc[0])} ({NA})"]
+        else:
+            cells.append(_pair(avg, p.avg if p else None) if not pstat
+                         else f"{_fmt(avg)} ({pstat})")
+            cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
         cells += [_fmt(g["hull_ms"].iloc[0]), _fmt(g["design_s"].iloc[0]), _status_cell(g)]
         rows.append(cells)
     return head, rows

@@ -207,18 +207,7 @@ class Number(OptionSpec):
         return self.high is None or (value < self.high if self.high_open else value <= self.high)
 
     def accepts(self, value: Any) -> bool:
-        """Whether ``value`` is a number in range, ``None`` (if allowed) or a special literal.
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            True if the option may take this value.
-        """
+        """Whether ``value`` is a number in range, ``None`` (if allowed) or a special literal."""
         if value is None:
             return self.allow_none
         if any(_same(value, s) for s in self.special):
@@ -226,13 +215,7 @@ class Number(OptionSpec):
         return self._is_kind(value) and self._in_range(value)
 
     def describe(self) -> str:
-        """E.g. ``"a number in (0, 1]"``, ``"a positive integer"``, ``"a number >= 1 or None"``.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """E.g. ``"a number in (0, 1]"``, ``"a positive integer"``, ``"a number >= 1 or None"``."""
         kind = f"finite {self.KIND}" if self.finite else self.KIND
         a_kind = f"{'an' if kind[0] in 'aeiou' else 'a'} {kind}"
         low, high = self.low, self.high
@@ -284,28 +267,11 @@ class Bool(OptionSpec):
     default: bool
 
     def accepts(self, value: Any) -> bool:
-        """Whether ``value`` is a boolean.
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            True for ``True``, ``False`` and numpy booleans.
-        """
+        """Whether ``value`` is a boolean."""
         return isinstance(value, (bool, np.bool_))
 
     def describe(self) -> str:
-        """``"True or False"``.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """``"True or False"``."""
         return "True or False"
 
 
@@ -332,28 +298,11 @@ class Choice(OptionSpec):
             raise ValueError("a Choice needs at least one choice")
 
     def accepts(self, value: Any) -> bool:
-        """Whether ``value`` is one of the choices.
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            True if ``value`` equals one of ``choices``.
-        """
+        """Whether ``value`` is one of the choices."""
         return any(_same(value, c) for c in self.choices)
 
     def describe(self) -> str:
-        """E.g. ``"one of 'cora', 'textbook'"``.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """E.g. ``"one of 'cora', 'textbook'"``."""
         return "one of " + ", ".join(map(repr, self.choices))
 
 
@@ -382,18 +331,7 @@ class Matrix(OptionSpec):
         object.__setattr__(self, "ndim", tuple(self.ndim))
 
     def accepts(self, value: Any) -> bool:
-        """Whether ``value`` is a finite numeric array of an accepted dimension (or None).
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            True if the option may take this value.
-        """
+        """Whether ``value`` is a finite numeric array of an accepted dimension (or None)."""
         if value is None:
             return self.allow_none
         if isinstance(value, (str, bytes)):
@@ -405,13 +343,7 @@ class Matrix(OptionSpec):
         return a.dtype.kind in "iuf" and a.ndim in self.ndim and bool(np.all(np.isfinite(a)))
 
     def describe(self) -> str:
-        """E.g. ``"a numeric vector or matrix with finite entries or None"``.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """E.g. ``"a numeric vector or matrix with finite entries or None"``."""
         names = {0: "scalar", 1: "vector", 2: "matrix"}
         shapes = " or ".join(names.get(d, f"{d}-D array") for d in self.ndim)
         return _alternatives(f"a numeric {shapes} with finite entries", (), self.allow_none)
@@ -438,28 +370,11 @@ class Custom(OptionSpec):
     accepted: str | Callable[[], str]
 
     def accepts(self, value: Any) -> bool:
-        """Whether ``test(value)`` holds.
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            The predicate's verdict.
-        """
+        """Whether ``test(value)`` holds."""
         return bool(self.test(value))
 
     def describe(self) -> str:
-        """The ``accepted`` text.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """The ``accepted`` text."""
         return self.accepted() if callable(self.accepted) else self.accepted
 
 
@@ -476,28 +391,11 @@ class Untyped(OptionSpec):
     default: Any
 
     def accepts(self, value: Any) -> bool:
-        """Every value is accepted.
-
-        Parameters
-        ----------
-        value : object
-            The value to test.
-
-        Returns
-        -------
-        bool
-            Always True.
-        """
+        """Every value is accepted."""
         return True
 
     def describe(self) -> str:
-        """``"anything"``.
-
-        Returns
-        -------
-        str
-            What is accepted.
-        """
+        """``"anything"``."""
         return "anything"
 
 

@@ -161,3 +161,13 @@ def test_volmin_b_tank30_hulls_contain_the_rounded_truth():
                         sc.u[:60], sc.y[:60])
     assert np.all(sc.x_true[:60] >= res.lo - sc.tolerance)
     assert np.all(sc.x_true[:60] <= res.hi + sc.tolerance)
+
+
+def test_volmin_a_refusal_names_subset_counts_beyond_the_float_range():
+    # bug: at 200 tanks C(r, n) exceeds the float range and formatting it raised OverflowError
+    # (scaling study: "error" instead of "noGain" with the reason)
+    sc = systems.scenario("tank200-linear", steps=3)
+    with pytest.raises(observers.DesignFailed, match=r"VolMin-A refused") as info:
+        observers.create("VolMin-A", sc.system, **sc.options)
+    exponent = int(str(info.value).split(" generator subsets")[0].split("e+")[-1])
+    assert exponent > 308  # beyond float: the count is printed exactly in scientific notation

@@ -21,6 +21,7 @@ CORA), with no offline design:
 
 from __future__ import annotations
 
+import decimal
 import math
 
 import numpy as np
@@ -30,12 +31,19 @@ from ..families import Linearised, PerStripObserver, StripBasedObserver
 from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
 from ..options import Integer
 from ..registry import register
+from ..sets import _step_jit as kernels
+
+
+def _scientific(count: int) -> str:
+    """``count`` in 3-digit scientific notation, also beyond the float range (e.g. ``1.2e+430``)."""
+    return format(decimal.Decimal(count), ".3g")
 
 
 @register(
     "VolMin-A", family="strip", set_type="zonotope", ready_for_control=False,
     reference="Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6.2",
 )
+
 class VolMinA(Linearised, PerStripObserver):
     """Strip by strip with the volume-minimising gain of Alamo et al. (one LP per strip).
 
@@ -56,7 +64,7 @@ class VolMinA(Linearised, PerStripObserver):
         count = subset_count(r_max, n)
         if count > self.options["max_subsets"]:
             raise DesignFailed(
-                f"VolMin-A refused: up to {r_max} generators in R^{n} give {count:.3g} "
+                f"VolMin-A refused: up to {r_max} generators in R^{n} give {_scientific(count)} "
                 f"generator subsets for the volume LP, more than max_subsets="
                 f"{self.options['max_subsets']} (lower 'order' or raise 'max_subsets')"
             )
@@ -76,6 +84,9 @@ class VolMinB(Linearised, StripBasedObserver):
     def design(self) -> None:
         super().design()
         self._bases = [null_basis(row) for row in self.C]
+
+    def compiled_gain(self):
+        return kernels.BRAVO, np.stack(self._bases)
 
     def intersect(self, c, G, y):
         for i, row in enumerate(self.C):
