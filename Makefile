@@ -6,6 +6,10 @@ STAMP  := $(VENV)/.installed
 CONFIGS_ALL   := $(wildcard benchmarks/configs/*.yaml)
 CONFIGS_QUICK := benchmarks/configs/quick.yaml
 RESULTS ?= results
+# worker processes of `make bench` (designs and runs); JOBS=1 runs serially, the only mode whose
+# per-step times are undisturbed (parallel ones are marked "(parallel)" in the reports;
+# reports/speed.md is always timed serially)
+JOBS ?= $(shell getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
 # single-threaded BLAS: faster and far less noisy on the small matrices of the observers
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
@@ -35,11 +39,11 @@ test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## every config -> results/<config>/ (+ index.html), reports/<config>.md; speed.md, scaling.md, index.html
-	$(PY) -m benchmarks designs $(CONFIGS_ALL)
+bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: serial times) -> results/, reports/; speed.md, scaling.md, index.html
+	$(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
-		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name || exit $$?; \
+		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name --jobs $(JOBS) || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done

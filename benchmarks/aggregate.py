@@ -12,6 +12,8 @@ import pandas as pd
 
 from observers.registry import table_order
 
+from .metrics import timed_in_parallel
+
 KEYS = ["scenario", "observer", "variant"]
 
 
@@ -71,8 +73,9 @@ def sweep_tables(summary: pd.DataFrame, fmt) -> list[str]:
     """Markdown lines: one table per scenario of :func:`aggregate_seeds` (``fmt`` formats a
     number)."""
     agg = aggregate_seeds(summary)
+    par = " (parallel)" if timed_in_parallel(summary) else ""
     head = ["Observer", "variant", "runs (ok)", "rel. RMS mean", "std", "min", "max",
-            "step ms", "hull ms", "design s", "violations", "failed runs"]
+            f"step ms{par}", f"hull ms{par}", f"design s{par}", "violations", "failed runs"]
     out = []
     for sc, g in agg.groupby("scenario", sort=False):
         seeds = summary.loc[summary["scenario"] == sc, "seed"].nunique()

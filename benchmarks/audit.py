@@ -41,7 +41,6 @@ import dataclasses
 import functools
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -55,6 +54,7 @@ from systems import ModelError, Scenario
 from . import freshness
 from .config import BenchConfig
 from .errors import ConfigError
+from .executors import run_tasks
 from .io import atomic_write_csv, atomic_write_text, environment
 from .membership import MembershipTester
 from .progress import progress_bar
@@ -262,19 +262,13 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
         raise ConfigError(f"audit: unknown realisation kind(s) {sorted(unknown)} "
                           f"(known: {', '.join(KINDS)})")
     tasks = [(sc, name, count, tuple(kinds)) for sc in scenarios for name in names]
-    rows: list[dict] = []
     with progress_bar(len(tasks), "audit", progress) as bar:
-        if jobs == 1:
-            for task in tasks:
-                rows += _audit_task(task)
-                bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
-                bar.update()
-        else:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                for task, out in zip(tasks, pool.map(_audit_task, tasks), strict=True):
-                    rows += out
-                    bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
-                    bar.update()
+        def done(task, _) -> None:
+            bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
+            bar.update()
+
+        outs = run_tasks(_audit_task, tasks, jobs, done)
+    rows = [row for out in outs for row in out]
     return pd.DataFrame(rows, columns=RESULT_COLUMNS)
 
 

@@ -46,10 +46,11 @@ def _cmd_run(args) -> int:
         raise ConfigError("run: give either a YAML config or --observer/--scenario, not both")
     if args.out:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
-    cfg = load_config(args.config) if args.config else _inline_config(args)
-    out = Path(args.out) if args.out else Path("results") / cfg.name
+    # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
     try:
+        cfg = load_config(args.config) if args.config else _inline_config(args)
+        out = Path(args.out) if args.out else Path("results") / cfg.name
         _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
                                 executor=executor)
     finally:

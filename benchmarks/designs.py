@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import observers
@@ -23,6 +22,7 @@ from observers.offline import OfflineGain, cache_dir
 
 from .config import load_config
 from .errors import ConfigError
+from .executors import run_tasks
 from .progress import progress_bar
 from .runner import design_observer
 
@@ -80,18 +80,12 @@ def prewarm(paths: list[str | Path], jobs: int = 2, progress: bool | None = None
     tasks = design_tasks(paths)
     if cache_dir() is None or not tasks:
         return []
-    out = []
-    pool = ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else None
-    try:
-        with progress_bar(len(tasks), "designs", progress) as bar:
-            for res in (pool.map if pool else map)(design_task, tasks):
-                out.append(res)
-                bar.set_postfix_str(f"{res[0]}: {res[1]} {res[2]}", refresh=False)
-                bar.update()
-    finally:
-        if pool is not None:
-            pool.shutdown()
-    return out
+    with progress_bar(len(tasks), "designs", progress) as bar:
+        def done(_, res) -> None:
+            bar.set_postfix_str(f"{res[0]}: {res[1]} {res[2]}", refresh=False)
+            bar.update()
+
+        return run_tasks(design_task, tasks, jobs, done)
 
 
 def timing_table(done: list[tuple[str, str, str, float]], top: int | None = None) -> str:

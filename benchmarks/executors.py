@@ -8,10 +8,11 @@ One failed job never stops the others.
 ``serial``
     in this process, one job after the other (the default; the honest timing mode).
 ``processes``
-    a local pool of ``jobs`` worker processes (``run --jobs N``).  Each worker holds one job
-    at a time, so a worker that dies is attributed to its job exactly (``error``, with the
-    exit code), and a job running longer than ``timeout`` seconds is stopped by ending its
-    worker (``timeout``); a new worker takes its place.
+    a local pool of ``jobs`` worker processes (``run --jobs N``).  A worker is given a chunk
+    of jobs but runs and reports them one at a time, so a worker that dies is attributed to
+    the job it was running exactly (``error``, with the exit code), and a job running longer
+    than ``timeout`` seconds is stopped by ending its worker (``timeout``); a new worker
+    takes its place and the rest of the chunk.
 ``dask``
     a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
     ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
@@ -20,10 +21,20 @@ One failed job never stops the others.
     each such task runs again alone on the cluster, and if its worker dies again it becomes
     that job's ``error``.
 
-Local workers are forked from a clean server process that preloaded the harness (the
-``forkserver`` method; ``spawn`` where there is none), never from the parent itself (whose
-threads a fork would not carry over), and have the parent's environment, hence the same BLAS
-settings (see :mod:`benchmarks`).
+Local workers are forked from a server process that preloaded the harness, every observer
+plugin and the compiled LP kernel (:mod:`benchmarks.workerinit`; the ``forkserver`` method,
+``spawn`` where there is none).  Why not ``fork`` from the parent: the parent may hold
+threads (a progress bar's monitor, a Dask client), which a fork does not carry over (locks
+they hold stay locked in the child); and why not ``spawn``: each worker would import
+everything again (about 3 s of CPU here).  The server is started when the executor is made
+(:class:`ProcessExecutor`), so its imports overlap the reading of the config.  Workers take
+the parent's environment when they start, and the BLAS thread counts are already pinned to 1
+in the server (see :mod:`benchmarks`): no oversubscription by N workers.
+
+Jobs are handed to local workers in chunks (:func:`chunks`): the jobs of one scenario
+instance go to one worker together, so that it builds the scenario and what its observers
+share (the data-driven observers' learned model, a quarter of the sweep's CPU) once, as the serial
+run does, and a result travels back per job (its failure, budget and row stay per job).
 """
 
 from __future__ import annotations
@@ -66,8 +77,9 @@ class SerialExecutor:
     name = "serial"
     workers = 1
 
-    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(job) or JobFailure)`` in job order."""
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
+            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` in job order (``keys``: unused here)."""
         for i, job in enumerate(jobs):
             try:
                 out = fn(job)
@@ -81,7 +93,11 @@ class SerialExecutor:
         """Nothing to release."""
 
 
-def _worker_loop(conn) -> None:  # pragma: no cover - runs in the worker process
+def _worker_loop(conn, env: dict[str, str]) -> None:  # pragma: no cover - in the worker
+    # the parent's environment now (the server forked from may have started with another one:
+    # settings read when used, like SETOBS_CACHE_DIR, then follow the parent)
+    os.environ.clear()
+    os.environ.update(env)
     while True:
         try:
             msg = conn.recv()
@@ -89,32 +105,41 @@ def _worker_loop(conn) -> None:  # pragma: no cover - runs in the worker process
             return
         if msg is None:
             return
-        fn, job = msg
-        conn.send(("started", None))  # the budget counts from here (not the worker start)
-        try:
-            out = ("ok", fn(job))
-        except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
-            out = ("config", str(exc))
-        except Exception as exc:
-            out = ("raised", _describe(exc))
-        try:
-            conn.send(out)
-        except Exception as exc:  # an unpicklable result
-            conn.send(("raised", f"result not transferable: {_describe(exc)}"))
+        fn, chunk = msg
+        for _, job in chunk:
+            conn.send(("started", None))  # the budget counts from here (not the worker start)
+            try:
+                out = ("ok", fn(job))
+            except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
+                out = ("config", str(exc))
+            except Exception as exc:
+                out = ("raised", _describe(exc))
+            try:
+                conn.send(out)
+            except Exception as exc:  # an unpicklable result
+                conn.send(("raised", f"result not transferable: {_describe(exc)}"))
 
 
 class _Worker:
+    """One worker process and the chunk of jobs it holds (the first one is running)."""
+
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_loop, args=(child,), daemon=True)
+        self.proc = ctx.Process(target=_worker_loop, args=(child, dict(os.environ)),
+                                daemon=True)
         self.proc.start()
         child.close()
-        self.index: int | None = None
+        self.chunk: deque = deque()
         self.started: float | None = None
 
-    def give(self, fn, index: int, job) -> None:
-        self.index, self.started = index, None
-        self.conn.send((fn, job))
+    @property
+    def index(self) -> int:
+        """The job the worker runs (or is about to start)."""
+        return self.chunk[0][0]
+
+    def give(self, fn, chunk: list) -> None:
+        self.conn.send((fn, chunk))  # pickled first: a failure sends nothing
+        self.chunk, self.started = deque(chunk), None
 
     def end(self, kill: bool = False) -> None:
         if kill:
@@ -131,6 +156,30 @@ class _Worker:
         self.conn.close()
 
 
+def chunks(keys: Sequence[Any] | None, n: int, workers: int) -> list[list[int]]:
+    """Job indices ``0..n-1`` in chunks: contiguous runs of equal ``keys``, each cut into
+    pieces of at most ``ceil(n / (4 workers))`` jobs (so that every worker gets several
+    chunks and the last ones are short); without keys, one job per chunk.
+
+    Examples
+    --------
+    >>> chunks(["a", "a", "a", "b"], 4, 1)
+    [[0], [1], [2], [3]]
+    >>> chunks(["a"] * 8 + ["b"] * 8, 16, 1)
+    [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [12, 13, 14, 15]]
+    """
+    if keys is None:
+        return [[i] for i in range(n)]
+    size = max(1, -(-n // (4 * workers)))
+    out: list[list[int]] = []
+    for i in range(n):
+        if out and keys[i] == keys[out[-1][-1]] and len(out[-1]) < size:
+            out[-1].append(i)
+        else:
+            out.append([i])
+    return out
+
+
 def _exit_reason(code: int | None) -> str:
     if code is not None and code < 0:
         return f"signal {-code}"
@@ -142,7 +191,7 @@ def _context():
     of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["benchmarks.runner"])
+        ctx.set_forkserver_preload(["benchmarks.workerinit"])
         return ctx
     return mp.get_context("spawn")
 
@@ -170,21 +219,46 @@ class ProcessExecutor:
         self.timeout = timeout
         self._ctx = _context()
         self._idle: list[_Worker] = []
+        if self._ctx.get_start_method() == "forkserver":
+            # start the server now: it preloads the harness while the caller reads its config
+            from multiprocessing import forkserver
+            forkserver.ensure_running()
 
-    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(job) or JobFailure)`` as the jobs finish."""
-        pending = deque(enumerate(jobs))
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
+            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` as the jobs finish.
+
+        ``keys`` (one per job): consecutive jobs with the same key go to one worker together
+        (:func:`chunks`), so that what they share is built once in that worker (a scenario,
+        a learned model).  A worker still reports each job on its own: if it dies or
+        exceeds the budget, the job it was running gets the failure and the rest of its chunk
+        goes to another worker.
+        """
+        pending = deque([(i, jobs[i]) for i in c] for c in chunks(keys, len(jobs), self.workers))
         busy: dict[Any, _Worker] = {}
+
+        def fail(w: _Worker, status: str, message: str) -> tuple[int, JobFailure]:
+            """End ``w`` (its job failed); the rest of its chunk goes back to the queue."""
+            w.end(kill=True)
+            index, _ = w.chunk.popleft()
+            if w.chunk:
+                pending.appendleft(list(w.chunk))
+            return index, JobFailure(status, message)
+
         try:
             while pending or busy:
                 while pending and len(busy) < self.workers:
                     w = self._idle.pop() if self._idle else _Worker(self._ctx)
-                    i, job = pending.popleft()
+                    chunk = pending.popleft()
                     try:
-                        w.give(fn, i, job)
-                    except Exception as exc:  # the job itself cannot be sent (pickling)
+                        w.give(fn, chunk)
+                    except Exception as exc:  # a job itself cannot be sent (pickling)
                         self._idle.append(w)
-                        yield i, JobFailure("error", f"job not transferable: {_describe(exc)}")
+                        if len(chunk) > 1:  # find which one: send them one by one
+                            pending.extendleft([job] for job in reversed(chunk))
+                            continue
+                        yield chunk[0][0], JobFailure(
+                            "error", f"job not transferable: {_describe(exc)}")
                         continue
                     busy[w.conn] = w
                 wait_s = None
@@ -195,29 +269,31 @@ class ProcessExecutor:
                     w = busy.pop(conn)
                     try:
                         kind, value = conn.recv()
-                        if kind == "started":
-                            w.started = time.monotonic()
-                            busy[conn] = w
-                            continue
                     except (EOFError, OSError):
                         w.proc.join(timeout=5)
-                        reason = _exit_reason(w.proc.exitcode)
-                        w.end(kill=True)
-                        yield w.index, JobFailure(
-                            "error", f"worker process died while running this job ({reason})")
+                        yield fail(w, "error", "worker process died while running this job "
+                                               f"({_exit_reason(w.proc.exitcode)})")
                         continue
-                    self._idle.append(w)
+                    if kind == "started":
+                        w.started = time.monotonic()
+                        busy[conn] = w
+                        continue
+                    index, _ = w.chunk.popleft()
+                    w.started = None
+                    if w.chunk:
+                        busy[conn] = w
+                    else:
+                        self._idle.append(w)
                     if kind == "config":
                         raise ConfigError(value)
-                    yield w.index, value if kind == "ok" else JobFailure("error", value)
+                    yield index, value if kind == "ok" else JobFailure("error", value)
                 if self.timeout is not None:
                     now = time.monotonic()
                     for conn, w in list(busy.items()):
                         if w.started is not None and now - w.started >= self.timeout:
                             del busy[conn]
-                            w.end(kill=True)
-                            yield w.index, JobFailure(
-                                "timeout", f"stopped after the budget of {self.timeout:g} s")
+                            yield fail(w, "timeout",
+                                       f"stopped after the budget of {self.timeout:g} s")
         finally:
             for w in busy.values():
                 w.end(kill=True)
@@ -268,8 +344,12 @@ class DaskExecutor:
             self.workers = max(1, sum(self.client.nthreads().values()))
         self.address = self.client.scheduler.address
 
-    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(job) or JobFailure)`` as the tasks finish."""
+    def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
+            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` as the tasks finish.
+
+        ``keys`` is not used: the scheduler places every job as a task of its own.
+        """
         from distributed import as_completed
 
         futures = {self.client.submit(fn, job, pure=False): i for i, job in enumerate(jobs)}
@@ -311,6 +391,32 @@ class DaskExecutor:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+
+
+def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], jobs: int,
+              done: Callable[[Any, Any], None] | None = None) -> list[Any]:
+    """``[fn(task) for task in tasks]`` in ``jobs`` local worker processes (in this process if
+    ``jobs`` is 1), for commands whose tasks must all succeed (``audit``, ``designs``).
+
+    ``done(task, result)`` is called as each task finishes (e.g. a progress bar).
+
+    Raises
+    ------
+    RuntimeError
+        At the first task that failed (raised, its worker died, ...): the others are stopped.
+    """
+    executor = make_executor("processes", jobs)
+    out: list[Any] = [None] * len(tasks)
+    try:
+        for i, res in executor.map(fn, tasks):
+            if isinstance(res, JobFailure):
+                raise RuntimeError(f"task {tasks[i]!r} failed: {res.message}")
+            out[i] = res
+            if done is not None:
+                done(tasks[i], res)
+    finally:
+        executor.close()
+    return out
 
 
 def from_args(kind: str | None, jobs: int | None, address: str | None):

@@ -97,6 +97,8 @@ def default_command(path: Path, root: Path = ROOT) -> str:
         return f"python -m benchmarks audit --report {path}"
     if path.stem == "datadriven":
         return f"python -m benchmarks.studies.alanwar2022 --out {path}"
+    if path.stem == "speed":
+        return "python -m benchmarks speed"
     if path.stem == "scaling":
         return f"python -m benchmarks.studies.scaling --out {path} --results results/scaling"
     return report_command(config_of(path.stem, root), path)

@@ -30,6 +30,7 @@ from observers.registry import table_order  # noqa: E402
 from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .errors import ConfigError  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, environment, load_results  # noqa: E402
+from .metrics import timed_in_parallel  # noqa: E402
 from .paper import paper_rows  # noqa: E402
 from .report import (  # noqa: E402
     INTRO,
@@ -245,7 +246,8 @@ def time_figure(df: pd.DataFrame, scenario: str, meta: dict, base: Path) -> list
                        for o in pairs.index], float)
     y = np.arange(len(pairs))
     fig, ax = plt.subplots(figsize=(6, 1.2 + 0.2 * len(pairs)))
-    ax.barh(y - 0.2, ours, height=0.4, label="ours (median step, this machine)")
+    ax.barh(y - 0.2, ours, height=0.4, label="ours (median step, this machine"
+            + (", jobs in parallel)" if timed_in_parallel(df) else ")"))
     if np.isfinite(theirs).any():
         ax.barh(y + 0.2, theirs, height=0.4, label="paper (MATLAB)")
     ax.set_xscale("log")

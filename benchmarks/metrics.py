@@ -43,3 +43,9 @@ def add_relative_rms(summary: pd.DataFrame) -> pd.DataFrame:
     out = summary.copy()
     out["rel_rms"] = np.where(out["status"] == "ok", out["rms_radius"] / best, np.nan)
     return out
+
+
+def timed_in_parallel(summary: pd.DataFrame) -> bool:
+    """Whether the times of ``summary`` were measured while other jobs ran concurrently
+    (``run --jobs``/``--executor dask``: column ``timed`` is ``parallel``)."""
+    return "timed" in summary.columns and bool((summary["timed"] == "parallel").any())

@@ -18,6 +18,7 @@ from observers.registry import table_order  # noqa: E402
 from . import freshness  # noqa: E402
 from .aggregate import is_sweep, sweep_tables  # noqa: E402
 from .io import atomic_savefig, atomic_write_text, load_results  # noqa: E402
+from .metrics import timed_in_parallel  # noqa: E402
 from .paper import paper_rows, paper_status  # noqa: E402
 from .verdicts import NA, NO, contained_column, reference_rows, violating  # noqa: E402
 
@@ -34,7 +35,9 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "`contained (hull only)`: in every interval hull), `no` with the number of "
          "violating steps, `n/a` where it was not checked (no true state in the record). "
          "A row marked (unsound) violates containment and is never the reference of a "
-         "ratio.")
+         "ratio. `(n/a)` after the average and the time: the observer is not part of the "
+         "published comparison (the paper has no row for it, e.g. ROPO, CZN, the data-driven "
+         "observers), so there is no published value to deviate from.")
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -110,8 +113,10 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     show = list(range(n)) if n <= 8 else []
     contained = "contained" if _contained_col(df) == contained_column("exact") else (
         "contained (hull only)")
-    head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show] + ["avg", "step ms", "hull ms",
-            "design s", contained])
+    # times of jobs that ran concurrently (``run --jobs``) are marked in the header itself
+    par = " (parallel)" if timed_in_parallel(df) else ""
+    head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show]
+            + ["avg", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained])
     rows = []
     df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"],
                    _bad=violating(df))
@@ -124,8 +129,12 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
             cells.append(_pair(rel[i], p.v[i] if p and p.v else None))
         avg = float(np.mean(rel)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
-        cells.append(_pair(avg, p.avg if p else None) if not pstat else f"{_fmt(avg)} ({pstat})")
-        cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
+        if paper and p is None and not pstat:  # not part of the published comparison
+            cells += [f"{_fmt(avg)} ({NA})", f"{_fmt(g['step_ms'].iloc[0])} ({NA})"]
+        else:
+            cells.append(_pair(avg, p.avg if p else None) if not pstat
+                         else f"{_fmt(avg)} ({pstat})")
+            cells.append(_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
         cells += [_fmt(g["hull_ms"].iloc[0]), _fmt(g["design_s"].iloc[0]), _status_cell(g)]
         rows.append(cells)
     return head, rows
@@ -207,11 +216,12 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     fig_dir = out.parent / (out.stem + "_figures")
     title = meta.get("config", {}).get("title", results_dir.name)
     parts = [f"# {title}", "", INTRO, ""]
-    if "timed" in summary.columns and (summary["timed"] == "parallel").any():
+    if timed_in_parallel(summary):
         ex = meta.get("executor", {})
-        parts += [f"Times were measured while {ex.get('workers', 'several')} jobs ran "
-                  f"concurrently ({ex.get('name', 'parallel')} executor): indicative only; a "
-                  "serial run gives the comparable per-step times.", ""]
+        parts += [f"Times marked *(parallel)* were measured while {ex.get('workers', 'several')}"
+                  f" jobs ran concurrently ({ex.get('name', 'parallel')} executor): indicative "
+                  "only; a serial run (`run` without `--jobs`) gives the comparable per-step "
+                  "times, and `reports/speed.md` is always timed serially.", ""]
     if is_sweep(summary):  # aggregated over the seeds, one row per observer and variant
         parts += ["Sweep: relative RMS radius (mean over the states of eq. 9, against the "
                   "best observer of the same seed) over the seeds: mean, standard deviation, "

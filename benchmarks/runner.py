@@ -272,8 +272,17 @@ class Job:
 _SCENARIOS: dict[str, Scenario] = {}
 
 
+def scenario_key(job: Job) -> str:
+    """The scenario instance of ``job`` (its config entry, seed included, and base folder)."""
+    return _key(job.spec, job.base)
+
+
+def _key(spec: dict, base: str | None) -> str:
+    return json.dumps([spec, base], sort_keys=True, default=str)
+
+
 def _scenario(job: Job) -> Scenario:
-    key = json.dumps([job.spec, job.base], sort_keys=True, default=str)
+    key = scenario_key(job)
     if key not in _SCENARIOS:
         _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
     return _SCENARIOS[key]
@@ -284,8 +293,7 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
     base = str(cfg.base) if cfg.base is not None else None
     jobs = []
     for inst in cfg.instances:
-        key = json.dumps([inst.spec, base], sort_keys=True, default=str)
-        _SCENARIOS[key] = inst.scenario  # this process needs not rebuild it
+        _SCENARIOS[_key(inst.spec, base)] = inst.scenario  # this process needs not rebuild it
         for name in cfg.observers:
             obs = cfg.observer_of(name)  # a labelled variant runs its observer
             per = cfg.labelled[name][1] if name in cfg.labelled else cfg.observer_options.get(
@@ -367,7 +375,8 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     jobs = make_jobs(cfg)
     frames: list = [None] * len(jobs)
     with progress_bar(len(jobs), cfg.name, progress) as bar:
-        for i, outcome in executor.map(execute_job, jobs):
+        # the jobs of one scenario instance go to a worker together (built once there)
+        for i, outcome in executor.map(execute_job, jobs, keys=[scenario_key(j) for j in jobs]):
             if isinstance(outcome, JobFailure):
                 outcome = failed_job(jobs[i], outcome)
             frames[i] = outcome

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from . import freshness
 from .errors import ConfigError
 from .io import atomic_write_json, atomic_write_text, environment
 from .paper import paper_rows
@@ -200,11 +201,16 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
 def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
                        cases: tuple[Case, ...] = CASES, progress: bool = True) -> Path:
     """Measure :data:`CASES`, compare with ``json_path`` (the previous measurement), write the
-    Markdown report ``out`` and overwrite ``json_path`` with this measurement."""
+    Markdown report ``out`` (with the freshness stamp of :mod:`benchmarks.freshness`, as every
+    report) and overwrite ``json_path`` with this measurement."""
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
     env = environment()
-    atomic_write_text(out, render(results, previous, previous_git, env))
+    command = "python -m benchmarks speed"
+    if Path(out) != DEFAULT_REPORT or Path(json_path) != DEFAULT_JSON:
+        command += f" --out {out} --json {json_path}"
+    text = render(results, previous, previous_git, env) + "\n" + freshness.stamp(command) + "\n"
+    atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]
     atomic_write_json(json_path, {"environment": env, "results": clean})

@@ -49,8 +49,15 @@ import numpy as np
 from .base import Observer
 from .errors import ObserverError, Unsupported
 from .options import Choice, reduction_method, zonotope_order
-from .prediction import prediction_for
+from .prediction import LinearPrediction, prediction_for
 from .sets import Interval, Zonotope, get_reduction
+from .sets import _jit as _switch
+from .sets import _step_jit as _kernels
+from .sets.reduction import CLUSTER_RTOL, PIVOT_RTOL, kernel_method
+
+#: the gain argument of the compiled kernels' online-gain modes (which compute their own)
+NO_GAIN = np.zeros((0, 0))
+NO_GAIN.setflags(write=False)
 
 
 # -- one-step formulas (pure functions on centre/generator arrays) --------------------
@@ -186,7 +193,52 @@ class ZonotopeObserver(LinearModelObserver):
         Vi = self.V.interval()
         self.sigma = np.maximum(np.abs(Vi.lo), np.abs(Vi.hi))  # strip half-widths
         self.order = float(self.options["order"])
-        self._reduce = get_reduction(self.options["reduction"]).reduce
+        strategy = get_reduction(self.options["reduction"])
+        self._reduce = strategy.reduce
+        # the compiled one-step kernels (:mod:`observers.sets._step_jit`) serve linear systems
+        # with a built-in reduction; None: always the numpy path
+        method = kernel_method(strategy)
+        self._kernel_method = (method if isinstance(self.prediction, LinearPrediction)
+                               and self.order >= 1 else None)
+
+    def compiled_gain(self) -> tuple[int, np.ndarray] | None:
+        """The gain mode of the compiled kernel (:mod:`observers.sets._step_jit`) and its gain
+        matrix (ignored by the online-gain modes), or ``None`` (default): the numpy path.
+        A subclass returns a mode only where the kernel computes exactly its formula."""
+        return None
+
+    def reset(self) -> None:
+        super().reset()
+        self._kernel_args: tuple | None = None  # built at the first compiled step of a run
+
+    def _kernel(self) -> tuple | None:
+        """The static arguments of the compiled kernels if they may run this step, else
+        ``None``: ``(mode, L, A, B, c_W, E, C, sigma, F, c_V)``, read-only C-contiguous float
+        copies made once per run, so that the kernels see one argument type per position and
+        numba compiles them once (a read-only array is a different type from a writable one)."""
+        if self._kernel_method is None or not _switch.use_compiled():
+            return None
+        if self._kernel_args is None:
+            spec = self.compiled_gain()
+            if spec is None:
+                self._kernel_method = None
+                return None
+            mode, L = spec
+            self._kernel_args = (mode, *(_frozen_c(a) for a in (
+                L, self.A, self.B, self.W.c, self.E, self.C, self.sigma, self.F, self.V.c)))
+        return self._kernel_args
+
+
+def _frozen_c(a: np.ndarray) -> np.ndarray:
+    """A read-only C-contiguous float64 copy of ``a``."""
+    out = np.array(a, dtype=np.float64, order="C", copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _kernel_vector(v: np.ndarray) -> np.ndarray:
+    """``v`` as a fresh writable C-contiguous float64 vector (the kernels' dynamic vectors)."""
+    return np.array(v, dtype=np.float64, copy=True)
 
 
 class StripBasedObserver(ZonotopeObserver):
@@ -196,6 +248,30 @@ class StripBasedObserver(ZonotopeObserver):
         super().reset()
         self._c: np.ndarray | None = None
         self._G: np.ndarray | None = None
+
+    #: whether the WANG gain mode applies ``A`` once more (FRad-B's ``variant: cora``)
+    _wang_cora = True
+
+    def _compiled_step(self, u: np.ndarray, y: np.ndarray):
+        """The step by :func:`observers.sets._step_jit.strip_step`, or ``None`` (the numpy
+        path runs: no kernel for this observer, or the kernel declined the step)."""
+        args = self._kernel()
+        if args is None:
+            return None
+        mode, L, A, B, cW, E, C, sigma, F, _ = args
+        try:
+            if mode == _kernels.BRAVO:  # L: the null-space bases of the rows of C
+                c, G, ok = _kernels.bravo_step(
+                    self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L,
+                    _kernels.BRAVO_ZERO_PROJECTION, self.order, self._kernel_method,
+                    CLUSTER_RTOL, PIVOT_RTOL)
+                return (c, G) if ok else None
+            c, G, ok = _kernels.strip_step(
+                self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L, F, mode,
+                self._wang_cora, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
+        except np.linalg.LinAlgError:
+            return None
+        return (c, G) if ok else None
 
     @abstractmethod
     def intersect(self, c: np.ndarray, G: np.ndarray, y: np.ndarray):
@@ -207,6 +283,11 @@ class StripBasedObserver(ZonotopeObserver):
             c, G = self.intersect(self.X0.c, self.X0.G, y)
         else:
             u = self._input(u_prev)
+            out = self._compiled_step(u, y)
+            if out is not None:
+                self._c, self._G = out
+                self.k += 1
+                return Zonotope._trusted(*out)
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
             r, re = self._G.shape[1], self.E.shape[1]
@@ -260,12 +341,31 @@ class PropagationObserver(ZonotopeObserver):
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         """Observer gain L (n x m) for the current set ``(c, G)``."""
 
+    def _compiled_step(self, u: np.ndarray):
+        """The step by :func:`observers.sets._step_jit.propagate_step`, or ``None``."""
+        args = self._kernel()
+        if args is None:
+            return None
+        mode, L, A, B, cW, E, C, _, F, cV = args
+        try:
+            c, G, ok = _kernels.propagate_step(
+                self._c, self._G, A, B @ u, C, L, F, _kernel_vector(self._y_prev), cV, cW, E,
+                mode, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
+        except np.linalg.LinAlgError:
+            return None
+        return (c, G) if ok else None
+
     def step(self, u_prev, y) -> Zonotope:
         y = self._measurement(y)
         if self._c is None:  # first set: X0 itself (as CORA)
             c, G = self.X0.c, self.X0.G
         else:
             u = self._input(u_prev)
+            out = self._compiled_step(u)
+            if out is not None:
+                self._c, self._G, self._y_prev = out[0], out[1], y
+                self.k += 1
+                return Zonotope._trusted(*out)
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(
@@ -285,6 +385,9 @@ class ConstantGainPropagationObserver(PropagationObserver):
 
     def gain(self, c, G) -> np.ndarray:
         return self.L
+
+    def compiled_gain(self):
+        return _kernels.GIVEN, self.L
 
 
 # -- interval observer ----------------------------------------------------------------------

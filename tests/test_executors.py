@@ -11,10 +11,17 @@ import pandas as pd
 import pytest
 import yaml
 
-from benchmarks import load_config
+from benchmarks import load_config, write_report
 from benchmarks.cli import main
 from benchmarks.errors import ConfigError
-from benchmarks.executors import JobFailure, ProcessExecutor, SerialExecutor, from_args
+from benchmarks.executors import (
+    JobFailure,
+    ProcessExecutor,
+    SerialExecutor,
+    chunks,
+    from_args,
+    run_tasks,
+)
 from benchmarks.verdicts import EXIT_CRASH
 from observers import registry
 from observers.offline import cached_design
@@ -69,6 +76,10 @@ def test_serial_jobs2_and_dask_give_the_identical_summary(tmp_path):
             for d in ("serial", "jobs2", "dask")]
     pd.testing.assert_frame_equal(runs[0], runs[1])
     pd.testing.assert_frame_equal(runs[0], runs[2])
+    # the reports say which times were measured with jobs running concurrently
+    texts = {d: write_report(tmp_path / d, figures=False).read_text() for d in ("serial", "jobs2")}
+    assert "step ms (parallel)" in texts["jobs2"] and "measured while 2 jobs ran" in texts["jobs2"]
+    assert "(parallel)" not in texts["serial"] and "| step ms |" in texts["serial"]
 
 
 @pytest.fixture
@@ -192,3 +203,78 @@ def test_bad_option_value_in_a_worker_ends_the_run_without_results(tmp_path, cap
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "order" in err
     assert not (out / "summary.csv").exists() and not (out / "runs.csv").exists()
+
+
+# -- chunks of jobs per worker -------------------------------------------------------------
+def test_chunks_follow_the_keys_and_are_capped():
+    # 16 jobs, 2 workers: at most ceil(16 / 8) = 2 per chunk, never across a key change
+    keys = ["a"] * 5 + ["b"] * 3 + ["c"] * 8
+    assert chunks(keys, 16, 2) == [[0, 1], [2, 3], [4], [5, 6], [7], [8, 9], [10, 11],
+                                   [12, 13], [14, 15]]
+    assert chunks(None, 3, 2) == [[0], [1], [2]]  # no keys: one job each
+    assert chunks(["a"] * 3, 3, 8) == [[0], [1], [2]]
+
+
+def _die_on(x):
+    if x == "die":
+        import os
+
+        os._exit(3)
+    return x
+
+
+def test_a_worker_that_dies_mid_chunk_fails_only_its_job():
+    # one worker, 12 jobs with one key: chunks of 3; the worker dies at the chunk's 2nd job
+    jobs = ["a", "die", "b"] + [f"x{i}" for i in range(9)]
+    ex = ProcessExecutor(1)
+    try:
+        out = dict(ex.map(_die_on, jobs, keys=["k"] * len(jobs)))
+    finally:
+        ex.close()
+    assert out.pop(1) == JobFailure("error",
+                                    "worker process died while running this job (exit code 3)")
+    assert out == {i: j for i, j in enumerate(jobs) if i != 1}  # the rest of its chunk too
+
+
+def test_a_job_over_its_budget_mid_chunk_fails_only_itself():
+    ex = ProcessExecutor(1, timeout=1.0)
+    try:
+        out = dict(ex.map(_sleepy, [60.0] + [0.0] * 7, keys=["k"] * 8))  # chunks of 2
+    finally:
+        ex.close()
+    assert out.pop(0) == JobFailure("timeout", "stopped after the budget of 1 s")
+    assert out == {i: 0.0 for i in range(1, 8)}
+
+
+def test_run_tasks_keeps_the_task_order_and_raises_on_a_failed_task():
+    seen = []
+    assert run_tasks(_sleepy, [0.3, 0.0, 0.1], 2, lambda t, r: seen.append(t)) == [0.3, 0.0, 0.1]
+    assert sorted(seen) == [0.0, 0.1, 0.3]
+    with pytest.raises(RuntimeError, match=r"task 5 failed: ValueError: bad 5"):
+        run_tasks(_raises, [5], 1)
+    with pytest.raises(RuntimeError, match=r"task 'die' failed: worker process died"):
+        run_tasks(_die_on, ["a", "die"], 2)
+
+
+def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
+    """What the local workers are forked from: every observer plugin imported, and (numba
+    installed) the compiled simplex and one-step kernels loaded, so no worker pays for them
+    per job."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import benchmarks.workerinit; "
+            "from observers.sets import _dual_simplex_jit as j, _step_jit as s; "
+            "print('observers.builtin.czn' in sys.modules, 'highspy' in sys.modules, "
+            "not j.AVAILABLE or len(j.iterate.signatures) > 0, "
+            "all(k is None or len(k.signatures) > 0 "
+            "for k in (s.strip_step, s.propagate_step, s.bravo_step)))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert res.stdout.split() == ["True", "True", "True", "True"]
+    from benchmarks.executors import _context
+
+    if _context().get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        assert "benchmarks.workerinit" in forkserver._forkserver._preload_modules

@@ -14,7 +14,7 @@ import re
 import numpy as np
 import pytest
 
-from benchmarks import speed
+from benchmarks import freshness, speed
 from benchmarks.cli import main
 from benchmarks.timing import first_steps
 from observers.families import strip_update
@@ -134,6 +134,13 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
         assert prad["value"] is None
         assert rows["FRad-A, 2-D vehicle/PRad-A"][3].strip() == prad["status"]
     assert "`make bench` from a cold design cache" in text
+    # the report carries the freshness stamp of its command, fresh for the current tree
+    stamp = text.splitlines()[-1]
+    assert stamp.startswith("<!-- freshness: sha256=") and "command=python -m benchmarks " \
+        "speed --out " in stamp
+    assert freshness.stale_reports(tmp_path) == []
+    out.write_text(text.replace(freshness.content_hash(None), "0" * 64))
+    assert [s.report for s in freshness.stale_reports(tmp_path)] == [out]
 
 
 def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkeypatch, capsys):

@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..families import AllStripsObserver, Linearised, PerStripObserver, PropagationObserver
+from ..families import (
+    NO_GAIN,
+    AllStripsObserver,
+    Linearised,
+    PerStripObserver,
+    PropagationObserver,
+)
 from ..numerics.frad import alamo_frad_gain, alamo_frad_strips, combastel_gain, wang_frad_gain
 from ..options import Choice
 from ..registry import register
+from ..sets import _step_jit as kernels
 
 
 @register(
@@ -24,6 +31,9 @@ class FRadA(Linearised, PerStripObserver):
         """All strips at once on ``G G'`` (:func:`alamo_frad_strips`; the same set as the
         strip-by-strip loop of :class:`PerStripObserver` with :meth:`strip_gain`)."""
         return alamo_frad_strips(c, G, self.C, y, self.sigma)
+
+    def compiled_gain(self):
+        return kernels.ALAMO, NO_GAIN
 
 
 class WangGainVariant:
@@ -62,6 +72,10 @@ class FRadB(Linearised, WangGainVariant, AllStripsObserver):
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.wang_gain(c, G)
 
+    def compiled_gain(self):
+        self._wang_cora = self.options["variant"] == "cora"
+        return kernels.WANG, NO_GAIN
+
 
 @register(
     "FRad-C", family="propagation", set_type="zonotope", ready_for_control=True,
@@ -72,3 +86,6 @@ class FRadC(Linearised, PropagationObserver):
 
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return combastel_gain(G @ G.T, self.A, self.C, self.F)
+
+    def compiled_gain(self):
+        return kernels.COMBASTEL, NO_GAIN

@@ -97,6 +97,7 @@ from ..numerics.prad import (
 from ..offline import OfflineGain
 from ..options import Choice, Number
 from ..registry import register
+from ..sets import _step_jit as kernels
 
 
 def cora_epsilon(W, sigma: np.ndarray) -> float:
@@ -138,12 +139,18 @@ class PRadA(_BetaTol, OfflineGain, PerStripObserver):
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
         return self.L[:, i]
 
+    def compiled_gain(self):
+        return kernels.PER_STRIP, self.L
+
 
 class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     """Method II with the offline gain."""
 
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.L
+
+    def compiled_gain(self):
+        return kernels.GIVEN, self.L
 
 
 class _Centre:

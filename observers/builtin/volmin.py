@@ -31,6 +31,7 @@ from ..families import Linearised, PerStripObserver, StripBasedObserver
 from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
 from ..options import Integer
 from ..registry import register
+from ..sets import _step_jit as kernels
 
 
 def _scientific(count: int) -> str:
@@ -83,6 +84,9 @@ class VolMinB(Linearised, StripBasedObserver):
     def design(self) -> None:
         super().design()
         self._bases = [null_basis(row) for row in self.C]
+
+    def compiled_gain(self):
+        return kernels.BRAVO, np.stack(self._bases)
 
     def intersect(self, c, G, y):
         for i, row in enumerate(self.C):

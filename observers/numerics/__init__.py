@@ -12,6 +12,7 @@ module             contents
 ``luenberger``     Luenberger gain designs of PRad-E, Nom-G and Hinf-G
 ``ellipsoidal``    ESO-A/B bounding-ellipsoid updates, ESO-C/D invariant-set designs
 ``datadriven``     reachability from data (Alanwar, Berndt et al. 2022)
+``ropo``           least-volume parallelotope updates of ROPO (Vicino & Zappa 1996)
 ``lmi``            the LMI toolbox shared by every offline design
 =================  ===================================================================
 

@@ -17,19 +17,9 @@ process after a change pays the compilation (a few seconds).
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-try:
-    if os.environ.get("SETOBS_NUMBA", "1").strip().lower() in ("0", "off", "false", "no"):
-        raise ImportError("disabled by SETOBS_NUMBA")
-    import numba
-except ImportError:  # pragma: no cover - depends on the installation
-    numba = None
-
-#: whether the compiled kernel is used (numba installed and not disabled by SETOBS_NUMBA=0)
-AVAILABLE = numba is not None
+from ._jit import AVAILABLE, numba
 
 #: status codes of a problem after :func:`iterate`
 RUNNING, OPTIMAL, UNBOUNDED, PAUSED, BUDGET = 0, 1, 2, 3, 4

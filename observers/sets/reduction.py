@@ -45,6 +45,8 @@ from typing import Protocol
 
 import numpy as np
 
+from . import _jit as _switch
+from . import _step_jit as _jit
 from .errors import SetError
 
 
@@ -106,6 +108,24 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
 
 
+def use_compiled() -> bool:
+    """Whether the built-in reductions run the compiled kernel :func:`._step_jit.reduce`
+    (:func:`._jit.use_compiled`: numba installed and not disabled by ``SETOBS_NUMBA=0``)."""
+    return _switch.use_compiled()
+
+
+def _compiled(G: np.ndarray, order: float, method: int) -> np.ndarray | None:
+    """The compiled reduction of ``G`` (a float matrix), or ``None`` where the numpy path must
+    decide (numba off, or a non-finite entry)."""
+    if not _switch.use_compiled():
+        return None
+    check_order(order)
+    if G.dtype != np.float64 or G.ndim != 2:
+        return None
+    out, ok = _jit.reduce(G, float(order), method, CLUSTER_RTOL, PIVOT_RTOL, 0)
+    return out if ok else None
+
+
 def check_order(order: float) -> None:
     """Reject orders below 1 (a zonotope in R^n needs at least n generators to be reduced to)."""
     if not isinstance(order, (int, float, np.integer, np.floating)) or not math.isfinite(order):
@@ -120,6 +140,9 @@ class Girard:
     name = "girard"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
+        out = _compiled(G, order, _jit.GIRARD)
+        if out is not None:
+            return out
         keep, red, abs_red = _split(G, order)
         if abs_red is None:
             return keep
@@ -172,6 +195,9 @@ class PCA:
     name = "pca"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
+        out = _compiled(G, order, _jit.PCA)
+        if out is not None:
+            return out
         keep, red, abs_red = _split(G, order)
         if abs_red is None:
             return keep
@@ -202,6 +228,12 @@ def get_reduction(method: str | Reduction) -> Reduction:
     if not hasattr(method, "reduce"):
         raise SetError(f"reduction method must be a name or have .reduce(G, order), got {method!r}")
     return method
+
+
+def kernel_method(strategy: Reduction) -> int | None:
+    """The method id of the compiled kernel computing ``strategy`` (the built-in
+    :class:`Girard` and :class:`PCA`), ``None`` for any other strategy."""
+    return {Girard: _jit.GIRARD, PCA: _jit.PCA}.get(type(strategy))
 
 
 def reduction_names() -> list[str]:

@@ -1,0 +1,42 @@
+"""Preloaded by the server process from which local workers are forked
+(:func:`benchmarks.executors._context`), so that every worker starts with what the jobs need.
+
+Importing this module imports the harness (:mod:`benchmarks.runner`), every observer plugin
+(with what they import: HiGHS, scipy.stats, numba, ...) and loads the compiled (numba) simplex
+kernel from its disk cache by solving one tiny hull LP, and the compiled one-step kernels
+(:mod:`observers.sets._step_jit`) by two steps of one observer of each kernel mode on the
+2-state example.  A worker forked from that server
+then pays none of it: without this, each worker spent about 2.5 s of CPU importing the
+plugins and loading the kernel at its first job (measured on the 3 x 22 x 20 sweep).
+Nothing here changes a result: the same modules are imported, only earlier.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import benchmarks.runner  # noqa: F401  (the harness itself)
+import observers
+import systems
+from observers.sets import ConZonotope
+
+#: one observer per compiled step-kernel mode (strip gains, FRad-A's loop, propagation,
+#: VolMin-B's candidates), run for two steps by :func:`warm`
+KERNEL_OBSERVERS = ("PRad-B", "FRad-A", "FRad-B", "Nom-G", "FRad-C", "VolMin-B")
+
+
+def warm() -> None:
+    """Import every observer plugin and load the compiled LP kernel (errors are ignored:
+    a worker then simply pays them at its first job, as without the preload)."""
+    try:
+        observers.names()
+        ConZonotope(np.zeros(2), np.array([[1.0, 0.5, 0.2], [0.0, 1.0, 0.3]]),
+                    np.array([[1.0, 1.0, 1.0]]), np.array([0.5])).interval()
+        sc = systems.scenario("alamo2d")
+        for name in KERNEL_OBSERVERS:
+            observers.run(observers.create(name, sc.system, **sc.options), sc.u[:2], sc.y[:2])
+    except Exception:  # pragma: no cover - a broken plugin is reported by the run itself
+        pass
+
+
+warm()
