@@ -331,7 +331,7 @@ def test_centre_start_refuses_a_mode_too_slow_to_correct():
 def test_c1_objective_at_cora_rate_comes_close_to_the_automatica_c1_row():
     # Automatica 2021 Table 3 (vehicle, 6 states): the published PRad-C-I radii, as absolute
     # values v * smallest radius, average 3.89 x; the C-I objective at CORA's final beta gives
-    # the row's pattern on x1 and x5 and its average within 25 % (measured 3.36); the centre
+    # the row's pattern on x1 and x5 and its average within 25 %; the centre
     # (default; it reproduces the ARCH tank row instead) stays far below (1.6)
     tab = paper_table("automatica2021_table3_vehicle6")
     smallest = np.array(tab["smallest_absolute_radii"])
