@@ -149,7 +149,7 @@ class LinearModelObserver(Observer):
         self.prediction = prediction_for(
             s, get_reduction(self.options.get("reduction", "girard")),
             self.LINEARISATION, self.options.get("remainder", "box"))
-        if getattr(s, "is_linear", True):
+        if linear:
             self.A = np.asarray(s.A, dtype=float)
             self.B = np.asarray(s.B, dtype=float)
         else:  # until the first linearisation: the Jacobian at the centre of X0
@@ -228,6 +228,13 @@ class ZonotopeObserver(LinearModelObserver):
                 L, self.A, self.B, self.W.c, self.E, self.C, self.sigma, self.F, self.V.c)))
         return self._kernel_args
 
+    def _advance(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
+        """Keep ``(c, G)`` as the current set, count the step and return the set (the end of
+        every step, by the compiled kernel or the numpy path)."""
+        self._c, self._G = c, G
+        self.k += 1
+        return Zonotope._trusted(c, G)
+
 
 def _frozen_c(a: np.ndarray) -> np.ndarray:
     """A read-only C-contiguous float64 copy of ``a``."""
@@ -285,9 +292,7 @@ class StripBasedObserver(ZonotopeObserver):
             u = self._input(u_prev)
             out = self._compiled_step(u, y)
             if out is not None:
-                self._c, self._G = out
-                self.k += 1
-                return Zonotope._trusted(*out)
+                return self._advance(*out)
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
             r, re = self._G.shape[1], self.E.shape[1]
@@ -298,9 +303,7 @@ class StripBasedObserver(ZonotopeObserver):
             G[:, r + re :] = R
             c, G = self.intersect(c, G, y)
             G = self._reduce(G, self.order)
-        self._c, self._G = c, G
-        self.k += 1
-        return Zonotope._trusted(c, G)
+        return self._advance(c, G)
 
 
 class PerStripObserver(StripBasedObserver):
@@ -363,9 +366,8 @@ class PropagationObserver(ZonotopeObserver):
             u = self._input(u_prev)
             out = self._compiled_step(u)
             if out is not None:
-                self._c, self._G, self._y_prev = out[0], out[1], y
-                self.k += 1
-                return Zonotope._trusted(*out)
+                self._y_prev = y
+                return self._advance(*out)
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(
@@ -373,9 +375,8 @@ class PropagationObserver(ZonotopeObserver):
                 (self.V.c, self.F), (self.W.c, self.E), R,
             )
             G = self._reduce(G, self.order)
-        self._c, self._G, self._y_prev = c, G, y
-        self.k += 1
-        return Zonotope._trusted(c, G)
+        self._y_prev = y
+        return self._advance(c, G)
 
 
 class ConstantGainPropagationObserver(PropagationObserver):

@@ -344,3 +344,20 @@ def test_c1_objective_at_cora_rate_comes_close_to_the_automatica_c1_row():
     centre = observers.create("PRad-C-I", sc.system, **sc.options)
     assert (rms_radius(observers.run(centre, sc.u, sc.y).radius) / smallest).mean() < (
         0.6 * v.mean())
+
+
+def test_max_gamma_at_coras_alpha_meets_the_automatica_d_average():
+    # Automatica 2021 Table 3 (vehicle, 6 states), PRad-D row: average of v 2.32.  CORA's
+    # PRad-D parameters (alpha = beta = 0.5) with the largest gamma, P >= gamma^2 I, meet the
+    # average within 25 % (the variant PRad-D[cora-alpha] of the vehicle table); the centre
+    # (default; it reproduces the ARCH tank row instead) stays below it by more than 25 %
+    tab = paper_table("automatica2021_table3_vehicle6")
+    smallest = np.array(tab["smallest_absolute_radii"])
+    published = np.array(tab["rows"]["PRad-D"]["v"])
+    sc = systems.scenario("vehicle6d-cora")
+    obs = observers.create("PRad-D", sc.system, design="max-gamma", alpha=0.5, **sc.options)
+    v = rms_radius(observers.run(obs, sc.u, sc.y).radius) / smallest
+    assert abs(v.mean() / published.mean() - 1) < 0.25
+    centre = observers.create("PRad-D", sc.system, **sc.options)
+    vc = rms_radius(observers.run(centre, sc.u, sc.y).radius) / smallest
+    assert vc.mean() < 0.75 * published.mean()

@@ -280,7 +280,12 @@ class PRadD(_Centre, _ConstantAllStrips):
         (:func:`~observers.numerics.prad.centre_gain`, a numpy Newton method; ``beta`` drops
         out); it reproduces the PRad-D row of ARCH 2021 Table 3.  ``max-gamma``: the largest
         ``P >= gamma^2 I`` (least certified radius bound,
-        :func:`~observers.numerics.prad.wang_d_gain`).
+        :func:`~observers.numerics.prad.wang_d_gain`); with CORA's ``alpha = 0.5`` (CORA's
+        own objective, ``SM2 <= 0``, is infeasible for every ``gamma``) it meets the average
+        of the Automatica PRad-D row of the 6-state vehicle (2.38 against 2.32; variant
+        ``PRad-D[cora-alpha]`` of that table) but not its pattern (x2 5.5 against 1.002, x6
+        2.0 against 6.5), and has no gain on the 6-tank system (no ``P > 0`` at that rate),
+        whose ARCH row the centre reproduces.
     alpha : float or None
         Decay weight in (0, 1); ``None`` (default): ``centre`` uses CORA's end-of-bisection
         rate 0.9921875, ``max-gamma`` a line search on the radius bound.
