@@ -15,6 +15,8 @@ import systems
 from observers.numerics.ropo import enclose, measurement_update, strip_cut, time_update
 from observers.sets import EmptySet, Zonotope
 
+from .conftest import paper_table
+
 
 def _vertices(c, T):
     """The 2^n vertices of the parallelotope (c, T) as a set of rounded tuples."""
@@ -243,3 +245,32 @@ def test_near_ties_keep_the_first_candidate():
     # the corner triangle above with a strip 1e-13 narrower: still the box (a near-tie)
     c, T = strip_cut(np.zeros(2), np.eye(2), np.array([1.0, 1.0]), 1.5 + 1e-13, 2.0)
     assert np.count_nonzero(T) == 2
+
+
+def test_min_volume_skips_ill_conditioned_axes():
+    # the zonotope with generators g1 = (1, 0), g2 = (1, 0.001) is itself a parallelotope:
+    # the generator axes enclose it exactly (volume |det G| * 4 = 0.004) but their
+    # column-normalised condition number is about 2 / 0.001 = 2000 > 100, so "min-volume"
+    # must take the principal or coordinate axes; the box is diag(|1|+|1|, 0.001) = diag(2,
+    # 0.001) (volume 4 * 0.002 = 0.008), the principal axes can only be as small or smaller
+    G = np.array([[1.0, 1.0], [0.0, 0.001]])
+    exact = enclose(G, "generators", G)
+    np.testing.assert_allclose(np.abs(np.linalg.det(exact)), 0.001, rtol=1e-9)
+    T = enclose(G, "min-volume", G)
+    Tn = T / np.linalg.norm(T, axis=0)
+    assert np.linalg.cond(Tn) <= 100
+    assert np.abs(np.linalg.det(T)) <= 0.002 * (1 + 1e-9)
+    corners = np.array([s1 * G[:, 0] + s2 * G[:, 1] for s1 in (-1, 1) for s2 in (-1, 1)])
+    assert _inside(np.zeros(2), T, corners)
+
+
+def test_ropo_tank6_radii_stay_near_the_published_smallest():
+    # bug: least volume alone kept parallelotopes of condition 1e10 on the 6-tank record and
+    # the unmeasured x6 reached an RMS radius of 1e7; with the conditioning bound of
+    # "min-volume" every state stays within 2x the smallest RMS radius of ARCH 2021 Table 3
+    # (0.3596, 0.2036, 1.940, 0.2019, 0.2004, 2.737)
+    smallest = np.array(paper_table("arch2021_table3_tank6_linear")["smallest_absolute_radii"])
+    sc = systems.scenario("tank6-linear")
+    res = observers.run(observers.create("ROPO", sc.system), sc.u, sc.y)
+    rms = np.sqrt(np.mean(res.radius**2, axis=0))
+    assert np.all(rms < 2 * smallest), rms / smallest
