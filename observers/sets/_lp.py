@@ -244,9 +244,9 @@ class HullLP:
         return bounds
 
 
-#: most constraint rows for which the batched dual simplex is used (measured crossover, see
+#: most constraint rows for which the batched dual simplex is used (measured, see
 #: :func:`batched_is_cheaper`)
-BATCHED_MAX_ROWS = 32
+BATCHED_MAX_ROWS = 70
 
 
 def batched_is_cheaper(K: int, p: int) -> bool:
@@ -256,11 +256,15 @@ def batched_is_cheaper(K: int, p: int) -> bool:
     the batch pays off for many directions and few constraints (the 6-state vehicle: K = 12,
     p = 8), HiGHS for few directions and many constraints (CORA's unbounded constraints).
 
-    Above :data:`BATCHED_MAX_ROWS` rows HiGHS wins whatever K (measured on the CZN-A hulls of
-    the tank benchmarks, CPU time per interval hull, compiled kernel / numpy / HiGHS: 18 tanks,
-    p = 22, K = 36: 3 / 6 / 13 ms; 30 tanks, p = 42, K = 60: 57 / 274 / 55 ms; 100 tanks,
-    p = 160, K = 200: 6.3 s / 5.0 s / 0.2 s): the dense pivots of the batched solver grow as
-    p N per iteration, HiGHS's sparse ones do not.
+    Above :data:`BATCHED_MAX_ROWS` rows HiGHS wins whatever K: the dense pivots of the
+    batched solver grow as p N per iteration, HiGHS's sparse ones do not.  Measured on the
+    CZN hulls of the tank benchmarks (compiled kernel / HiGHS): 18 tanks, p = 22, K = 36: 3 /
+    13 ms per hull; 100 tanks, p = 160, K = 200: 6.3 s / 0.2 s.  HiGHS's warm starts degrade
+    on long records, so the bound was raised from 32 to 70 on whole runs of CZN-B: 30 tanks
+    (p = 42, K = 60, 261 steps) 40 s against 370 s of hulls in all (55 against 57 ms per hull
+    in the first steps, 0.18 against 1.9 s at the median: HiGHS's iterations per LP grow from
+    ~10 to ~200); 44 tanks (p = 66, 150 steps) 81 s against 678 s.  At 60 tanks (p = 92) the
+    first 40 steps took 14.8 against 12.8 s, so it stays with HiGHS.
     """
     return p <= BATCHED_MAX_ROWS and 2 * p * (70 + 8 * K) < K * (90 + 36 * p)
 
