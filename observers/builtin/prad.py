@@ -69,8 +69,9 @@ Known behaviour
   (the table's) another optimal point.  On the 2-D vehicle the optimum is unique.
 * **Default design of PRad-C-I/C-II/D (``design: centre``)**: the analytic centre of CORA's cone
   at its final rate 0.9921875 (:func:`~observers.numerics.prad.centre_gain`, a damped Newton
-  method in numpy).  It reproduces the published rows: 6-tank average 1.336 (ARCH 2021 Table 3:
-  PRad-C 1.326, PRad-D 1.298), absolute radii within 4 % of the published ones on every tank.
+  method in numpy).  It reproduces the published rows: 6-tank average 1.331 over the paper's
+  smallest radii, 1.342 over our run's (ARCH 2021 Table 3: PRad-C 1.326, PRad-D 1.298),
+  absolute radii within 4 % of the published ones on every tank.
   The three observers share this gain (CORA has one PRad-C; the noise weights that distinguish
   CORA's PRad-D drop out of the centre).  The certified-bound designs (``radius-bound``,
   ``ellipsoid-trace``, ``max-gamma``) minimise one P-radius bound, which the unmeasured last
@@ -217,7 +218,7 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
         ``centre`` (default): the analytic centre of CORA's PRad-C cone at its final
         ``beta = 0.9921875``, normalised by ``tr P = 1``
         (:func:`~observers.numerics.prad.centre_gain`, a numpy Newton method); it reproduces
-        the PRad-C rows of ARCH 2021 Table 3 (6-tank average 1.336 against 1.327) and the
+        the PRad-C rows of ARCH 2021 Table 3 (6-tank average 1.342 against 1.326) and the
         Automatica PRad-C-II row within 22 %.  ``radius-bound``: the gain of least certified
         asymptotic radius bound with ``P >= I`` (Wang, Puig, Cembrano's weights) and a line
         search on ``beta`` (:func:`~observers.numerics.prad.wang_c1_gain`, 17-22 SDP
