@@ -22,6 +22,11 @@ help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
 	@echo
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | awk -F'\t' '{printf "  make %-12s %s\n", $$1, $$2}'
+	@echo
+	@echo "code: observers/ (sets, family loops, plugins builtin/X.py + numerics/X.py), systems/ (models,"
+	@echo "scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner -> executors),"
+	@echo "report/ (tables, markdown, html, figures, numbers), gate/ (regression, kernels, policy, audit,"
+	@echo "history), timing/ (steps, speed), studies/ (scaling, alanwar2022); cli.py parses and prints"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'

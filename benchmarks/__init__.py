@@ -8,7 +8,7 @@ The thread counts are the one setting of the environment made here, and only by 
 value the user set is kept): they are a measurement protocol of the harness, and BLAS reads
 them once, when it is loaded, so they cannot wait for the command line.  The BLAS kernel
 family (``OPENBLAS_CORETYPE``) is left to OpenBLAS and the user: the numbers of the
-regression gate do not depend on it (see :mod:`benchmarks.regression`).
+regression gate do not depend on it (see :mod:`benchmarks.gate.regression`).
 """
 
 import os
@@ -16,11 +16,11 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-from .config import BenchConfig, load_config, parse_config  # noqa: E402
 from .errors import ConfigError  # noqa: E402
 from .metrics import add_relative_rms, rms_radius  # noqa: E402
-from .report import write_report  # noqa: E402
-from .runner import run_config  # noqa: E402
+from .report.markdown import write_report  # noqa: E402
+from .run.config import BenchConfig, load_config, parse_config  # noqa: E402
+from .run.runner import run_config  # noqa: E402
 
 __all__ = [
     "BenchConfig",

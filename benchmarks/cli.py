@@ -16,29 +16,20 @@ from importlib import metadata
 from pathlib import Path
 
 import observers
-from observers.errors import ObserverError
-from observers.sets import SetError
-from systems import ModelError, scenario_names
+from systems import scenario_names
 
-from . import audit, designs, executors, freshness, history, regression, speed, timing, verdicts
-from .config import BenchConfig, load_config, parse_config
-from .errors import ConfigError
-from .html import write_html, write_index
-from .io import atomic_write_csv, atomic_write_json, blas_corename, check_output_dir
-from .report import write_report
-from .runner import run_config
-
-USER_ERRORS = (ConfigError, ModelError, ObserverError, SetError)
-
-
-def _inline_config(args) -> BenchConfig:
-    """The configuration of a run given on the command line (``--observer``, ``--scenario``)."""
-    if not args.scenario:
-        raise ConfigError("run: give a YAML config or at least one --scenario")
-    raw = {"name": args.name or "cli", "title": "Command-line run: " + ", ".join(args.scenario),
-           "scenarios": list(args.scenario),
-           "observers": list(args.observer) if args.observer else "all"}
-    return parse_config(raw, raw["name"])
+from . import verdicts
+from .errors import USER_ERRORS, ConfigError
+from .gate import audit, history, kernels, policy, regression
+from .io import atomic_write_json, check_output_dir
+from .report.html import write_html, write_index
+from .report.markdown import write_report
+from .report.tables import design_times_table
+from .run import designs, executors
+from .run.config import inline_config, load_config
+from .run.runner import run_config
+from .timing import speed
+from .timing import steps as timing
 
 
 def _cmd_run(args) -> int:
@@ -49,7 +40,8 @@ def _cmd_run(args) -> int:
     # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
     try:
-        cfg = load_config(args.config) if args.config else _inline_config(args)
+        cfg = (load_config(args.config) if args.config
+               else inline_config(args.scenario, args.observer, args.name))
         out = Path(args.out) if args.out else Path("results") / cfg.name
         _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
                                 executor=executor)
@@ -67,121 +59,35 @@ def _cmd_run(args) -> int:
     return code
 
 
+def _print(outcome: policy.Outcome) -> int:
+    """Print a gate command's messages, each to its stream; return its exit code."""
+    for to_err, text in outcome.messages:
+        print(text, file=sys.stderr if to_err else sys.stdout)
+    return outcome.code
+
+
+def _progress(args) -> bool | None:
+    return False if args.no_progress else None
+
+
 def _cmd_check(args) -> int:
-    stale = freshness.stale_reports(args.reports) if args.reports else []
-    if stale:  # cheap (hashes only): reported first, and the regression subset still runs
-        print(freshness.format_stale(stale), file=sys.stderr)
-    status = _check_regression(args)
-    if stale:
-        print(f"check FAILED: {len(stale)} committed report(s) in {args.reports} are stale "
-              "(see above)", file=sys.stderr)
-        return 1
-    return status
-
-
-def _check_regression(args) -> int:
-    cfg = regression.subset_config(args.config)
-    base, meta = regression.load_baseline(args.baseline)
-    if regression.config_changed(cfg, meta):
-        print(f"REGRESSION: {args.config} changed since the baseline in {args.baseline} was "
-              "written; review and run `python -m benchmarks baseline --update`", file=sys.stderr)
-        return 1
-    progress = False if args.no_progress else None
-    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress, args.out)
-    diff = regression.compare(base, frame, strict=args.strict)
-    if args.out:
-        atomic_write_csv(Path(args.out) / "diff.csv", diff)
-    n, bad = len(diff), int((~diff["ok"]).sum())
-    if bad or args.all:
-        print(regression.format_diff(diff, only_failures=not args.all))
-    plugins = diff[diff["ok"] & (diff["metric"] == "observer")]
-    for r in plugins.itertuples(index=False):
-        print(f"note: {r.observer} on {r.scenario}: {r.note}", file=sys.stderr)
-    where = (f"{frame['observer'].nunique()} observers x {frame['scenario'].nunique()} "
-             f"scenarios; {cache_note}; baseline of {meta.get('created', '?')}")
-    summary = regression.change_summary(diff)
-    if bad:
-        print("if the change is intended, rewrite the golden files with "
-              "`python -m benchmarks baseline --update` and commit them", file=sys.stderr)
-        env = regression.environment_differences(meta)
-        if env:
-            print("note: the environment differs from the baseline's (" + "; ".join(env)
-                  + "); the tolerances cover the BLAS kernels measured when the baseline was "
-                  "written (SENSITIVITY.md beside it), not other library versions",
-                  file=sys.stderr)
-        print(f"check FAILED: {bad} of {n} values differ from the baseline ({where}); "
-              f"{summary}", file=sys.stderr)
-        return 1
-    print(f"check passed: {n} values within tolerance ({where}); {summary}")
-    return 0
+    return _print(policy.check(args.config, args.baseline, use_cache=args.use_cache,
+                               progress=_progress(args), out=args.out, strict=args.strict,
+                               show_all=args.all, reports=args.reports))
 
 
 def _cmd_baseline(args) -> int:
     if not args.update:
-        frame, meta = regression.load_baseline(args.baseline)
-        print(regression.baseline_overview(frame, meta))
-        print("(`--update` re-runs the subset and rewrites these files)")
-        return 0
-    cfg = regression.subset_config(args.config, plugins=False)
-    progress = False if args.no_progress else None
-    frame, cache_note = regression.run_subset(cfg, args.use_cache, progress)
-    unsound = regression.baseline_problems(frame)
-    if unsound:  # never enshrined, not even with --force
-        print("baseline NOT written: " + "; ".join(unsound) + " (fix them first)",
-              file=sys.stderr)
-        return 1
-    here = blas_corename()
-    if args.kernels == "auto":
-        kernels = [k for k in regression.available_kernels() if k.lower() != here.lower()]
-    else:
-        kernels = [k for k in args.kernels.split(",") if k and k != "none"]
-    problems: list[str] = []
-    if kernels:
-        print(f"measuring the kernel sensitivity: re-running the subset with "
-              f"OPENBLAS_CORETYPE={', '.join(kernels)} (here: {here})")
-        others = regression.runs_under_kernels(args.config, cfg, kernels, args.use_cache)
-        frame, problems = regression.apply_kernel_spread(frame, others)
-    if problems and not args.force:
-        print("baseline NOT written: " + "; ".join(problems) + " (pass --force to write it "
-              "anyway)", file=sys.stderr)
-        return 1
-    files = regression.write_baseline(frame, args.baseline, cfg, cache_note)
-    regression.write_sensitivity(frame, args.baseline, kernels)
-    print(f"wrote {len(files)} golden files and SENSITIVITY.md to {args.baseline} "
-          f"({frame['observer'].nunique()} observers; {cache_note})")
-    return 0
+        return _print(policy.show_baseline(args.baseline))
+    return _print(policy.update_baseline(args.config, args.baseline, use_cache=args.use_cache,
+                                         progress=_progress(args), kernel_names=args.kernels,
+                                         force=args.force, notify=print))
 
 
 def _cmd_audit(args) -> int:
-    jobs = args.jobs if args.jobs is not None else audit.default_jobs()
-    count, kinds, command = args.realisations, audit.KINDS, None
-    out, report = args.out, args.report
-    if args.short:
-        count, kinds = audit.SHORT_REALISATIONS, audit.ADVERSARIAL
-        command = "python -m benchmarks audit --short"
-        out = out or str(Path("results") / "audit-short")
-        report = report or str(Path(out) / "soundness.md")
-    out = out or str(Path("results") / "audit")
-    report = report or str(Path("reports") / "soundness.md")
-    t0 = time.perf_counter()
-    df = audit.run_audit(args.scenarios, args.observers, count, jobs,
-                         progress=False if args.no_progress else None, kinds=kinds)
-    elapsed = time.perf_counter() - t0
-    csv_path, report = audit.write_audit(df, out, report, count, elapsed, jobs, command)
-    agg = audit.aggregate(df)
-    bad = agg[agg["guaranteed"] & (agg["violations"] > 0)]
-    print(f"wrote {report} and {csv_path} ({int(agg['runs'].sum())} runs, "
-          f"{int(agg['steps'].sum())} steps, {elapsed:.0f} s)")
-    undecided = int(agg["undecided"].sum())
-    if undecided:
-        print(f"note: {undecided} step(s) undecided at LP precision (see the report)")
-    if len(bad):
-        print("SOUNDNESS VIOLATIONS: " + ", ".join(
-            f"{r.observer} on {r.scenario} ({r.violations} steps)"
-            for r in bad.itertuples(index=False)), file=sys.stderr)
-        return 1
-    print("zero violations for every guaranteed observer")
-    return 0
+    return _print(policy.audit(args.scenarios, args.observers, realisations=args.realisations,
+                               jobs=args.jobs, short=args.short, out=args.out,
+                               report=args.report, progress=_progress(args)))
 
 
 def _cmd_time(args) -> int:
@@ -202,7 +108,7 @@ def _cmd_designs(args) -> int:
         print("no design to compute (none of these observers has a cached offline design, "
               "or SETOBS_CACHE_DIR=off)")
         return 0
-    print(designs.timing_table(done, top=args.top))
+    print(design_times_table(done, top=args.top))
     failed = sum(status != "ok" for _, _, status, _ in done)
     print(f"{len(done)} designs in the cache ({failed} failed, reported by the runs) in "
           f"{time.perf_counter() - t0:.0f} s with {jobs} worker(s)")
@@ -333,7 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "kernel (never with a crash or a containment violation)")
     bl.add_argument("--kernels", default="auto", metavar="K1,K2|none",
                     help="OpenBLAS kernel families to measure the sensitivity with (default: "
-                         "those of " + ",".join(regression.SPREAD_KERNELS) + " this CPU runs)")
+                         "those of " + ",".join(kernels.SPREAD_KERNELS) + " this CPU runs)")
     bl.set_defaults(func=_cmd_baseline)
     au = sub.add_parser("audit", help="soundness audit on many seeded realisations")
     au.add_argument("--realisations", type=int, default=audit.DEFAULT_REALISATIONS,

@@ -83,14 +83,15 @@ def atomic_write_json(path: str | Path, obj) -> None:
     atomic_write_text(path, json_text(obj))
 
 
-def atomic_savefig(fig, path: str | Path, **kwargs) -> None:
-    """Save a matplotlib figure atomically."""
+def atomic_write_with(path: str | Path, write) -> None:
+    """Write ``path`` atomically with ``write(tmp)``, a function that writes a file at the
+    temporary path ``tmp`` beside it (e.g. a figure's ``savefig``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = _new_file(path.parent, f".{path.stem}.", path.suffix)
     os.close(fd)
     try:
-        fig.savefig(tmp, **kwargs)
+        write(tmp)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

@@ -172,7 +172,7 @@ class OfflineGain:
     DESIGN_VERSION = "1"
     #: regression-gate tolerance: an SDP solution is accurate to the solver's tolerance
     #: (~1e-8) and may differ in its last digits between BLAS builds; 1e-4 still catches a
-    #: 1 % change of the gain (see ``benchmarks/regression.py``)
+    #: 1 % change of the gain (see ``benchmarks/gate/regression.py``)
     REGRESSION_RTOL = 1e-4
 
     def design_gain(self) -> np.ndarray:

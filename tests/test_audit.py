@@ -12,8 +12,8 @@ import pytest
 
 import observers
 import systems
-from benchmarks import audit
 from benchmarks.cli import main
+from benchmarks.gate import audit
 from observers import registry
 from observers.builtin.frad import FRadA
 from observers.sets import Zonotope

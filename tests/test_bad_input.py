@@ -21,7 +21,7 @@ import observers
 import systems
 from benchmarks import load_config
 from benchmarks.cli import main
-from benchmarks.runner import run_observer
+from benchmarks.run.runner import run_observer
 from observers import registry
 from observers.builtin.frad import FRadA
 from observers.errors import DesignFailed
@@ -337,7 +337,7 @@ ZERO_WIDTH = _zero_width_systems()
 def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
     """Every observer either runs soundly (exact membership at every step) or refuses at
     construction with a message naming W or V; no warning, no other exception."""
-    from benchmarks.membership import MembershipTester
+    from benchmarks.run.membership import MembershipTester
 
     s = ZERO_WIDTH[label]
     sim = systems.simulate(s, 0.1 * np.sin(np.arange(25)).reshape(-1, 1), seed=3)
@@ -368,7 +368,7 @@ def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
 def test_frad_gains_handle_exact_models(name):
     """No noise at all: FRad-A's strip gain was 0/0, FRad-C's (and FRad-B's, CZN-B's)
     innovation matrix C P C' + F F' singular; the F-radius gains are exact there."""
-    from benchmarks.membership import MembershipTester
+    from benchmarks.run.membership import MembershipTester
 
     s = ZERO_WIDTH["W=V={0}"]
     sim = systems.simulate(s, 0.1 * np.sin(np.arange(25)).reshape(-1, 1), seed=3)
@@ -386,7 +386,7 @@ def test_memory_estimates_before_simulating_and_before_running(tmp_path, monkeyp
     are allocated (here with 1 MiB and 64 KiB of "available" memory)."""
     import sys
 
-    import benchmarks.runner
+    import benchmarks.run.runner
 
     monkeypatch.setattr(sys.modules["systems.simulate"], "available_memory", lambda: 2**20)
     s = systems.tank(50)
@@ -394,11 +394,11 @@ def test_memory_estimates_before_simulating_and_before_running(tmp_path, monkeyp
                                                  r"system needs about .* GiB"):
         systems.simulate(s, np.zeros((2000, s.nu)))
     monkeypatch.undo()
-    monkeypatch.setattr(benchmarks.runner, "available_memory", lambda: 2**16)
+    monkeypatch.setattr(benchmarks.run.runner, "available_memory", lambda: 2**16)
     cfg = load_config(_write(tmp_path, cfg_with(cfg__scenarios=["tank6-linear"],
                                                 cfg__observers=["FRad-A", "FRad-B"])))
     with pytest.raises(benchmarks.errors.ConfigError, match="results need about"):
-        benchmarks.runner.run_config(cfg, progress=False)
+        benchmarks.run.runner.run_config(cfg, progress=False)
 
 
 def _write(tmp_path, cfg) -> str:

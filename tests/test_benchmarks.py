@@ -169,7 +169,7 @@ def test_nonlinear_capable_observers_run_on_nonlinear_systems(tmp_path):
 
 
 def test_paper_relative_uses_only_the_observers_the_paper_compares():
-    from benchmarks.report import paper_relative
+    from benchmarks.report.tables import paper_relative
 
     df = pd.DataFrame({"observer": ["A", "A", "B", "B", "X", "X"], "state": [0, 1] * 3,
                        "rms_radius": [2.0, 4.0, 1.0, 8.0, 0.5, 0.1], "status": "ok",

@@ -11,8 +11,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from benchmarks import history, load_config, run_config
+from benchmarks import load_config, run_config
 from benchmarks.cli import main
+from benchmarks.gate import history
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -114,7 +115,7 @@ def test_history_outside_git(tmp_path):
 
 
 def test_progress_shown_in_a_notebook(monkeypatch):
-    from benchmarks.progress import progress_enabled
+    from benchmarks.run.progress import progress_enabled
 
     monkeypatch.delitem(sys.modules, "ipykernel", raising=False)
     assert progress_enabled(None) is sys.stderr.isatty()

@@ -10,8 +10,8 @@ import pytest
 
 import observers
 import systems
-from benchmarks.config import parse_config
-from benchmarks.runner import run_config
+from benchmarks.run.config import parse_config
+from benchmarks.run.runner import run_config
 from observers.numerics.datadriven import (
     check_training,
     hbr_pinv,

@@ -14,7 +14,7 @@ import yaml
 from benchmarks import load_config, write_report
 from benchmarks.cli import main
 from benchmarks.errors import ConfigError
-from benchmarks.executors import (
+from benchmarks.run.executors import (
     JobFailure,
     ProcessExecutor,
     SerialExecutor,
@@ -263,7 +263,7 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
     import subprocess
     import sys
 
-    code = ("import sys; import benchmarks.workerinit; "
+    code = ("import sys; import benchmarks.run.workerinit; "
             "from observers.sets import _dual_simplex_jit as j, _step_jit as s; "
             "print('observers.builtin.czn' in sys.modules, 'highspy' in sys.modules, "
             "not j.AVAILABLE or len(j.iterate.signatures) > 0, "
@@ -272,9 +272,9 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert res.stdout.split() == ["True", "True", "True", "True"]
-    from benchmarks.executors import _context
+    from benchmarks.run.executors import _context
 
     if _context().get_start_method() == "forkserver":
         from multiprocessing import forkserver
 
-        assert "benchmarks.workerinit" in forkserver._forkserver._preload_modules
+        assert "benchmarks.run.workerinit" in forkserver._forkserver._preload_modules

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from benchmarks import freshness
 from benchmarks.cli import main
+from benchmarks.report import freshness
 from tests.test_regression import gate, subset
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,8 +16,8 @@ import pytest
 import yaml
 
 import observers
-from benchmarks import audit, regression
 from benchmarks.cli import main
+from benchmarks.gate import audit, kernels, regression
 from benchmarks.io import blas_corename
 from observers import registry
 from observers.builtin import frad
@@ -68,7 +68,7 @@ def test_every_observer_runs_with_its_default_options_in_the_regression_subset()
 
 
 def test_a_named_scenario_can_drop_its_options_under_another_label(tmp_path):
-    from benchmarks.config import parse_config
+    from benchmarks.run.config import parse_config
 
     cfg = parse_config({"scenarios": ["alamo2d", {"name": "alamo2d", "options": {},
                                                   "label": "alamo2d-defaults"}],
@@ -199,7 +199,7 @@ def test_pca_axes_depend_only_on_the_subspaces_of_repeated_singular_values():
 
 
 def _kernels() -> list[str]:
-    found = regression.available_kernels(("Haswell", "SkylakeX"))
+    found = kernels.available_kernels(("Haswell", "SkylakeX"))
     if len(found) < 2:
         pytest.skip("this CPU runs fewer than two of the OpenBLAS kernels Haswell, SkylakeX")
     return found
@@ -215,7 +215,7 @@ def test_frad_c_radii_on_the_tank_do_not_depend_on_the_blas_kernel():
 
 
 GATE_FRAD_C = """
-from benchmarks import regression
+from benchmarks.gate import regression
 from observers.builtin import frad
 from observers.sets import Zonotope
 base, _ = regression.load_baseline("results/baseline")
@@ -270,11 +270,11 @@ def test_measured_kernel_spread_widens_only_that_observers_tolerance():
                          "rms_radius": [1.0, 2.0, 1.0, 1.0], "violations": [0] * 4,
                          "rtol": [1e-6] * 4})
     other = rows.assign(rms_radius=[1.0, 2.0 * 1.003, 1.0 + 1e-12, 1.0])
-    out, problems = regression.apply_kernel_spread(rows, {"Haswell": other})
+    out, problems = kernels.apply_kernel_spread(rows, {"Haswell": other})
     assert problems == []
     np.testing.assert_allclose(out["kernel_spread"], [0.0, 0.003, 1e-12, 0.0], atol=1e-15)
     assert list(out["rtol"]) == pytest.approx([0.02, 0.02, 1e-6, 1e-6])  # 4 x 0.003 -> 0.02
-    _, problems = regression.apply_kernel_spread(
+    _, problems = kernels.apply_kernel_spread(
         rows, {"Haswell": other.assign(status=["ok", "ok", "diverged", "diverged"])})
     assert problems == ["B on s: status ok here, diverged with OPENBLAS_CORETYPE=Haswell"]
 

@@ -15,8 +15,8 @@ import pytest
 
 from benchmarks import load_config, run_config, write_report
 from benchmarks.cli import main
-from benchmarks.html import ranking, write_html, write_index
-from benchmarks.report import scenario_table_data
+from benchmarks.report.html import ranking, write_html, write_index
+from benchmarks.report.tables import scenario_table_data
 
 OBSERVERS = ["FRad-A", "FRad-C", "CZN-A", "PRad-E"]
 
@@ -191,7 +191,7 @@ def test_reports_index_in_headless_chromium(browser, results, tmp_path):
 
 
 def test_markdown_tables_of_a_sweep_become_sortable_html():
-    from benchmarks.html import markdown_to_html
+    from benchmarks.report.html import markdown_to_html
 
     lines = ["## tank6-linear (3 seeds)", "", "| Observer | rel. RMS mean |", "|---|---|",
              "| FRad-A | 1.25 |", "| CZN-A | **2** |", ""]

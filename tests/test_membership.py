@@ -1,4 +1,4 @@
-"""Exact membership tests with certified distances (benchmarks.membership).
+"""Exact membership tests with certified distances (benchmarks.run.membership).
 
 Expected verdicts and distances come from hand geometry (boxes, a segment) or from an
 independent LP (scipy's linprog on the textbook formulation), never from the code under test.
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from benchmarks.membership import (
+from benchmarks.run.membership import (
     MembershipTester,
     dual_lower_bound,
     dual_polish,
@@ -175,7 +175,7 @@ def test_bounds_are_rounded_outward():
 
 
 def test_lp_trouble_of_the_fast_settings_is_retried_with_robust_ones(monkeypatch):
-    from benchmarks import membership
+    from benchmarks.run import membership
 
     # the fast settings fail at once (iteration limit 0); the robust ones lift the limit
     monkeypatch.setattr(membership, "FAST_LP", {"presolve": "off", "simplex_strategy": 4,

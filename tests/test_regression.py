@@ -15,8 +15,8 @@ import pytest
 import yaml
 
 import observers
-from benchmarks import regression
 from benchmarks.cli import main
+from benchmarks.gate import regression
 from observers import registry
 from observers.builtin import frad
 from observers.errors import DesignFailed

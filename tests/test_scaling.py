@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from benchmarks.report import figures
 from benchmarks.studies import scaling
 
 
@@ -23,11 +24,12 @@ def test_study_rows_exponent_timeout_and_missing_scenarios(tmp_path):
     exp = scaling.exponents(df)
     assert np.isfinite(exp.loc[exp["variant"] == "linear", "step_exponent"]).all()
     out = tmp_path / "scaling.md"
-    fig = scaling.figure(df, tmp_path / "scaling.png", ("linear", "bogus"))
+    fig, pdf = figures.scaling(df, ("linear", "bogus"), scaling.REALTIME_MS,
+                               tmp_path / "scaling")
     text = scaling.report(df, fig, out, sizes=(3, 4, 6), steps=8, design_budget=60,
                           run_budget=60, elapsed=1.0)
     assert "real-time limit" in text.lower() and "scenario not available" in text
-    assert fig.is_file()
+    assert fig.is_file() and pdf.is_file() and fig.name == "scaling.png"
 
 
 def test_a_run_over_budget_is_timeout_and_larger_sizes_are_not_attempted():

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 import benchmarks.io as bio
-import benchmarks.runner as runner
+import benchmarks.run.runner as runner
 import observers
 from benchmarks.cli import build_parser, main
 from benchmarks.metrics import add_relative_rms
@@ -362,7 +362,7 @@ class PlainBoxes(Plain):
 
 
 def test_a_set_without_contains_is_undecided_not_contained(tmp_path):
-    from benchmarks.membership import MembershipTester
+    from benchmarks.run.membership import MembershipTester
 
     tester = MembershipTester()
     S = BoxOnly(np.zeros(2), np.ones(2))

@@ -14,9 +14,10 @@ import re
 import numpy as np
 import pytest
 
-from benchmarks import freshness, speed
 from benchmarks.cli import main
-from benchmarks.timing import first_steps
+from benchmarks.report import freshness
+from benchmarks.timing import speed
+from benchmarks.timing.steps import first_steps
 from observers.families import strip_update
 from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
 from observers.sets import get_reduction
@@ -146,7 +147,7 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
 def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkeypatch, capsys):
     import observers
     import systems
-    from benchmarks import designs
+    from benchmarks.run import designs
 
     cfg = tmp_path / "small.yaml"
     cfg.write_text("name: small\ntitle: small\nscenarios: [vehicle2d-cora]\n"
@@ -157,11 +158,12 @@ def test_designs_fill_the_cache_in_parallel_with_the_same_gains(tmp_path, monkey
     assert main(["designs", str(cfg), "--jobs", "2", "--no-progress", "--top", "1"]) == 0
     out = capsys.readouterr().out
     assert "2 designs in the cache (0 failed" in out
-    # the per-design times: a header and the slowest design only (--top 1)
+    # the per-design times: a header, its rule and the slowest design only (--top 1)
     lines = out.splitlines()
     assert lines[0].split() == ["design", "status", "seconds"]
-    assert re.fullmatch(r"vehicle2d-cora: (Nom-G|PRad-B) +ok +\d+\.\d", lines[1])
-    assert lines[2].startswith("2 designs")
+    assert set(lines[1]) == {"-", " "}
+    assert re.fullmatch(r"vehicle2d-cora: (Nom-G|PRad-B) +ok +[0-9.e+-]+", lines[2])
+    assert lines[3].startswith("2 designs")
     assert len(list((tmp_path / "cache").glob("*.npz"))) == 2
     system = systems.scenario("vehicle2d-cora").system
     cached = {n: observers.create(n, system).L for n in ("Nom-G", "PRad-B")}
@@ -186,7 +188,7 @@ def test_frad_strips_with_few_and_many_strips(n, m):
 def test_designs_of_labelled_variants_are_computed_under_their_observer(tmp_path, monkeypatch):
     # bug: `designs` looked up a variant's label ("PRad-B[tight]") in the registry and stopped
     # with "unknown observer"; a variant's design is its observer's, with the variant's options
-    from benchmarks import designs
+    from benchmarks.run import designs
 
     cfg = tmp_path / "variants.yaml"
     cfg.write_text("name: v\ntitle: v\nscenarios: [vehicle2d-cora]\nobservers: [PRad-B]\n"

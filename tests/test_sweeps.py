@@ -7,9 +7,9 @@ import pandas as pd
 import pytest
 
 from benchmarks import parse_config, write_report
-from benchmarks.aggregate import aggregate_seeds, is_sweep
 from benchmarks.io import write_results
-from benchmarks.runner import make_jobs
+from benchmarks.report.aggregate import aggregate_seeds, is_sweep
+from benchmarks.run.runner import make_jobs
 
 
 def test_sweep_expands_sizes_seeds_and_the_option_grid():

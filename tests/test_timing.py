@@ -15,7 +15,7 @@ import pytest
 import systems
 from benchmarks.cli import main
 from benchmarks.io import environment
-from benchmarks.timing import TimingRow, kalman_step_times
+from benchmarks.timing.steps import TimingRow, kalman_step_times
 from observers.sets import ConZonotope, HullLP
 
 ROW_FIELDS = set(TimingRow.__dataclass_fields__)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from benchmarks import run_config, write_report
-from benchmarks.config import parse_config
 from benchmarks.errors import ConfigError
+from benchmarks.run.config import parse_config
 
 
 def cfg(variants):

@@ -20,29 +20,26 @@ import sys
 from pathlib import Path
 from time import perf_counter
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import observers  # noqa: E402
-import systems  # noqa: E402
-from observers.numerics.datadriven import (  # noqa: E402
+import observers
+import systems
+from observers.numerics.datadriven import (
     check_training,
     paper_model_set,
     refined_model_set,
     sound_model_set,
 )
-from observers.sets import Zonotope  # noqa: E402
-from observers.sets.planar import polygon, set_area  # noqa: E402
-from systems.rotating import INPUT_SET, rotating_target  # noqa: E402
-from systems.training import offline_experiment  # noqa: E402
+from observers.sets import Zonotope
+from observers.sets.planar import polygon, set_area
+from systems.rotating import INPUT_SET, rotating_target
+from systems.training import offline_experiment
 
-from .. import freshness  # noqa: E402
-from ..io import atomic_savefig, atomic_write_text  # noqa: E402
-from ..metrics import median_ms  # noqa: E402
-from ..paper import load_table  # noqa: E402
+from ..io import atomic_write_text
+from ..metrics import median_ms
+from ..report import figures, freshness
+from ..report.numbers import MISSING, fmt
+from ..report.paper import load_table
 
 DD = ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2")
 KF = "KF-N4SID"
@@ -50,10 +47,6 @@ MODEL_BASED = ("FRad-A", "FRad-B", "FRad-C")
 SNAPSHOT = 34  # the paper's snapshot step (published code)
 COLORS = {"DD-Z-A1": "tab:blue", "DD-Z-A2": "tab:orange", "DD-CZ-A1": "tab:green",
           "DD-CZ-A2": "tab:red", KF: "tab:purple", KF + " (paper tuning)": "tab:gray"}
-
-
-def _fmt(x: float, d: int = 3) -> str:
-    return "-" if x is None or not np.isfinite(x) else f"{x:.{d}g}"
 
 
 def model_widths(seeds: int) -> list[str]:
@@ -96,8 +89,8 @@ def model_widths(seeds: int) -> list[str]:
                 continue
             w = np.array([v[0] for v in vals])
             inside = sum(v[1] for v in vals)
-            rows.append(f"| {label} | {name} | {_fmt(np.median(w.max(axis=(1, 2))))} | "
-                        f"{_fmt(np.median(w.mean(axis=(1, 2))))} | {inside}/{len(vals)} | "
+            rows.append(f"| {label} | {name} | {fmt(np.median(w.max(axis=(1, 2))), 3)} | "
+                        f"{fmt(np.median(w.mean(axis=(1, 2))), 3)} | {inside}/{len(vals)} | "
                         f"{fails[name]}/{seeds} |")
     return rows
 
@@ -141,8 +134,8 @@ def containment(seeds: int) -> tuple[list[str], dict]:
         label = (f"N4SID, {model} tuning" if name == KF else model) or "true A, B"
         share = (f"{st['miss']} ({100 * st['miss'] / st['steps']:.1f} %)" if st["steps"]
                  else "-")
-        rows.append(f"| {name} | {label} | {st['steps']} | {share} | {_fmt(rad[0])}, "
-                    f"{_fmt(rad[1])} |")
+        rows.append(f"| {name} | {label} | {st['steps']} | {share} | {fmt(rad[0], 3)}, "
+                    f"{fmt(rad[1], 3)} |")
     return rows, stats
 
 
@@ -163,8 +156,8 @@ def timings(reps: int) -> tuple[list[str], dict]:
         ms, hms = float(np.median(step)), float(np.median(hull))
         out[name] = ms
         p = paper.get(name)
-        rows.append(f"| {name} | {ms:.3f} | {hms:.3f} | {p if p else '-'} | "
-                    f"{'-' if not p else f'{1e3 * p / ms:.0f}x'} |")
+        rows.append(f"| {name} | {fmt(ms)} | {fmt(hms)} | {fmt(p) if p else MISSING} | "
+                    f"{fmt(1e3 * p / ms, 3, 'x') if p else MISSING} |")
     return rows, out
 
 
@@ -183,47 +176,25 @@ def other_scenarios() -> list[str]:
             rms = np.sqrt(np.mean(res.radius ** 2, axis=0))
             miss = sum(not S.contains(x, sc.tolerance) for S, x in zip(res.sets, sc.x_true,
                                                                       strict=False))
-            rows.append(f"| {name} | {obs_name} | {', '.join(_fmt(r) for r in rms)} | "
-                        f"{median_ms(res.step_times):.2f} | {miss}/{len(res.sets)} |")
+            rows.append(f"| {name} | {obs_name} | {', '.join(fmt(r, 3) for r in rms)} | "
+                        f"{fmt(median_ms(res.step_times), 3)} | {miss}/{len(res.sets)} |")
     return rows
 
 
-def figure(path: Path) -> list[str]:
-    """Figure like the paper's Figs. 2-3: x1 bounds over time, sets at the snapshot step."""
+def figure(base: Path) -> list[str]:
+    """Figure like the paper's Figs. 2-3 (``base.png``, ``base.pdf``): x1 bounds over time, sets
+    at the snapshot step; returns the Markdown rows of the sets' areas."""
     sc = systems.scenario("rotating-target", seed=0)
     runs = {name: observers.run(_create(name, sc), sc.u, sc.y) for name in (*DD, KF)}
     kf_paper = KF + " (paper tuning)"
     runs[kf_paper] = observers.run(_create(KF, sc, tuning="paper"), sc.u, sc.y)
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    k = np.arange(sc.N)
-    for ax, names, title in ((axes[0], ("DD-Z-A1", "DD-Z-A2", KF, kf_paper), "zonotopes"),
-                             (axes[1], ("DD-CZ-A1", "DD-CZ-A2", KF, kf_paper),
-                              "constrained zonotopes")):
-        for name in names:
-            r = runs[name]
-            label = name + (" 3 sigma" if name.startswith(KF) else "")
-            ax.plot(k, r.lo[:, 0] - sc.x_true[:, 0], color=COLORS[name], lw=1.2, label=label)
-            ax.plot(k, r.hi[:, 0] - sc.x_true[:, 0], color=COLORS[name], lw=1.2)
-        ax.axhline(0.0, color="k", lw=0.8, label="true x1")
-        ax.set(xlabel="step k", ylabel="bound of x1 minus true x1",
-               title=f"bounds of x1, {title}", ylim=(-4, 4))
-        ax.legend(fontsize=7, ncol=2)
-    ax = axes[2]
     rows = ["| set at step 34 | area |", "|---|---|"]
-    for name, r in runs.items():
-        S = r.sets[SNAPSHOT]
-        P = polygon(S)
-        ax.fill(P[:, 0], P[:, 1], alpha=0.25, color=COLORS[name], label=name)
-        ax.plot(np.append(P[:, 0], P[0, 0]), np.append(P[:, 1], P[0, 1]), color=COLORS[name],
-                lw=1)
-        rows.append(f"| {name} | {set_area(S):.3f} |")
-    ax.plot(*sc.x_true[SNAPSHOT], "k*", ms=10, label="true state")
-    ax.set(xlabel="x1", ylabel="x2", title=f"sets at step {SNAPSHOT}")
-    ax.set_aspect("equal")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    atomic_savefig(fig, path)
-    plt.close(fig)
+    rows += [f"| {name} | {set_area(r.sets[SNAPSHOT]):.3f} |" for name, r in runs.items()]
+    figures.datadriven(
+        np.arange(sc.N), sc.x_true, {name: (r.lo, r.hi) for name, r in runs.items()},
+        ((("DD-Z-A1", "DD-Z-A2", KF, kf_paper), "zonotopes"),
+         (("DD-CZ-A1", "DD-CZ-A2", KF, kf_paper), "constrained zonotopes")),
+        {name: polygon(r.sets[SNAPSHOT]) for name, r in runs.items()}, SNAPSHOT, COLORS, base)
     return rows
 
 
@@ -231,7 +202,7 @@ def build(out: Path, seeds: int, reps: int) -> Path:
     """Compute everything and write ``out`` (Markdown) and the figure beside it."""
     t0 = perf_counter()
     png = out.with_suffix(".png")
-    fig_rows = figure(png)
+    fig_rows = figure(out.parent / out.stem)
     widths = model_widths(seeds)
     cont, _ = containment(seeds)
     times, _ = timings(reps)

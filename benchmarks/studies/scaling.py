@@ -31,30 +31,26 @@ import sys
 import time
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import observers
+from observers import offline
+from observers.registry import table_order
+from systems import ModelError
 
-import observers  # noqa: E402
-from observers import offline  # noqa: E402
-from observers.registry import table_order  # noqa: E402
-from systems import ModelError  # noqa: E402
-
-from .. import freshness  # noqa: E402
-from ..executors import JobFailure, ProcessExecutor  # noqa: E402
-from ..io import (  # noqa: E402
-    atomic_savefig,
+from ..io import (
     atomic_write_csv,
     atomic_write_json,
     atomic_write_text,
     environment,
 )
-from ..metrics import add_relative_rms  # noqa: E402
-from ..runner import Job, design_observer, execute_job  # noqa: E402
-from ..specs import build_scenario  # noqa: E402
+from ..metrics import add_relative_rms
+from ..report import figures, freshness
+from ..report.numbers import MISSING, fmt, markdown_table
+from ..run.executors import JobFailure, ProcessExecutor
+from ..run.runner import Job, design_observer, execute_job
+from ..run.specs import build_scenario
 
 SIZES = (6, 12, 30, 60, 100, 200)
 VARIANTS = ("linear", "nonlinear")
@@ -77,13 +73,11 @@ def default_observers() -> list[str]:
 def design_only(job: Job) -> dict:
     """The offline design of ``job`` alone (in a worker): status, message, seconds, and
     whether it was read from the design cache."""
-    from ..runner import _job_options, _scenario
-
-    sc = _scenario(job)
+    sc, options = job.inputs()
     observers.available()  # the plugin imports are not part of a design's time
     loads = sum(offline.CACHE_LOADS.values())
     t0 = time.perf_counter()
-    obs, status, message = design_observer(job.observer, sc, _job_options(job, sc))
+    obs, status, message = design_observer(job.observer, sc, options)
     seconds = time.perf_counter() - t0
     return {"status": status, "message": message, "design_s": seconds,
             "design_cached": sum(offline.CACHE_LOADS.values()) > loads}
@@ -211,40 +205,36 @@ def _slope(n, t) -> float:
     return float(np.polyfit(np.log(n), np.log(t), 1)[0])
 
 
-def _fmt(x, digits: int = 3) -> str:
-    if x is None or (isinstance(x, float) and not np.isfinite(x)):
-        return "-"
-    return f"{float(x):.{digits}g}"
-
-
-def _cell(r, value: str) -> str:
+def _result_cell(r, value: str) -> str:
     if r.status == "ok":
         return value + ("" if not r.violations or pd.isna(r.violations)
                         else f" (**{int(r.violations)} violations**)")
     return {"timeout": "timeout", "not run": "not run"}.get(r.status, r.status)
 
 
-def _table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
+def _size_table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
+    """Markdown lines: one row per observer, one column per size, of ``what`` (time, design or
+    rms)."""
     head = ["Observer"] + [f"n={n}" for n in sizes]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     g = df[df["variant"] == variant]
     for name in table_order(g["observer"].unique()):
         cells = [name]
         for n in sizes:
             r = g[(g["observer"] == name) & (g["n"] == n)]
             if not len(r):
-                cells.append("-")
+                cells.append(MISSING)
                 continue
             r = next(r.itertuples(index=False))
             if what == "time":
-                value = f"{_fmt(r.step_ms)} + {_fmt(r.hull_ms)}"
+                value = f"{fmt(r.step_ms, 3)} + {fmt(r.hull_ms, 3)}"
             elif what == "design":
-                value = _fmt(r.design_s) + (" (cached)" if r.design_cached else "")
+                value = fmt(r.design_s, 3) + (" (cached)" if r.design_cached else "")
             else:
-                value = _fmt(r.rel_rms)
-            cells.append(_cell(r, value))
-        lines.append("| " + " | ".join(cells) + " |")
-    return lines
+                value = fmt(r.rel_rms, 3)
+            cells.append(_result_cell(r, value))
+        rows.append(cells)
+    return markdown_table(head, rows).splitlines()
 
 
 def failures(g: pd.DataFrame) -> list[str]:
@@ -260,36 +250,6 @@ def failures(g: pd.DataFrame) -> list[str]:
             sizes = ", ".join(str(n) for n in k["n"])
             out.append(f"- {name}, {status} at n = {sizes}: {k['message'].iloc[0]}")
     return out + [""]
-
-
-def figure(df: pd.DataFrame, path: Path, variants=VARIANTS) -> Path:
-    """Log-log plot of step + hull time against n per observer, one panel per variant, with
-    the real-time limit."""
-    fig, axes = plt.subplots(1, len(variants), figsize=(6.5 * len(variants), 5), squeeze=False)
-    for ax, variant in zip(axes[0], variants, strict=True):
-        g = df[(df["variant"] == variant) & (df["status"] == "ok")]
-        colors = plt.get_cmap("tab20").colors
-        for k, name in enumerate(table_order(g["observer"].unique())):
-            h = g[g["observer"] == name].sort_values("n")
-            ax.loglog(h["n"], h["total_ms"], marker="osD^v"[k % 5], color=colors[k % 20],
-                      label=name)
-        if not len(g):
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set_xlim(min(df["n"]), max(df["n"]))
-            ax.text(0.5, 0.4, "no observer ran (see the report)", ha="center",
-                    transform=ax.transAxes)
-        ax.axhline(REALTIME_MS, color="k", linestyle="--", linewidth=1.2,
-                   label=f"real time ({REALTIME_MS:g} ms)")
-        ax.set_title(f"{variant} n-tank")
-        ax.set_xlabel("states n")
-        ax.set_ylabel("step + hull time per step [ms]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, ncol=2, loc="lower right")
-    fig.tight_layout()
-    atomic_savefig(fig, path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budget,
@@ -324,9 +284,9 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budge
             r = next(e[e["observer"] == name].itertuples(index=False))
             if pd.isna(r.largest_n):
                 continue  # never ran: see the tables below
-            parts.append(f"| {name} | {variant} | {_fmt(r.step_exponent)} | "
-                         f"{_fmt(r.design_exponent)} | {_fmt(r.largest_n)} | "
-                         f"{_fmt(r.largest_realtime_n)} |")
+            parts.append(f"| {name} | {variant} | {fmt(r.step_exponent, 3)} | "
+                         f"{fmt(r.design_exponent, 3)} | {fmt(r.largest_n, 3)} | "
+                         f"{fmt(r.largest_realtime_n, 3)} |")
     parts.append("")
     for variant in df["variant"].unique():
         g = df[df["variant"] == variant]
@@ -336,10 +296,10 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budge
                       f"`{r['status']}` at every size, e.g. {r['observer']}: {r['message']}", ""]
             continue
         parts += [f"## {variant} n-tank", "", "Per-step time, `step()` + interval hull (ms, "
-                  "medians):", ""] + _table(df, variant, sizes, "time") + [
-            "", "Offline design time (s):", ""] + _table(df, variant, sizes, "design") + [
+                  "medians):", ""] + _size_table(df, variant, sizes, "time") + [
+            "", "Offline design time (s):", ""] + _size_table(df, variant, sizes, "design") + [
             "", "Relative RMS radius (mean over the states, against the best observer at the "
-            "same n):", ""] + _table(df, variant, sizes, "rms") + [""]
+            "same n):", ""] + _size_table(df, variant, sizes, "rms") + [""]
         parts += failures(g)
     parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), ""]
     return "\n".join(parts)
@@ -386,7 +346,8 @@ def main(argv: list[str] | None = None) -> int:
         atomic_write_csv(results / "scaling.csv", df)
         atomic_write_json(results / "scaling.json", run)
     out = Path(args.out)
-    fig = figure(df, out.with_suffix(".png"), list(df["variant"].unique()))
+    fig, _ = figures.scaling(df, list(df["variant"].unique()), REALTIME_MS,
+                             out.parent / out.stem)
     text = report(df, fig, out, **run).rstrip("\n")
     regen = f"python -m benchmarks.studies.scaling --out {out} --results results/scaling"
     atomic_write_text(out, f"{text}\n\n{freshness.stamp(regen)}\n")

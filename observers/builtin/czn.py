@@ -21,7 +21,7 @@ what an old measurement told is kept as far as a zonotope update with an F-radiu
 it.  ``max_constraints=None`` gives CORA's behaviour (and order of operations: intersect,
 then reduce), which the conformance tests use.
 
-Interval hulls: every returned set carries the observer's :class:`~observers.sets._lp.HullLP`,
+Interval hulls: every returned set carries the observer's :class:`~observers.sets.HullLP`,
 so the runner's ``S.interval()`` solves its 2n LPs together with the batched dual simplex of
 :mod:`observers.sets._dual_simplex` (compiled by numba when available; HiGHS, kept alive across
 steps, for an LP it does not finish and for sets with more than
@@ -38,9 +38,8 @@ import numpy as np
 from ..families import Linearised, ZonotopeObserver
 from ..options import Choice, Integer, Number
 from ..registry import register
-from ..sets import ConZonotope, HullLP
+from ..sets import ConZonotope, HullLP, HullLPStats
 from ..sets import conzono_ops as ops
-from ..sets._lp import HullLPStats
 from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m

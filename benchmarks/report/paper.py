@@ -33,7 +33,7 @@ def load_table(key: str) -> dict:
         return yaml.safe_load(fh)
 
 
-def _num(x) -> float | None:
+def _value(x) -> float | None:
     if x is None:
         return None
     if isinstance(x, str):  # e.g. "noGain"
@@ -61,17 +61,17 @@ def paper_rows(key: str | None, n_states: int | None = None,
         j = tab["tanks"].index(n_states)
         for name, row in (tab.get(variant) or {}).items():
             for ours in ALIASES.get(name, (name,)):
-                out[ours] = PaperRow(None, _num(row["avg"][j]), _num(row["t_comp_ms"][j]), None,
+                out[ours] = PaperRow(None, _value(row["avg"][j]), _value(row["t_comp_ms"][j]), None,
                                      src)
         return out
     smallest = tab.get("smallest_absolute_radii")
     for name, row in tab.get("rows", {}).items():
         v = tuple(float(x) for x in row["v"]) if "v" in row else None
-        avg = _num(row.get("avg")) if "avg" in row else (sum(v) / len(v) if v else None)
+        avg = _value(row.get("avg")) if "avg" in row else (sum(v) / len(v) if v else None)
         absolute = (tuple(a * b for a, b in zip(v, smallest, strict=True))
                     if v and smallest else None)
         for ours in ALIASES.get(name, (name,)):
-            out[ours] = PaperRow(v, avg, _num(row.get("t_comp_ms")), absolute, src)
+            out[ours] = PaperRow(v, avg, _value(row.get("t_comp_ms")), absolute, src)
     for name, t_s in (tab.get("time_per_step_s") or {}).items():  # timings-only tables
         out.setdefault(name, PaperRow(None, None, 1e3 * float(t_s), None, src))
     return out

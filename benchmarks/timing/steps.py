@@ -36,11 +36,12 @@ import systems
 from observers.base import as_record
 from systems import Scenario
 
-from .config import BenchConfig
-from .errors import ConfigError
-from .io import environment
-from .metrics import warmup_steps
-from .runner import design_observer
+from ..errors import ConfigError
+from ..io import environment
+from ..metrics import warmup_steps
+from ..report.numbers import fmt, text_table
+from ..run.config import merge_options
+from ..run.runner import design_observer
 
 DEFAULT_REPEAT = 5
 #: how the reference Kalman filter is built (printed with the table and stored in the JSON)
@@ -175,7 +176,7 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
     sc : Scenario
         Scenario with the system and the record.
     options : dict
-        Observer options (as :meth:`BenchConfig.options_for` gives them).
+        Observer options (as :func:`benchmarks.run.config.merge_options` gives them).
     repeat : int
         Runs over the record (at least 1).
     warmup : int
@@ -294,35 +295,28 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
         observers.get(name)  # unknown names fail before anything runs
     sc = first_steps(systems.scenario(scenario), steps)
     warmup = resolve_warmup(sc, warmup)
-    cfg = BenchConfig(name="time", title="time", scenarios=[sc], observers=names)
-    rows = [time_observer(name, sc, cfg.options_for(name, sc), repeat, warmup)
+    rows = [time_observer(name, sc, merge_options(name, sc), repeat, warmup)
             for name in names]
     return sc, warmup, rows
 
 
-def _num(x: float, width: int) -> str:
-    return f"{'-':>{width}}" if not math.isfinite(x) else f"{x:>{width}.4g}"
-
-
 def format_table(sc: Scenario, repeat: int, warmup: int, rows: list[TimingRow]) -> str:
     """The plain-text table of ``python -m benchmarks time``."""
+    head = ["observer", "status", "step med", "step p90", "hull med", "step+hull", "steps",
+            "design s", "KF step", "ratio"]
+    body = [[r.observer, r.status, fmt(r.step_ms_median), fmt(r.step_ms_p90),
+             fmt(r.hull_ms_median), fmt(r.step_hull_ms_median), str(r.timed_steps),
+             fmt(r.design_s), fmt(r.kalman_ms_median), fmt(r.ratio)] for r in rows]
     lines = [
         f"{sc.name}: {repeat} run(s) of {sc.N} steps per observer, the first {warmup} step(s) "
         "of each run not timed",
         "times in ms (median, 90th percentile) over the timed steps of all runs; design in s",
-        f"{'observer':<10} {'status':<11} {'step med':>9} {'step p90':>9} {'hull med':>9} "
-        f"{'step+hull':>9} {'steps':>6} {'design s':>9} {'KF step':>9} {'ratio':>7}",
+        text_table(head, body, right=[False, False] + [True] * 8),
+        "KF step: plain numpy Kalman filter step (covariance form; Q = E E'/3, R = F F'/3 "
+        "from the",
+        "generators of W and V), timed after each observer on the same record; "
+        "ratio = step med / KF step",
     ]
-    for r in rows:
-        lines.append(
-            f"{r.observer:<10} {r.status:<11} {_num(r.step_ms_median, 9)} "
-            f"{_num(r.step_ms_p90, 9)} {_num(r.hull_ms_median, 9)} "
-            f"{_num(r.step_hull_ms_median, 9)} {r.timed_steps:>6d} {_num(r.design_s, 9)} "
-            f"{_num(r.kalman_ms_median, 9)} {_num(r.ratio, 7)}")
-    lines.append("KF step: plain numpy Kalman filter step (covariance form; Q = E E'/3, "
-                 "R = F F'/3 from the")
-    lines.append("generators of W and V), timed after each observer on the same record; "
-                 "ratio = step med / KF step")
     for r in rows:
         if r.hull_lp is not None:
             s = r.hull_lp

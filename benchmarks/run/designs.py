@@ -20,8 +20,8 @@ from pathlib import Path
 import observers
 from observers.offline import OfflineGain, cache_dir
 
+from ..errors import ConfigError
 from .config import load_config
-from .errors import ConfigError
 from .executors import run_tasks
 from .progress import progress_bar
 from .runner import design_observer
@@ -86,17 +86,3 @@ def prewarm(paths: list[str | Path], jobs: int = 2, progress: bool | None = None
             bar.update()
 
         return run_tasks(design_task, tasks, jobs, done)
-
-
-def timing_table(done: list[tuple[str, str, str, float]], top: int | None = None) -> str:
-    """The per-design times of :func:`prewarm`, slowest first, as a plain-text table.
-
-    A design shared by several observers (e.g. the PRad-C/D centre) is computed by the first
-    worker that needs it; the others wait for it on the cache lock, so their time is the
-    wait.  A cached design shows the time of loading it.
-    """
-    rows = sorted(done, key=lambda r: -r[3])[:top]
-    width = max([len(f"{s}: {o}") for s, o, _, _ in rows] + [6])
-    lines = [f"{'design':<{width}}  status     seconds"]
-    lines += [f"{f'{s}: {o}':<{width}}  {st:<9} {t:8.1f}" for s, o, st, t in rows]
-    return "\n".join(lines)

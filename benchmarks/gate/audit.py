@@ -2,7 +2,7 @@
 
 ``python -m benchmarks audit`` runs every registered observer on ``R`` seeded realisations
 (default 100) of each audit scenario and tests, at every step, whether the true state lies in
-the estimated set with the exact membership tests of :mod:`benchmarks.membership`
+the estimated set with the exact membership tests of :mod:`benchmarks.run.membership`
 (tolerance ``max(scenario tolerance, 1e-8 * max(1, |x_k|_inf))``).  Realisation ``i`` uses
 seed ``i`` and the kind ``KINDS[i % 5]``:
 
@@ -51,14 +51,15 @@ import observers
 import systems
 from systems import ModelError, Scenario
 
-from . import freshness
-from .config import BenchConfig
-from .errors import ConfigError
-from .executors import run_tasks
-from .io import atomic_write_csv, atomic_write_text, environment
-from .membership import MembershipTester
-from .progress import progress_bar
-from .runner import run_observer
+from ..errors import ConfigError
+from ..io import atomic_write_csv, atomic_write_text, environment
+from ..report import freshness
+from ..report.numbers import fmt, markdown_table
+from ..run.config import merge_options
+from ..run.executors import run_tasks
+from ..run.membership import MembershipTester
+from ..run.progress import progress_bar
+from ..run.runner import run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim",
                    "tank6-nonlinear", "vanderpol-sim")
@@ -195,7 +196,6 @@ def audit_pair(scenario: str, observer: str, count: int,
     """Audit ``observer`` on those of the first ``count`` realisations of ``scenario`` whose
     kind is in ``kinds``; one row per kind."""
     info = observers.get(observer)
-    cfg = BenchConfig(name="audit", title="audit", scenarios=[], observers=[observer])
     rows = {k: {"observer": observer, "guaranteed": info.guaranteed, "scenario": scenario,
                 "kind": k, "runs": 0, "steps": 0, "violations": 0, "undecided": 0,
                 "worst_violation": 0.0, "worst_at": "", "ok": 0, "noGain": 0, "unsupported": 0,
@@ -209,7 +209,7 @@ def audit_pair(scenario: str, observer: str, count: int,
         row["runs"] += 1
         tester = MembershipTester()
         try:
-            run = run_observer(observer, sc, cfg.options_for(observer, sc), "hull",
+            run = run_observer(observer, sc, merge_options(observer, sc), "hull",
                                keep_sets=True)
         except ConfigError:  # an option rejected for this system: counted as an error run
             row["error"] += 1
@@ -296,16 +296,15 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _table(agg: pd.DataFrame) -> str:
+    """Markdown table of the aggregated audit (:func:`aggregate`)."""
     head = ["observer", "scenario", "runs", "steps", "violations", "worst violation",
             "undecided", "failed runs", "LP tests", "time s"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for r in agg.itertuples(index=False):
-        worst = "-" if r.violations == 0 else f"{r.worst_violation:.3g} ({r.worst_at})"
-        viol = f"**{r.violations}**" if r.violations else "0"
-        lines.append("| " + " | ".join([
-            r.observer, r.scenario, str(r.runs), str(r.steps), viol, worst, str(r.undecided),
-            r.failed or "-", str(r.lp_tests), f"{r.seconds:.1f}"]) + " |")
-    return "\n".join(lines)
+    rows = [[r.observer, r.scenario, str(r.runs), str(r.steps),
+             f"**{r.violations}**" if r.violations else "0",
+             "-" if r.violations == 0 else f"{fmt(r.worst_violation, 3)} ({r.worst_at})",
+             str(r.undecided), r.failed or "-", str(r.lp_tests), fmt(r.seconds, 3)]
+            for r in agg.itertuples(index=False)]
+    return markdown_table(head, rows)
 
 
 def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int,
@@ -336,7 +335,8 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int,
         "state is tested for membership in the estimated set with an exact test per set type "
         "(interval hull rejection, a verified factor-vector certificate, else an LP whose "
         "primal and dual points give certified bounds of the distance; see "
-        "`benchmarks/membership.py`). Tolerance: max(scenario tolerance, 1e-8 max(1, |x|_inf)). "
+        "`benchmarks/run/membership.py`). Tolerance: max(scenario tolerance, "
+        "1e-8 max(1, |x|_inf)). "
         "*Violations*: steps at which the true state is certified to lie outside the set; "
         "*worst violation*: the largest certified infinity-norm distance from the true state "
         "to the set (Euclidean for ellipsoids); *undecided*: steps the LP could not decide "
@@ -354,7 +354,7 @@ def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int,
         "`worst-input` are adversarial: "
         "noise at the vertices of W and V (redrawn every step, or held for random dwell "
         "times) and bang-bang inputs at the bounds of the nominal input range that swing the "
-        "state between extremes; see `benchmarks/audit.py`.",
+        "state between extremes; see `benchmarks/gate/audit.py`.",
         "",
         verdict,
         "",

@@ -1,7 +1,7 @@
 """The HTML report of a results folder (``DIR/index.html``) and the index of all reports.
 
 The page renders the same table data as the Markdown report (:func:`benchmarks.report.
-scenario_table_data`, :func:`~benchmarks.report.absolute_table_data`): one source of the
+scenario_table_data`, :func:`~benchmarks.report.tables.absolute_table_data`): one source of the
 cells, two renderers. It adds a ranking summary, per scenario the bounds of the tightest
 observers over time for one state with the true state, a heat map of the relative RMS
 (observer x state) and the per-step times on a log scale beside the papers' times, and the
@@ -17,31 +17,21 @@ import os
 import re
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
+import yaml
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-import yaml  # noqa: E402
+from observers.registry import table_order
 
-from observers.registry import table_order  # noqa: E402
+from ..errors import ConfigError
+from ..io import atomic_write_text, environment, load_results
+from ..metrics import timed_in_parallel
+from .aggregate import is_sweep, sweep_tables
+from .figures import bounds_over_time, heat_map, step_times
+from .numbers import MISSING, fmt
+from .paper import paper_rows
+from .tables import INTRO, absolute_table_data, scenario_notes, scenario_table_data
 
-from .aggregate import is_sweep, sweep_tables  # noqa: E402
-from .errors import ConfigError  # noqa: E402
-from .io import atomic_savefig, atomic_write_text, environment, load_results  # noqa: E402
-from .metrics import timed_in_parallel  # noqa: E402
-from .paper import paper_rows  # noqa: E402
-from .report import (  # noqa: E402
-    INTRO,
-    absolute_table_data,
-    scenario_notes,
-    scenario_table_data,
-)
-from .report import _fmt as _report_fmt  # noqa: E402  (the Markdown's number format)
-
-#: observers drawn in the bounds-over-time figure of a scenario (the tightest ones)
-BOUNDS_OBSERVERS = 4
 FIGURE_DIR = "html_figures"
 
 CSS = """
@@ -106,7 +96,7 @@ def html_table(head: list[str], rows: list[list[str]], table_id: str = "") -> st
 
 def markdown_to_html(lines: list[str]) -> list[str]:
     """Render Markdown headings (``## x``), tables and paragraphs (as produced by
-    :func:`benchmarks.aggregate.sweep_tables`) as HTML, tables sortable."""
+    :func:`benchmarks.report.aggregate.sweep_tables`) as HTML, tables sortable."""
     out: list[str] = []
     table: list[list[str]] = []
 
@@ -150,114 +140,30 @@ def ranking(summary: pd.DataFrame) -> pd.DataFrame:
     return out.sort_values(["mean_rank", "mean_rel_rms"], na_position="last")
 
 
-def _fmt(x, digits: int = 3) -> str:
-    if x is None or (isinstance(x, float) and np.isnan(x)):
-        return "-"
-    return f"{float(x):.{digits}g}"
-
-
 def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """Header and rows of :func:`ranking`."""
     rk = ranking(summary)
     head = ["Observer", "mean rank", "mean rel. RMS", "scenarios ranked", "failed",
             "violations"]
-    rows = [[obs, _fmt(r.mean_rank), _fmt(r.mean_rel_rms, 4), str(int(r.ranked))
+    rows = [[obs, fmt(r.mean_rank, 3), fmt(r.mean_rel_rms), str(int(r.ranked))
              if pd.notna(r.ranked) else "0", str(int(r.failed)),
-             "n/a" if pd.isna(r.violations) else str(int(r.violations))]
+             MISSING if pd.isna(r.violations) else str(int(r.violations))]
             for obs, r in rk.iterrows()]
     return head, rows
-
-
-def save_png_pdf(fig, base: Path) -> list[Path]:
-    """Save ``fig`` as ``base.png`` and ``base.pdf`` (atomically), close it, return both."""
-    paths = [base.with_suffix(".png"), base.with_suffix(".pdf")]
-    atomic_savefig(fig, paths[0], dpi=100)
-    atomic_savefig(fig, paths[1])
-    plt.close(fig)
-    return paths
-
-
-def bounds_over_time(runs: pd.DataFrame, summary: pd.DataFrame, scenario: str, state: int,
-                     base: Path, label: str) -> list[Path] | None:
-    """The lower and upper bounds of the tightest observers (at most
-    :data:`BOUNDS_OBSERVERS`, by the RMS radius of ``state``) over time, with the true state,
-    like the papers' figures. Returns the PNG and PDF paths, ``None`` without data."""
-    ok = summary[(summary["scenario"] == scenario) & (summary["state"] == state)
-                 & (summary["status"] == "ok") & summary["rms_radius"].notna()]
-    best = ok.sort_values("rms_radius")["observer"].head(BOUNDS_OBSERVERS).tolist()
-    g = runs[(runs["scenario"] == scenario) & (runs["state"] == state)]
-    if not best or g.empty:
-        return None
-    fig, ax = plt.subplots(figsize=(7, 3.2))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for obs, color in zip(best, colors, strict=False):
-        s = g[g["observer"] == obs]
-        ax.plot(s["t"], s["lo"], color=color, lw=1, label=obs)
-        ax.plot(s["t"], s["hi"], color=color, lw=1)
-    s = g[g["observer"] == best[0]]
-    if np.isfinite(s["x_true"]).any():
-        ax.plot(s["t"], s["x_true"], color="k", lw=1.2, ls="--", label="true state")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel(label)
-    ax.set_title(f"{scenario}: bounds of {label} (the {len(best)} tightest observers)",
-                 fontsize=9)
-    ax.legend(fontsize=7, ncol=3)
-    fig.tight_layout()
-    return save_png_pdf(fig, base)
-
-
-def heat_map(df: pd.DataFrame, scenario: str, base: Path) -> list[Path] | None:
-    """Relative RMS (eq. 9, ``rel_rms``) as a heat map, observer x state, log colour scale."""
-    ok = df[(df["status"] == "ok") & df["rel_rms"].notna()]
-    if ok.empty:
-        return None
-    mat = ok.pivot_table(index="observer", columns="state", values="rel_rms")
-    mat = mat.reindex(table_order(mat.index))
-    vals = mat.to_numpy(float)
-    n_obs, n = vals.shape
-    fig, ax = plt.subplots(figsize=(min(2.5 + 0.5 * n, 12), 1.2 + 0.2 * n_obs))
-    im = ax.imshow(np.log10(vals), cmap="viridis_r", aspect="auto")
-    ax.set_yticks(range(n_obs), mat.index, fontsize=7)
-    ax.set_xticks(range(n), [f"x{i + 1}" for i in mat.columns], fontsize=7)
-    if n <= 10:
-        for (i, j), v in np.ndenumerate(vals):
-            if np.isfinite(v):
-                ax.text(j, i, f"{v:.3g}", ha="center", va="center", fontsize=6,
-                        color="w" if np.log10(v) > np.nanmean(np.log10(vals)) else "k")
-    cb = fig.colorbar(im, ax=ax)
-    cb.set_label("log10 relative RMS", fontsize=7)
-    ax.set_title(f"{scenario}: relative RMS radius (1 = tightest)", fontsize=9)
-    fig.tight_layout()
-    return save_png_pdf(fig, base)
 
 
 def time_figure(df: pd.DataFrame, scenario: str, meta: dict, base: Path) -> list[Path] | None:
     """Per-step time (median ms, log scale) of every observer, beside the paper's time."""
     pairs = df.drop_duplicates("observer").set_index("observer")
     pairs = pairs.reindex(table_order(pairs.index))
-    ours = pairs["step_ms"].to_numpy(float)
-    if not np.isfinite(ours).any():
-        return None
     info = meta.get("scenarios", {}).get(scenario, {})
     n = int(df["state"].max()) + 1
     variant = "nonlinear" if "nonlinear" in scenario else "linear"
     paper = paper_rows(info.get("paper_table"), n, variant)
     theirs = np.array([paper[o].t_ms if o in paper and paper[o].t_ms else np.nan
                        for o in pairs.index], float)
-    y = np.arange(len(pairs))
-    fig, ax = plt.subplots(figsize=(6, 1.2 + 0.2 * len(pairs)))
-    ax.barh(y - 0.2, ours, height=0.4, label="ours (median step, this machine"
-            + (", jobs in parallel)" if timed_in_parallel(df) else ")"))
-    if np.isfinite(theirs).any():
-        ax.barh(y + 0.2, theirs, height=0.4, label="paper (MATLAB)")
-    ax.set_xscale("log")
-    ax.set_yticks(y, pairs.index, fontsize=7)
-    ax.invert_yaxis()
-    ax.set_xlabel("time per step [ms]")
-    ax.set_title(f"{scenario}: per-step time", fontsize=9)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    return save_png_pdf(fig, base)
+    return step_times(list(pairs.index), pairs["step_ms"].to_numpy(float), theirs,
+                              scenario, timed_in_parallel(df), base)
 
 
 def figure_html(paths: list[Path] | None, page_dir: Path, caption: str) -> str:
@@ -325,7 +231,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
     if sweep:  # several seeds or option variants: the aggregated tables of the Markdown report
         body += ["<p>Sweep: relative RMS radius over the seeds (mean, std, min, max over the "
                  "successful runs), as in report.md.</p>"]
-        body += markdown_to_html(sweep_tables(summary, _report_fmt))
+        body += markdown_to_html(sweep_tables(summary))
     for sc in scenarios:
         full = summary[summary["scenario"] == sc]
         info = meta.get("scenarios", {}).get(sc, {})

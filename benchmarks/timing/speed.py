@@ -2,7 +2,7 @@
 
 Times the cases of the speed table (:data:`CASES`: per-step cost on the 6-state vehicle as a
 ratio to a numpy Kalman step, milliseconds per step on 100 and 200 tanks) with
-:func:`benchmarks.timing.time_observers`, and writes one Markdown table with
+:func:`benchmarks.timing.steps.steps.time_observers`, and writes one Markdown table with
 
 * the measured value and the case's target,
 * the ratio of our median step time to the per-step time published with MATLAB + CORA
@@ -24,11 +24,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from . import freshness
-from .errors import ConfigError
-from .io import atomic_write_json, atomic_write_text, environment
-from .paper import paper_rows
-from .timing import TimingRow, time_observers
+from ..errors import ConfigError
+from ..io import atomic_write_json, atomic_write_text, environment
+from ..report import freshness
+from ..report.numbers import fmt
+from ..report.paper import paper_rows
+from .steps import TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
 DEFAULT_JSON = Path("reports") / "speed.json"
@@ -144,12 +145,6 @@ def load_previous(path: str | Path) -> tuple[dict[tuple[str, str], float], str]:
         return {}, ""
 
 
-def _fmt(x: float, unit: str = "") -> str:
-    if not isinstance(x, (int, float)) or not math.isfinite(x):
-        return "n/a"
-    return f"{x:.3g}{unit}"
-
-
 def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float],
            previous_git: str, env: dict[str, str]) -> str:
     """The Markdown of ``reports/speed.md``."""
@@ -162,7 +157,8 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
         "Times are medians over the timed steps of repeated runs; *step / Kalman step* divides "
         "the observer's median step by the median step of a plain numpy Kalman filter "
         "(predict + update) timed right after it in the same process (see "
-        "`benchmarks/timing.py`). The machine is shared: read the milliseconds as indicative.",
+        "`benchmarks/timing/steps.py`). The machine is shared: read the milliseconds as "
+        "indicative.",
         "",
         "*paper ms*: per-step time published with MATLAB + CORA (vehicle: Althoff & Rath, "
         "Automatica 2021, Table 3, i7-8565U; tanks: ARCH 2021 Tables 5/6, up to 30 tanks only); "
@@ -178,14 +174,14 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
         unit = _UNIT[r["metric"]]
         v = r["value"]
         met = "n/a" if not math.isfinite(v) else ("yes" if v <= r["target"] else "no")
-        now = _fmt(v, unit) if r["status"] == "ok" else r["status"]
+        now = fmt(v, 3, unit) if r["status"] == "ok" else r["status"]
         prev = previous.get((r["case"], r["observer"]), math.nan)
         ratio_paper = r["step_ms"] / r["paper_ms"] if math.isfinite(r["paper_ms"]) else math.nan
         ratio_prev = v / prev if math.isfinite(prev) and prev > 0 else math.nan
         lines.append(
-            f"| {r['case']} | {r['observer']} | {now} | <= {_fmt(r['target'], unit)} | {met} | "
-            f"{_fmt(r['step_ms'])} | {_fmt(r['hull_ms'])} | {_fmt(r['paper_ms'])} | "
-            f"{_fmt(ratio_paper)} | {_fmt(prev, unit)} | {_fmt(ratio_prev)} |")
+            f"| {r['case']} | {r['observer']} | {now} | <= {fmt(r['target'], 3, unit)} | {met} | "
+            f"{fmt(r['step_ms'], 3)} | {fmt(r['hull_ms'], 3)} | {fmt(r['paper_ms'], 3)} | "
+            f"{fmt(ratio_paper, 3)} | {fmt(prev, 3, unit)} | {fmt(ratio_prev, 3)} |")
     for label, target, _why in NOT_MEASURED:
         lines.append(f"| {label} | | not measured | {target} | n/a | | | | | | |")
     lines += ["", "Not measured by this command:", ""]
@@ -201,8 +197,8 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
 def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
                        cases: tuple[Case, ...] = CASES, progress: bool = True) -> Path:
     """Measure :data:`CASES`, compare with ``json_path`` (the previous measurement), write the
-    Markdown report ``out`` (with the freshness stamp of :mod:`benchmarks.freshness`, as every
-    report) and overwrite ``json_path`` with this measurement."""
+    Markdown report ``out`` (with the freshness stamp of :mod:`benchmarks.report.freshness`, as
+    every report) and overwrite ``json_path`` with this measurement."""
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
     env = environment()

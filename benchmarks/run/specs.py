@@ -44,7 +44,7 @@ from systems import (
     simulate,
 )
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 NAMED_KWARGS = {"seed", "noise", "steps"}
 NAMED_KEYS = NAMED_KWARGS | {"options", "label"}

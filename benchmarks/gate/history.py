@@ -15,16 +15,13 @@ import io
 import subprocess
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from .errors import ConfigError  # noqa: E402
-from .html import figure_html, html_page, html_table, save_png_pdf  # noqa: E402
-from .io import atomic_write_csv, atomic_write_text  # noqa: E402
+from ..errors import ConfigError
+from ..io import atomic_write_csv, atomic_write_text
+from ..report import figures
+from ..report.html import figure_html, html_page, html_table
 
 HISTORY_COLUMNS = ["commit", "date", "subject", "scenario", "observer", "rel_rms",
                    "violations", "status"]
@@ -112,31 +109,6 @@ def changes(table: pd.DataFrame, rtol: float = 1e-6) -> pd.DataFrame:
                                       "after", "status", "violations"])
 
 
-def history_figure(table: pd.DataFrame, scenario: str, base: Path) -> list[Path]:
-    """Two panels over the commits: average relative RMS (log) and violations, one line
-    per observer."""
-    g = table[table["scenario"] == scenario]
-    commits = list(dict.fromkeys(table["commit"]))
-    x = {c: i for i, c in enumerate(commits)}
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True,
-                                   gridspec_kw={"height_ratios": [3, 1]})
-    cmap = plt.get_cmap("tab20")
-    for k, (obs, o) in enumerate(g.groupby("observer", sort=False)):
-        style = "-" if k < 20 else "--"
-        xs = [x[c] for c in o["commit"]]
-        ax1.plot(xs, o["rel_rms"], style, marker="o", ms=3, color=cmap(k % 20), label=obs)
-        ax2.plot(xs, o["violations"].fillna(0), style, marker="o", ms=3, color=cmap(k % 20))
-    ax1.set_yscale("log")
-    ax1.set_ylabel("avg relative RMS")
-    ax1.set_title(f"{scenario}: golden summaries over the commits", fontsize=9)
-    ax1.legend(fontsize=6, ncol=2, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    ax2.set_ylabel("violations")
-    ax2.set_xticks(range(len(commits)), [c[:7] for c in commits], rotation=45, fontsize=7)
-    ax2.set_xlabel("commit (oldest first)")
-    fig.tight_layout()
-    return save_png_pdf(fig, base)
-
-
 def write_history(baseline: str | Path = "results/baseline", out: str | Path = "results/history"
                   ) -> tuple[Path, pd.DataFrame]:
     """Write ``OUT/index.html`` (figures per scenario, changes per commit) and
@@ -151,7 +123,7 @@ def write_history(baseline: str | Path = "results/baseline", out: str | Path = "
             "observer and its containment violations at each of these commits. A rising line "
             "is a looser bound.</p>"]
     for sc in dict.fromkeys(table["scenario"]):
-        paths = history_figure(table, sc, out / "figures" / f"{sc}_history")
+        paths = figures.history(table, sc, out / "figures" / f"{sc}_history")
         body += [f"<h2>{html.escape(sc)}</h2>",
                  figure_html(paths, out, f"{sc}: relative RMS and violations over commits")]
     ch = changes(table)

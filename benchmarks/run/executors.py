@@ -22,7 +22,7 @@ One failed job never stops the others.
     that job's ``error``.
 
 Local workers are forked from a server process that preloaded the harness, every observer
-plugin and the compiled LP kernel (:mod:`benchmarks.workerinit`; the ``forkserver`` method,
+plugin and the compiled LP kernel (:mod:`benchmarks.run.workerinit`; the ``forkserver`` method,
 ``spawn`` where there is none).  Why not ``fork`` from the parent: the parent may hold
 threads (a progress bar's monitor, a Dask client), which a fork does not carry over (locks
 they hold stay locked in the child); and why not ``spawn``: each worker would import
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from typing import Any
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
 _KILLED = object()  # a Dask task whose worker died
@@ -191,7 +191,7 @@ def _context():
     of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["benchmarks.workerinit"])
+        ctx.set_forkserver_preload(["benchmarks.run.workerinit"])
         return ctx
     return mp.get_context("spawn")
 

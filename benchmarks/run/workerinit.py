@@ -1,7 +1,7 @@
 """Preloaded by the server process from which local workers are forked
-(:func:`benchmarks.executors._context`), so that every worker starts with what the jobs need.
+(:func:`benchmarks.run.executors._context`), so that every worker starts with what the jobs need.
 
-Importing this module imports the harness (:mod:`benchmarks.runner`), every observer plugin
+Importing this module imports the harness (:mod:`benchmarks.run.runner`), every observer plugin
 (with what they import: HiGHS, scipy.stats, numba, ...) and loads the compiled (numba) simplex
 kernel from its disk cache by solving one tiny hull LP, and the compiled one-step kernels
 (:mod:`observers.sets._step_jit`) by two steps of one observer per kernel on the
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-import benchmarks.runner  # noqa: F401  (the harness itself)
+import benchmarks.run.runner  # noqa: F401  (the harness itself)
 import observers
 import systems
 from observers.sets import ConZonotope

@@ -2,7 +2,7 @@
 and timings, written as ``runs.csv``, ``summary.csv`` and ``meta.json`` (one generation).
 
 The work is a list of independent :class:`Job` values run by an executor
-(:mod:`benchmarks.executors`: serial, local processes or Dask)."""
+(:mod:`benchmarks.run.executors`: serial, local processes or Dask)."""
 
 from __future__ import annotations
 
@@ -23,15 +23,15 @@ from observers import DesignFailed, OptionError, RunResult, Unsupported
 from observers.sets import ConZonotope, Interval, Zonotope
 from systems import ModelError, Scenario, available_memory
 
-from .config import BenchConfig
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..io import check_output_dir, environment, write_results
+from ..metrics import add_relative_rms, median_ms, rms_radius
+from ..verdicts import contained_column, containment_verdict
+from .config import BenchConfig, merge_options
 from .executors import JobFailure, SerialExecutor
-from .io import check_output_dir, environment, write_results
 from .membership import MembershipTester
-from .metrics import add_relative_rms, median_ms, rms_radius
 from .progress import progress_bar
 from .specs import build_scenario
-from .verdicts import contained_column, containment_verdict
 
 RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
                "radius", "x_true", "contained", "in_set"]
@@ -66,7 +66,7 @@ def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: boo
     """Hull containment per step and state, set membership per step, and whether every
     set was tested as asked.
 
-    The exact test (:mod:`benchmarks.membership`: a membership certificate, else an LP) runs
+    The exact test (:mod:`benchmarks.run.membership`: a membership certificate, else an LP) runs
     only where the hull test passes, since a point outside the interval hull is outside the set.
     A set that offers no exact test (a plugin's set with only ``interval()``) leaves the run
     undecided (``decided`` False) unless the hull already shows a violation.
@@ -268,6 +268,12 @@ class Job:
     label: str = ""
     guaranteed: bool = True
 
+    def inputs(self) -> tuple[Scenario, dict]:
+        """The job's scenario (built once per process) and the options its observer runs with
+        (:func:`.config.merge_options`, merged here once)."""
+        sc = _scenario(self)
+        return sc, merge_options(self.observer, sc, self.options, self.observer_options)
+
 
 _SCENARIOS: dict[str, Scenario] = {}
 
@@ -305,12 +311,6 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
     return jobs
 
 
-def _job_options(job: Job, sc: Scenario) -> dict:
-    cfg = BenchConfig(name="job", title="job", scenarios=[sc], observers=[job.observer],
-                      options=job.options, observer_options={job.observer: job.observer_options})
-    return cfg.options_for(job.observer, sc)
-
-
 def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
     """``(runs rows or None, summary rows)`` of a finished or failed job."""
     runs = None
@@ -331,8 +331,8 @@ def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
 def execute_job(job: Job):
     """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
     importlib.import_module(job.module)
-    sc = _scenario(job)
-    run = run_observer(job.observer, sc, _job_options(job, sc), job.containment)
+    sc, options = job.inputs()
+    run = run_observer(job.observer, sc, options, job.containment)
     if job.label:  # its rows carry the label and its own guarantee
         run.info = dataclasses.replace(run.info, name=job.label, guaranteed=job.guaranteed)
     return _job_frames(job, sc, run)
@@ -364,7 +364,7 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     (``runs.csv``, ``summary.csv``, ``meta.json``) as one generation
     (:func:`benchmarks.io.write_results`), only once every job has finished. The output folder
     and the memory needed are checked before any job runs (:class:`ConfigError`).
-    ``executor`` (:mod:`benchmarks.executors`, default serial) runs the
+    ``executor`` (:mod:`benchmarks.run.executors`, default serial) runs the
     jobs; a job it could not run (worker died, timeout) is a row with that status.  Timing
     columns of jobs run concurrently are marked ``timed = parallel`` (indicative only).
     """

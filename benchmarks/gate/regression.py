@@ -20,16 +20,13 @@ Timings are never compared.
 Tolerances are data, not code paths: ``rtol`` is the larger of the class attribute
 ``REGRESSION_RTOL`` of the observer (``observers.Observer``: 1e-6, deterministic online
 computations; ``OfflineGain``: 1e-4, gains from an SDP solver, accurate to the solver's
-tolerance; a plugin sets its own) and a *measured* sensitivity to the BLAS kernel:
-``baseline --update`` re-runs the subset under every OpenBLAS kernel family of
-:data:`SPREAD_KERNELS` that this CPU runs (one subprocess each, ``OPENBLAS_CORETYPE=K``) and
-records, per observer, scenario and state, the largest relative difference of ``rms_radius``
-from this run (``kernel_spread``).  An observer whose numbers depend on the kernel (an SDP
-design on a flat optimum, a near-divergent observer) gets ``rtol = SPREAD_SAFETY x`` its
-largest spread on that scenario; ``SENSITIVITY.md`` beside the golden files lists every such
-observer with the measured figures.  An ``rtol`` of :data:`CHAOTIC_RTOL` or more marks the
-observer as *chaotic* on that scenario: a 0.5 % loosening may pass there; everywhere else it
-fails.  The comparison uses the larger of the stored and the current class tolerance.
+tolerance; a plugin sets its own) and a *measured* sensitivity to the BLAS kernel
+(:mod:`.kernels`: an observer whose numbers depend on the kernel, e.g. an SDP design on a
+flat optimum, gets a tolerance from the spread measured under the other OpenBLAS kernel
+families; ``SENSITIVITY.md`` beside the golden files lists them).  An ``rtol`` of
+:data:`CHAOTIC_RTOL` or more marks the observer as *chaotic* on that scenario: a 0.5 %
+loosening may pass there; everywhere else it fails.  The comparison uses the larger of the
+stored and the current class tolerance.
 
 Installed third-party plugins (observers not defined in the ``observers`` package) are not
 part of the project's baseline: ``baseline --update`` leaves them out and ``check`` lists them
@@ -48,37 +45,29 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
-import sys
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 import observers
 
-from .config import BenchConfig, load_config
-from .errors import ConfigError
-from .io import atomic_write_csv, atomic_write_json, atomic_write_text, environment
-from .metrics import add_relative_rms
-from .runner import run_config
+from ..errors import ConfigError
+from ..io import atomic_write_csv, atomic_write_json, environment
+from ..metrics import add_relative_rms
+from ..report.numbers import fmt, text_table
+from ..run.config import BenchConfig, load_config
+from ..run.runner import run_config
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent / "configs" / "regression.yaml"
+DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
 BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
                     "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread"]
 #: absolute floor of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
-#: OpenBLAS kernel families compared by ``baseline --update`` (those this CPU runs)
-SPREAD_KERNELS = ("Sandybridge", "Haswell", "SkylakeX")
-#: tolerance = this factor x the largest measured kernel spread of an observer on a scenario
-#: (a spread measured on a few kernels underestimates the range of others)
-SPREAD_SAFETY = 4.0
 #: an observer with a tolerance from here on is chaotic on that scenario: the gate cannot see
 #: a 0.5 % loosening of its radii (half of 0.5 %, since ``rel_rms`` adds the best one's)
 CHAOTIC_RTOL = 0.0025
@@ -142,132 +131,6 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
     return frame[BASELINE_COLUMNS], cache_note
 
 
-# -- measured sensitivity to the BLAS kernel --------------------------------------------------
-def _corename_in(kernel: str) -> str:
-    code = "from benchmarks.io import blas_corename; print(blas_corename())"
-    env = {**os.environ, "OPENBLAS_CORETYPE": kernel}
-    try:
-        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                             text=True, timeout=60)
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return out.stdout.strip()
-
-
-def available_kernels(candidates: tuple[str, ...] = SPREAD_KERNELS) -> list[str]:
-    """The kernel families of ``candidates`` that OpenBLAS really runs on this CPU."""
-    return [k for k in candidates if _corename_in(k).lower() == k.lower()]
-
-
-def _subset_to_csv(config: str, out: str, use_cache: bool, observers_: list[str]) -> None:
-    """Run the subset and write its golden rows to ``out`` (in a kernel subprocess)."""
-    cfg = subset_config(config)
-    cfg.observers = observers_
-    frame, _ = run_subset(cfg, use_cache, progress=False)
-    frame.to_csv(out, index=False, float_format="%.17g")
-
-
-def runs_under_kernels(config: str | Path, cfg: BenchConfig, kernels: list[str],
-                       use_cache: bool = False) -> dict[str, pd.DataFrame]:
-    """The subset's golden rows under each kernel family (subprocesses, two at a time)."""
-    results: dict[str, pd.DataFrame] = {}
-    with tempfile.TemporaryDirectory(prefix="setobs-kernels-") as tmp:
-        pending = list(kernels)
-        while pending:
-            batch, pending = pending[:2], pending[2:]
-            procs = []
-            for k in batch:
-                out = Path(tmp) / f"{k}.csv"
-                code = ("import sys; from benchmarks.regression import _subset_to_csv; "
-                        "_subset_to_csv(sys.argv[1], sys.argv[2], sys.argv[3] == '1', "
-                        "sys.argv[4:])")
-                env = {**os.environ, "OPENBLAS_CORETYPE": k}
-                procs.append((k, out, subprocess.Popen(
-                    [sys.executable, "-c", code, str(config), str(out),
-                     "1" if use_cache else "0", *cfg.observers],
-                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)))
-            for k, out, proc in procs:
-                _, err = proc.communicate()
-                if proc.returncode != 0 or not out.is_file():
-                    last = (err.strip().splitlines() or ["no output"])[-1]
-                    raise ConfigError(f"the subset failed under OPENBLAS_CORETYPE={k}: {last}")
-                results[k] = pd.read_csv(out)
-    return results
-
-
-def apply_kernel_spread(frame: pd.DataFrame, others: dict[str, pd.DataFrame]) -> tuple[
-        pd.DataFrame, list[str]]:
-    """Record each value's largest relative difference under the other kernels
-    (``kernel_spread``) and widen ``rtol`` to ``SPREAD_SAFETY x`` the pair's largest spread
-    where that exceeds the class tolerance.  Returns the frame and the problems (a status or
-    a containment count that depends on the kernel: no tolerance can absorb those)."""
-    frame = frame.copy().reset_index(drop=True)
-    key = ["scenario", "observer", "state"]
-    spread = pd.Series(0.0, index=frame.index)
-    problems: list[str] = []
-    for kernel, other in others.items():
-        m = frame[key + ["status", "rms_radius", "violations"]].merge(
-            other[key + ["status", "rms_radius", "violations"]], on=key, how="left",
-            suffixes=("", "_k"))
-        for r in m.drop_duplicates(["scenario", "observer"]).itertuples(index=False):
-            if r.status != r.status_k:
-                problems.append(f"{r.observer} on {r.scenario}: status {r.status} here, "
-                                f"{r.status_k} with OPENBLAS_CORETYPE={kernel}")
-            elif not (pd.isna(r.violations) and pd.isna(r.violations_k)) and (
-                    r.violations != r.violations_k):
-                problems.append(f"{r.observer} on {r.scenario}: {r.violations} violations "
-                                f"here, {r.violations_k} with OPENBLAS_CORETYPE={kernel}")
-        a, b = m["rms_radius"].astype(float), m["rms_radius_k"].astype(float)
-        rel = ((a - b).abs() / a.abs()).where(a.abs() > ATOL, 0.0).fillna(0.0)
-        spread = np.maximum(spread, rel.to_numpy())
-    frame["kernel_spread"] = spread
-    worst = frame.groupby(["scenario", "observer"])["kernel_spread"].transform("max")
-    measured = (SPREAD_SAFETY * worst).map(_round_up)
-    frame["rtol"] = np.maximum(frame["rtol"].astype(float), measured)
-    return frame, problems
-
-
-def _round_up(x: float) -> float:
-    """``x`` rounded up to one significant digit (readable tolerances)."""
-    if not x > 0:
-        return 0.0
-    e = math.floor(math.log10(x))
-    return math.ceil(x / 10 ** e) * 10 ** e
-
-
-def sensitivity_report(frame: pd.DataFrame, kernels: list[str], here: str) -> str:
-    """``SENSITIVITY.md``: how each widened tolerance was measured."""
-    per = frame.groupby(["scenario", "observer"], sort=False).agg(
-        spread=("kernel_spread", "max"), rtol=("rtol", "first")).reset_index()
-    base = {o: regression_rtol(o) for o in per["observer"].unique()}
-    wide = per[per["rtol"] > per["observer"].map(base)]
-    lines = [
-        "# Measured sensitivity of the golden numbers to the BLAS kernel",
-        "",
-        f"Written by `python -m benchmarks baseline --update`: the subset ran here "
-        f"(OpenBLAS kernel {here}) and under " + (", ".join(
-            f"`OPENBLAS_CORETYPE={k}`" for k in kernels) or "no other kernel") + ". "
-        "*Spread*: the largest relative difference of an RMS radius (over the states) from "
-        "this run. Where the observer's class tolerance is below "
-        f"{SPREAD_SAFETY:g} x spread, the tolerance of that observer on that scenario is "
-        f"{SPREAD_SAFETY:g} x spread, rounded up to one digit. *Chaotic*: tolerance of "
-        f"{CHAOTIC_RTOL:g} or more, so a 0.5 % loosening of its radii may pass the gate "
-        "there (everywhere else it fails).",
-        "",
-    ]
-    if wide.empty:
-        lines.append("Every golden number is independent of the kernel (spreads within the "
-                     "class tolerances).")
-    else:
-        lines += ["| observer | scenario | spread | class rtol | rtol | chaotic |",
-                  "|---|---|---|---|---|---|"]
-        for r in wide.sort_values(["observer", "scenario"]).itertuples(index=False):
-            lines.append(f"| {r.observer} | {r.scenario} | {r.spread:.2e} | "
-                         f"{base[r.observer]:g} | {r.rtol:g} | "
-                         f"{'yes' if r.rtol >= CHAOTIC_RTOL else 'no'} |")
-    return "\n".join(lines) + "\n"
-
-
 def _meta(cfg: BenchConfig, cache_note: str) -> dict:
     return {
         "config": {"name": cfg.name, "raw": cfg.raw},
@@ -294,15 +157,6 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
         stale.unlink()
     atomic_write_json(folder / "meta.json", _meta(cfg, cache_note))
     return written
-
-
-def write_sensitivity(frame: pd.DataFrame, folder: str | Path, kernels: list[str]) -> Path:
-    """Write ``SENSITIVITY.md`` beside the golden files."""
-    from .io import blas_corename
-
-    path = Path(folder) / "SENSITIVITY.md"
-    atomic_write_text(path, sensitivity_report(frame, kernels, blas_corename()))
-    return path
 
 
 def baseline_problems(frame: pd.DataFrame) -> list[str]:
@@ -455,33 +309,23 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
                                        "current", "rel_diff", "tol", "ok", "note"])
 
 
-def _cell(x) -> str:
-    if isinstance(x, str):
-        return x
-    if x is None or (isinstance(x, float) and math.isnan(x)):
-        return "-"
-    if isinstance(x, float) and x.is_integer() and abs(x) < 1e6:
-        return f"{int(x)}"
-    return f"{x:.10g}" if isinstance(x, float) else str(x)
-
-
-def _table(rows: pd.DataFrame) -> str:
+def _diff_table(rows: pd.DataFrame) -> str:
+    """Fixed-width table of compared values (baseline and current to 10 digits)."""
     head = ["scenario", "observer", "state", "metric", "baseline", "current", "rel.diff", "tol",
             "verdict"]
     body = []
     for r in rows.itertuples(index=False):
-        rel = "-" if math.isnan(r.rel_diff) else f"{r.rel_diff:.2e}"
         tol = r.tol if isinstance(r.tol, str) else ("exact" if r.tol == 0 else f"{r.tol:.0e}")
         verdict = "ok" if r.ok else "REGRESSION" + (f": {r.note}" if r.note else "")
         body.append([str(r.scenario), str(r.observer), str(r.state), r.metric,
-                     _cell(r.baseline), _cell(r.current), rel, tol or "-", verdict])
-    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h)
-              for i, h in enumerate(head)]
-    lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)).rstrip()]
-    lines.append("  ".join("-" * w for w in widths))
-    lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths, strict=True)).rstrip()
-              for b in body]
-    return "\n".join(lines)
+                     _value_cell(r.baseline), _value_cell(r.current), fmt(r.rel_diff, 3),
+                     tol or "-", verdict])
+    return text_table(head, body)
+
+
+def _value_cell(x) -> str:
+    """A compared value: a word as it is, a number to 10 significant digits."""
+    return x if isinstance(x, str) else fmt(x, 10)
 
 
 def _consequential(diff: pd.DataFrame) -> pd.Series:
@@ -526,13 +370,13 @@ def format_diff(diff: pd.DataFrame, only_failures: bool = True) -> str:
     observers' own changes, then the ratios that moved only because the best observer of a
     state changed."""
     if not only_failures:
-        return _table(diff)
+        return _diff_table(diff)
     follow = _consequential(diff)
     own = diff[~diff["ok"] & ~follow]
-    parts = [_table(own)]
+    parts = [_diff_table(own)]
     if follow.any():
         parts += ["", "relative RMS that moved only because the best observer of the state "
-                  "changed:", _table(diff[follow])]
+                  "changed:", _diff_table(diff[follow])]
     return "\n".join(parts)
 
 

@@ -12,7 +12,8 @@ import pandas as pd
 
 from observers.registry import table_order
 
-from .metrics import timed_in_parallel
+from ..metrics import timed_in_parallel
+from .numbers import fmt, markdown_table
 
 KEYS = ["scenario", "observer", "variant"]
 
@@ -69,9 +70,8 @@ def aggregate_seeds(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def sweep_tables(summary: pd.DataFrame, fmt) -> list[str]:
-    """Markdown lines: one table per scenario of :func:`aggregate_seeds` (``fmt`` formats a
-    number)."""
+def sweep_tables(summary: pd.DataFrame) -> list[str]:
+    """Markdown lines: one table per scenario of :func:`aggregate_seeds`."""
     agg = aggregate_seeds(summary)
     par = " (parallel)" if timed_in_parallel(summary) else ""
     head = ["Observer", "variant", "runs (ok)", "rel. RMS mean", "std", "min", "max",
@@ -79,15 +79,12 @@ def sweep_tables(summary: pd.DataFrame, fmt) -> list[str]:
     out = []
     for sc, g in agg.groupby("scenario", sort=False):
         seeds = summary.loc[summary["scenario"] == sc, "seed"].nunique()
-        out += [f"## {sc} ({seeds} seed{'s' if seeds != 1 else ''})", "",
-                "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         order = {n: i for i, n in enumerate(table_order(g["observer"].unique()))}
         g = g.assign(_o=g["observer"].map(order)).sort_values(["_o", "variant"], kind="stable")
-        for r in g.itertuples(index=False):
-            viol = f"**{r.violations}**" if r.violations else "0"
-            out.append("| " + " | ".join([
-                r.observer, r.variant or "-", f"{r.runs} ({r.ok})", fmt(r.rel_mean),
-                fmt(r.rel_std), fmt(r.rel_min), fmt(r.rel_max), fmt(r.step_ms), fmt(r.hull_ms),
-                fmt(r.design_s), viol, r.failed or "-"]) + " |")
-        out.append("")
+        rows = [[r.observer, r.variant or "-", f"{r.runs} ({r.ok})", fmt(r.rel_mean),
+                 fmt(r.rel_std), fmt(r.rel_min), fmt(r.rel_max), fmt(r.step_ms), fmt(r.hull_ms),
+                 fmt(r.design_s), f"**{r.violations}**" if r.violations else "0",
+                 r.failed or "-"] for r in g.itertuples(index=False)]
+        out += [f"## {sc} ({seeds} seed{'s' if seeds != 1 else ''})", "",
+                markdown_table(head, rows), ""]
     return out

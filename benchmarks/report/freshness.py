@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 #: the project root (the folder holding observers/, systems/, benchmarks/)
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent.parent
 #: code folders whose ``*.py`` files enter the hash
 CODE_DIRS = ("observers", "systems", "benchmarks")
 #: data folders whose files (all of them) enter the hash

@@ -43,7 +43,7 @@ import yaml
 import observers
 from systems import Scenario
 
-from .errors import ConfigError
+from ..errors import ConfigError
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
@@ -102,20 +102,33 @@ class BenchConfig:
         return observers.get(label).guaranteed
 
     def options_for(self, observer: str, scenario: Scenario) -> dict[str, Any]:
-        """Scenario defaults < config options < per-observer options, restricted to the
-        options the observer accepts (scenario and global ones) or all (per-observer ones);
-        scenario defaults only for the options listed in the observer's ``SCENARIO_OPTIONS``;
-        observers with a ``training`` option also get the scenario's offline experiment."""
-        info = observers.get(self.observer_of(observer))
-        accepted = info.option_defaults()
-        from_scenario = accepted if info.scenario_options is None else info.scenario_options
-        merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
-        merged.update({k: v for k, v in self.options.items() if k in accepted})
-        merged.update(self.labelled[observer][1] if observer in self.labelled
-                      else self.observer_options.get(observer, {}))
-        if "training" in accepted and "training" not in merged and scenario.training is not None:
-            merged["training"] = scenario.training  # offline data for data-driven observers
-        return merged
+        """The options of ``observer`` (a name or a label) on ``scenario``
+        (:func:`merge_options` of this config's options)."""
+        own = (self.labelled[observer][1] if observer in self.labelled
+               else self.observer_options.get(observer, {}))
+        return merge_options(self.observer_of(observer), scenario, self.options, own)
+
+
+def merge_options(name: str, scenario: Scenario, options: dict[str, Any] | None = None,
+                  own: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The options observer ``name`` runs with on ``scenario``.
+
+    Scenario defaults < ``options`` (the config's, for every observer) < ``own`` (the
+    observer's own options and sweep variant), restricted to the options the observer accepts
+    for the scenario and global ones (all of ``own``: an unknown one is the observer's error to
+    report); scenario defaults only for the options listed in the observer's
+    ``SCENARIO_OPTIONS``; observers with a ``training`` option also get the scenario's offline
+    experiment.
+    """
+    info = observers.get(name)
+    accepted = info.option_defaults()
+    from_scenario = accepted if info.scenario_options is None else info.scenario_options
+    merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
+    merged.update({k: v for k, v in (options or {}).items() if k in accepted})
+    merged.update(own or {})
+    if "training" in accepted and "training" not in merged and scenario.training is not None:
+        merged["training"] = scenario.training  # offline data for data-driven observers
+    return merged
 
 
 def _yaml_error(path: Path, exc: yaml.YAMLError) -> ConfigError:
@@ -334,6 +347,18 @@ def _expand(entries: list, seeds: list[int] | None, sizes: list[int] | None,
                 else:
                     out.append(dict(sized, seed=seed))
     return out
+
+
+def inline_config(scenarios: list[str] | None, observer_names: list[str] | None = None,
+                  name: str | None = None) -> BenchConfig:
+    """The configuration of a run given by names (``run --scenario S --observer NAME``):
+    every observer (default: all) on every named scenario."""
+    if not scenarios:
+        raise ConfigError("run: give a YAML config or at least one --scenario")
+    raw = {"name": name or "cli", "title": "Command-line run: " + ", ".join(scenarios),
+           "scenarios": list(scenarios),
+           "observers": list(observer_names) if observer_names else "all"}
+    return parse_config(raw, raw["name"])
 
 
 def load_config(path: str | Path) -> BenchConfig:

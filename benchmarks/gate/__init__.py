@@ -1,0 +1,4 @@
+"""What fails CI: ``regression`` (golden files and their comparison), ``kernels`` (the
+golden numbers' sensitivity to the BLAS kernel), ``policy`` (the verdicts of ``check``,
+``baseline`` and ``audit``), ``audit`` (the soundness audit), ``history`` (the golden summaries
+over the commits).  Imports :mod:`benchmarks.run`, :mod:`benchmarks.report` and the floor."""

@@ -1,0 +1,188 @@
+"""What passes and what fails: the verdicts of ``check``, ``baseline`` and ``audit``.
+
+The mechanisms live beside this module (:mod:`.regression` compares golden files,
+:mod:`.kernels` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the soundness audit,
+:mod:`benchmarks.report.freshness` hashes the committed reports); the rules that turn their
+findings into an exit code are here, in one place:
+
+* ``check`` fails (1) on a stale committed report, on a regression subset configuration that
+  changed since the baseline, and on any value outside its tolerance (a third-party plugin not
+  in the baseline is listed, and fails only with ``strict``);
+* ``baseline --update`` refuses (1) a run with a crash or a containment violation of a
+  guaranteed observer (never enshrined, not even with ``force``), and a status or containment
+  count that depends on the BLAS kernel (unless ``force``);
+* ``audit`` fails (1) when a guaranteed observer's set missed the true state of a realisation.
+
+Each function returns an :class:`Outcome`: the exit code and the lines to print, in order,
+each to standard output or standard error; the command line only prints them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..io import atomic_write_csv, blas_corename
+from ..report import freshness
+from . import audit as soundness
+from . import kernels, regression
+
+
+@dataclass
+class Outcome:
+    """The exit code of a gate command and its messages, in the order to print them."""
+
+    code: int = 0
+    #: ``(to_stderr, text)`` pairs
+    messages: list[tuple[bool, str]] = field(default_factory=list)
+
+    def say(self, text: str) -> None:
+        """A line for standard output."""
+        self.messages.append((False, text))
+
+    def warn(self, text: str) -> None:
+        """A line for standard error."""
+        self.messages.append((True, text))
+
+
+def check(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
+          progress: bool | None = None, out: str | Path | None = None, strict: bool = False,
+          show_all: bool = False, reports: str | Path | None = None) -> Outcome:
+    """``check``: the committed reports' freshness (``reports``), then the regression subset
+    against the golden files of ``baseline``."""
+    res = Outcome()
+    stale = freshness.stale_reports(reports) if reports else []
+    if stale:  # cheap (hashes only): reported first, and the regression subset still runs
+        res.warn(freshness.format_stale(stale))
+    res.code = _check_regression(res, config, baseline, use_cache, progress, out, strict,
+                                 show_all)
+    if stale:
+        res.warn(f"check FAILED: {len(stale)} committed report(s) in {reports} are stale "
+                 "(see above)")
+        res.code = 1
+    return res
+
+
+def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, strict,
+                      show_all) -> int:
+    cfg = regression.subset_config(config)
+    base, meta = regression.load_baseline(baseline)
+    if regression.config_changed(cfg, meta):
+        res.warn(f"REGRESSION: {config} changed since the baseline in {baseline} was written; "
+                 "review and run `python -m benchmarks baseline --update`")
+        return 1
+    frame, cache_note = regression.run_subset(cfg, use_cache, progress, out)
+    diff = regression.compare(base, frame, strict=strict)
+    if out:
+        atomic_write_csv(Path(out) / "diff.csv", diff)
+    n, bad = len(diff), int((~diff["ok"]).sum())
+    if bad or show_all:
+        res.say(regression.format_diff(diff, only_failures=not show_all))
+    plugins = diff[diff["ok"] & (diff["metric"] == "observer")]
+    for r in plugins.itertuples(index=False):
+        res.warn(f"note: {r.observer} on {r.scenario}: {r.note}")
+    where = (f"{frame['observer'].nunique()} observers x {frame['scenario'].nunique()} "
+             f"scenarios; {cache_note}; baseline of {meta.get('created', '?')}")
+    summary = regression.change_summary(diff)
+    if bad:
+        res.warn("if the change is intended, rewrite the golden files with "
+                 "`python -m benchmarks baseline --update` and commit them")
+        env = regression.environment_differences(meta)
+        if env:
+            res.warn("note: the environment differs from the baseline's (" + "; ".join(env)
+                     + "); the tolerances cover the BLAS kernels measured when the baseline "
+                     "was written (SENSITIVITY.md beside it), not other library versions")
+        res.warn(f"check FAILED: {bad} of {n} values differ from the baseline ({where}); "
+                 f"{summary}")
+        return 1
+    res.say(f"check passed: {n} values within tolerance ({where}); {summary}")
+    return 0
+
+
+def show_baseline(baseline: str | Path) -> Outcome:
+    """``baseline`` without ``--update``: an overview of the golden files."""
+    frame, meta = regression.load_baseline(baseline)
+    res = Outcome()
+    res.say(regression.baseline_overview(frame, meta))
+    res.say("(`--update` re-runs the subset and rewrites these files)")
+    return res
+
+
+def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
+                    progress: bool | None = None, kernel_names: str = "auto",
+                    force: bool = False, notify: Callable[[str], None] = lambda _: None
+                    ) -> Outcome:
+    """``baseline --update``: run the subset, measure its kernel sensitivity
+    (``kernel_names``: ``auto``, ``none`` or a comma-separated list) and write the golden
+    files unless a rule of the module docstring refuses them; ``notify`` is told before the
+    long kernel re-runs start."""
+    res = Outcome()
+    cfg = regression.subset_config(config, plugins=False)
+    frame, cache_note = regression.run_subset(cfg, use_cache, progress)
+    unsound = regression.baseline_problems(frame)
+    if unsound:  # never enshrined, not even with --force
+        res.warn("baseline NOT written: " + "; ".join(unsound) + " (fix them first)")
+        res.code = 1
+        return res
+    here = blas_corename()
+    if kernel_names == "auto":
+        names = [k for k in kernels.available_kernels() if k.lower() != here.lower()]
+    else:
+        names = [k for k in kernel_names.split(",") if k and k != "none"]
+    problems: list[str] = []
+    if names:
+        notify(f"measuring the kernel sensitivity: re-running the subset with "
+               f"OPENBLAS_CORETYPE={', '.join(names)} (here: {here})")
+        others = kernels.runs_under_kernels(config, cfg, names, use_cache)
+        frame, problems = kernels.apply_kernel_spread(frame, others)
+    if problems and not force:
+        res.warn("baseline NOT written: " + "; ".join(problems) + " (pass --force to write it "
+                 "anyway)")
+        res.code = 1
+        return res
+    files = regression.write_baseline(frame, baseline, cfg, cache_note)
+    kernels.write_sensitivity(frame, baseline, names)
+    res.say(f"wrote {len(files)} golden files and SENSITIVITY.md to {baseline} "
+            f"({frame['observer'].nunique()} observers; {cache_note})")
+    return res
+
+
+def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
+          realisations: int, jobs: int | None = None, short: bool = False,
+          out: str | None = None, report: str | None = None,
+          progress: bool | None = None) -> Outcome:
+    """``audit``: run the soundness audit (``short``: the CI mode, adversarial realisations
+    only, written to ``results/audit-short/``), write its CSV and report, and fail on a
+    violation of a guaranteed observer."""
+    jobs = jobs if jobs is not None else soundness.default_jobs()
+    count, kinds, command = realisations, soundness.KINDS, None
+    if short:
+        count, kinds = soundness.SHORT_REALISATIONS, soundness.ADVERSARIAL
+        command = "python -m benchmarks audit --short"
+        out = out or str(Path("results") / "audit-short")
+        report = report or str(Path(out) / "soundness.md")
+    out = out or str(Path("results") / "audit")
+    report = report or str(Path("reports") / "soundness.md")
+    t0 = time.perf_counter()
+    df = soundness.run_audit(scenarios, observer_names, count, jobs, progress=progress,
+                             kinds=kinds)
+    elapsed = time.perf_counter() - t0
+    csv_path, report = soundness.write_audit(df, out, report, count, elapsed, jobs, command)
+    agg = soundness.aggregate(df)
+    bad = agg[agg["guaranteed"] & (agg["violations"] > 0)]
+    res = Outcome()
+    res.say(f"wrote {report} and {csv_path} ({int(agg['runs'].sum())} runs, "
+            f"{int(agg['steps'].sum())} steps, {elapsed:.0f} s)")
+    undecided = int(agg["undecided"].sum())
+    if undecided:
+        res.say(f"note: {undecided} step(s) undecided at LP precision (see the report)")
+    if len(bad):
+        res.warn("SOUNDNESS VIOLATIONS: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({r.violations} steps)"
+            for r in bad.itertuples(index=False)))
+        res.code = 1
+        return res
+    res.say("zero violations for every guaranteed observer")
+    return res

@@ -1,0 +1,72 @@
+"""The Markdown report of a results folder (``DIR/report.md``): the papers' tables with
+the published values beside ours (cells from :mod:`.tables`) and links to the bounds figures
+(:func:`.figures.observer_bounds`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from observers.registry import table_order
+
+from ..io import atomic_write_text, load_results
+from ..metrics import timed_in_parallel
+from . import freshness
+from .aggregate import is_sweep, sweep_tables
+from .figures import observer_bounds
+from .tables import INTRO, absolute_table, scenario_notes, scenario_table
+
+
+def write_report(results_dir: str | Path, out: str | Path | None = None,
+                 figures: bool = True) -> Path:
+    """Write the Markdown report (and figures) for a results folder; returns its path."""
+    results_dir = Path(results_dir)
+    summary, meta = load_results(results_dir)  # one complete generation, or ConfigError
+    out = Path(out) if out else results_dir / "report.md"
+    fig_dir = out.parent / (out.stem + "_figures")
+    title = meta.get("config", {}).get("title", results_dir.name)
+    parts = [f"# {title}", "", INTRO, ""]
+    if timed_in_parallel(summary):
+        ex = meta.get("executor", {})
+        parts += [f"Times marked *(parallel)* were measured while {ex.get('workers', 'several')}"
+                  f" jobs ran concurrently ({ex.get('name', 'parallel')} executor): indicative "
+                  "only; a serial run (`run` without `--jobs`) gives the comparable per-step "
+                  "times, and `reports/speed.md` is always timed serially.", ""]
+    if is_sweep(summary):  # aggregated over the seeds, one row per observer and variant
+        parts += ["Sweep: relative RMS radius (mean over the states of eq. 9, against the "
+                  "best observer of the same seed) over the seeds: mean, standard deviation, "
+                  "min and max over the successful runs; times are medians over them.", ""]
+        parts += sweep_tables(summary)
+        summary = summary.iloc[0:0]  # no per-seed tables
+    runs = None
+    if figures and (results_dir / "runs.csv").is_file() and len(summary):
+        runs = pd.read_csv(results_dir / "runs.csv")
+    for sc, full in summary.groupby("scenario", sort=False):
+        info = meta.get("scenarios", {}).get(sc, {})
+        df = full[full["status"] != "unsupported"]  # listed below the tables instead
+        parts += [f"## {sc}", "", info.get("description", ""), "", scenario_table(df, meta), ""]
+        abs_table = absolute_table(df, meta)
+        if abs_table:
+            parts += ["Absolute RMS radii (published: relative value x smallest radius):", "",
+                      abs_table, ""]
+        notes = scenario_notes(full)
+        parts += [f"- {note}" for note in notes] + ([""] if notes else [])
+        if runs is not None:
+            links = []
+            names = info.get("state_names") or []
+            for obs in table_order(df["observer"].unique()):
+                paths = observer_bounds(runs, sc, obs, names, fig_dir / sc / obs)
+                if paths is not None:
+                    links.append(f"[{obs}]({paths[0].relative_to(out.parent).as_posix()})")
+            if links:
+                parts += ["Figures (bounds over time with the true state): " + ", ".join(links),
+                          ""]
+    versions = meta.get("versions", {})
+    if versions:
+        parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
+            f"{k} {v}" for k, v in versions.items()), ""]
+    config = freshness.config_of(meta.get("config", {}).get("name"))
+    parts.append(freshness.stamp(freshness.report_command(config, out), config))
+    atomic_write_text(out, "\n".join(parts) + "\n")
+    return out
