@@ -10,6 +10,7 @@ after the other observers ran) with exit code 3 (:mod:`benchmarks.verdicts`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from importlib import metadata
@@ -28,23 +29,43 @@ from .report.tables import design_times_table
 from .run import designs, executors
 from .run.config import inline_config, load_config
 from .run.runner import run_config
+from .run.shipped import shipped_configs
 from .timing import speed
 from .timing import steps as timing
 
 
+def _only(cfg, names: list[str]):
+    """``cfg`` restricted to the observers (or variant labels) ``names``; a variant
+    ``NAME[tag]`` goes with ``NAME``."""
+    unknown = [n for n in names if n not in cfg.observers]
+    if unknown:
+        raise ConfigError(f"run: {', '.join(unknown)} not in config '{cfg.name}' (its "
+                          f"observers: {', '.join(cfg.observers)})")
+    keep = [o for o in cfg.observers if o in names or cfg.observer_of(o) in names]
+    return dataclasses.replace(cfg, observers=keep)
+
+
 def _cmd_run(args) -> int:
-    if args.config and (args.observer or args.scenario):
-        raise ConfigError("run: give either a YAML config or --observer/--scenario, not both")
+    if args.config and args.scenario:
+        raise ConfigError("run: give either a YAML config or --scenario, not both")
     if args.out:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
     # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
     try:
-        cfg = (load_config(args.config) if args.config
-               else inline_config(args.scenario, args.observer, args.name))
+        if args.config:
+            cfg = load_config(args.config)
+            if args.observer:
+                cfg = _only(cfg, args.observer)
+            for sc in cfg.scenarios:  # which columns of the users' files were read
+                if sc.source.startswith("config; read "):
+                    print(f"{sc.name}: {sc.source[len('config; '):]}", file=sys.stderr)
+        else:
+            cfg = inline_config(args.scenario, args.observer, args.name)
         out = Path(args.out) if args.out else Path("results") / cfg.name
-        _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
-                                executor=executor)
+        result = run_config(cfg, out, progress=False if args.no_progress else None,
+                            executor=executor)
+        summary = result.summary
     finally:
         executor.close()
     print(f"wrote {out / 'runs.csv'}, {out / 'summary.csv'}")
@@ -53,10 +74,9 @@ def _cmd_run(args) -> int:
         print(f"note: {r.observer} on {r.scenario}: {r.status}: {r.message}", file=sys.stderr)
     statuses = pairs["status"].value_counts()
     print("status: " + ", ".join(f"{k} {v}" for k, v in statuses.items()))
-    code, lines = verdicts.exit_code(summary)
-    for line in lines:
+    for line in result.problems:
         print(line, file=sys.stderr)
-    return code
+    return result.exit_code
 
 
 def _print(outcome: policy.Outcome) -> int:
@@ -130,7 +150,10 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_index(args) -> int:
-    print(f"wrote {write_index(args.reports, args.results)}")
+    if args.committed:  # the committed page: the Markdown reports only, never local runs
+        print(f"wrote {write_index(args.reports, None, args.out)}")
+    else:
+        print(f"wrote {write_index(args.reports, args.results, args.out)}")
     return 0
 
 
@@ -150,7 +173,19 @@ def _cmd_list(args) -> int:
                   f"{i.reference}{flag}")
     if args.what in ("scenarios", "all"):
         print("\nscenarios: " + ", ".join(scenario_names()))
+    if args.what in ("configs", "all"):
+        print("\nshipped configs (setobs-bench run NAME):")
+        for name, path in shipped_configs().items():
+            print(f"  {name:<28} {_config_title(path)}")
     return 0
+
+
+def _config_title(path: Path) -> str:
+    """The ``title:`` line of a shipped configuration (read as text: no scenario is built)."""
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("title:"):
+            return line[len("title:"):].strip().strip("\"'")
+    return ""
 
 
 def _version() -> str:
@@ -173,9 +208,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    "its scenarios (or the --scenario names) and write runs.csv, "
                                    "summary.csv and meta.json (one generation).")
     r.add_argument("config", nargs="?",
-                   help="path to a YAML config (see benchmarks/configs/); or use --scenario")
+                   help="a YAML config: a path, or the name of a shipped one (`setobs-bench "
+                        "list configs`, e.g. arch2021_table3); or use --scenario")
     r.add_argument("--observer", action="append", metavar="NAME",
-                   help="without a config: an observer to run (repeatable; default all)")
+                   help="an observer to run (repeatable; default all; with a config: only "
+                        "these of its observers, with their labelled variants)")
     r.add_argument("--scenario", action="append", metavar="S",
                    help="without a config: a named scenario (repeatable)")
     r.add_argument("--name", help="without a config: the run's name (default cli)")
@@ -195,11 +232,23 @@ def build_parser() -> argparse.ArgumentParser:
                                    "--out DIR/index.html is written too)")
     rep.add_argument("--no-figures", action="store_true", help="tables only")
     rep.set_defaults(func=_cmd_report)
-    ix = sub.add_parser("index", help="write REPORTS/index.html linking every report")
+    ix = sub.add_parser("index", help="write RESULTS/index.html linking every report and the "
+                                      "local HTML reports (--committed: REPORTS/index.html)",
+                        description="Write an index of the reports. By default "
+                                    "RESULTS/index.html: every Markdown report of REPORTS and "
+                                    "the HTML report of each run in RESULTS; the repository "
+                                    "is not touched. --committed rewrites REPORTS/index.html "
+                                    "from the Markdown reports alone (its content depends on "
+                                    "the committed reports only).")
     ix.add_argument("reports", nargs="?", default="reports", help="folder of the Markdown "
                     "reports (default reports)")
     ix.add_argument("--results", default="results",
-                    help="folder of the runs whose DIR/index.html to link (default results)")
+                    help="folder of the runs whose DIR/index.html to link; the page goes there "
+                         "(default results)")
+    ix.add_argument("--committed", action="store_true",
+                    help="rewrite REPORTS/index.html (the committed page: Markdown reports "
+                         "only, no local runs)")
+    ix.add_argument("--out", help="write the page to this file instead")
     ix.set_defaults(func=_cmd_index)
     hi = sub.add_parser("history", help="relative RMS and violations of the golden summaries "
                                         "across the git history (HTML page)")
@@ -208,8 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     hi.add_argument("--out", default=str(Path("results") / "history"),
                     help="output folder of index.html (default results/history)")
     hi.set_defaults(func=_cmd_history)
-    ls = sub.add_parser("list", help="list observers and scenarios")
-    ls.add_argument("what", nargs="?", default="all", choices=["observers", "scenarios", "all"])
+    ls = sub.add_parser("list", help="list observers, scenarios and shipped configs")
+    ls.add_argument("what", nargs="?", default="all",
+                    choices=["observers", "scenarios", "configs", "all"])
     ls.set_defaults(func=_cmd_list)
     subset = argparse.ArgumentParser(add_help=False)
     subset.add_argument("--config", default=str(regression.DEFAULT_CONFIG),
@@ -274,7 +324,8 @@ def build_parser() -> argparse.ArgumentParser:
     ti.set_defaults(func=_cmd_time)
     de = sub.add_parser("designs", help="compute the offline designs of configs in parallel "
                         "into the design cache", description=designs.__doc__.splitlines()[0])
-    de.add_argument("configs", nargs="+", metavar="CONFIG", help="YAML configs")
+    de.add_argument("configs", nargs="+", metavar="CONFIG",
+                    help="YAML configs (paths or shipped names)")
     de.add_argument("--jobs", type=int, help="worker processes (default: cores, at most 2)")
     de.add_argument("--no-progress", action="store_true", help="no progress bar")
     de.add_argument("--top", type=int, default=None,

@@ -1,5 +1,6 @@
 """The verdicts of a run: containment per observer (``yes`` / ``no`` / ``n/a``), which rows
-may serve as the reference of eq. (9), and the exit code of ``run``.
+may serve as the reference of eq. (9), and the exit code of ``run`` with its meaning
+(:func:`exit_code`; in Python :class:`BenchResult`, what ``run_config`` returns).
 
 A table never claims more than was checked: containment is ``yes`` only where the true state
 is known and was found in every set of a complete run, ``no`` where it was outside at least
@@ -16,6 +17,14 @@ YES, NO, NA = "yes", "no", "n/a"
 
 #: exit codes of ``python -m benchmarks run``
 EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH = 0, 1, 2, 3
+
+#: the meaning of each exit code of ``run``
+EXIT_MEANINGS = {
+    EXIT_OK: "every observer ran and no guaranteed observer missed the true state",
+    EXIT_VIOLATION: "a guaranteed observer's set missed the true state (or became empty)",
+    EXIT_BAD_INPUT: "bad input (config, scenario, options, output folder), nothing written",
+    EXIT_CRASH: "an observer crashed (status 'error'), after the others ran",
+}
 
 EXIT_CODES_HELP = (
     "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
@@ -110,3 +119,56 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
 
 def _where(step) -> str:
     return "in its design" if pd.isna(step) else f"at step {int(step)}"
+
+
+class BenchResult(tuple):
+    """What :func:`benchmarks.run_config` returns: the pair ``(runs, summary)`` (so
+    ``runs, summary = run_config(...)`` works) with the verdict of the run, the same as the
+    exit code of ``setobs-bench run``.
+
+    Attributes
+    ----------
+    runs, summary : pandas.DataFrame
+        The per-step rows and the per-state summary (``runs.csv``, ``summary.csv``).
+    exit_code : int
+        :data:`EXIT_OK`, :data:`EXIT_VIOLATION` or :data:`EXIT_CRASH` (:func:`exit_code`).
+    meaning : str
+        What the exit code means (:data:`EXIT_MEANINGS`).
+    problems : list of str
+        One line per kind of failure (the lines ``run`` prints on stderr); empty when ok.
+    ok : bool
+        Whether the exit code is :data:`EXIT_OK`.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> s = pd.DataFrame({"scenario": ["s"], "observer": ["o"], "status": ["error"],
+    ...                   "guaranteed": [True], "failed_step": [3]})
+    >>> r = BenchResult(pd.DataFrame(), s)
+    >>> r.exit_code, r.ok, r.problems
+    (3, False, ['CRASHED: o on s (at step 3)'])
+    >>> r.meaning
+    "an observer crashed (status 'error'), after the others ran"
+    """
+
+    def __new__(cls, runs: pd.DataFrame, summary: pd.DataFrame) -> BenchResult:
+        self = super().__new__(cls, (runs, summary))
+        self.exit_code, self.problems = exit_code(summary)
+        self.meaning = EXIT_MEANINGS[self.exit_code]
+        return self
+
+    @property
+    def runs(self) -> pd.DataFrame:
+        return self[0]
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        return self[1]
+
+    @property
+    def ok(self) -> bool:
+        return self.exit_code == EXIT_OK
+
+    def __repr__(self) -> str:
+        return (f"BenchResult(exit_code={self.exit_code}: {self.meaning}; "
+                f"{len(self.summary)} summary rows)")

@@ -122,7 +122,7 @@ BAD_CONFIGS = [
     ("unknown noise", cfg_with(cfg__scenarios=[{"name": "alamo2d-sim", "noise": "pink"}]),
      "unknown noise model 'pink'"),
     ("unknown reduction", cfg_with(cfg__options={"reduction": "best"}),
-     "reduction must be one of 'girard', 'pca' .*, got 'best'"),
+     "reduction must be one of 'girard', 'pca'.*, got 'best'"),
     ("unknown excluded observer", cfg_with(cfg__exclude=["FRad-Q"]), "unknown observer 'FRad-Q'"),
     ("unknown observer options", cfg_with(cfg__observer_options={"Kalman-X": {}}),
      "unknown observer 'Kalman-X'"),

@@ -1,7 +1,8 @@
-"""The HTML report: same cells as the Markdown tables, figures as PNG and PDF, and a real
-headless Chromium (Debian's chromium + chromium-driver, driven by selenium) that loads the page
-from the file system, finds the tables and figures, sorts a table by a click and logs no
-console error."""
+"""The HTML report: same cells as the Markdown tables, figures as PNG and PDF, every table and
+figure naming its reference, and a real headless Chromium (Debian's chromium +
+chromium-driver, driven by selenium) that loads the page from the file system, finds the
+tables and figures, sorts a table by a click, hides an observer's curves by a click on the
+legend and logs no console error."""
 
 from __future__ import annotations
 
@@ -38,6 +39,7 @@ def results(tmp_path_factory) -> Path:
 
 def test_html_has_the_markdown_cells_and_figures(results):
     page = (results / "index.html").read_text()
+    plain = re.sub(r"<td[^>]*>", "<td>", page)  # cells without their alignment class
     md = (results / "report.md").read_text()
     summary = pd.read_csv(results / "summary.csv")
     meta = __import__("json").loads((results / "meta.json").read_text())
@@ -45,13 +47,29 @@ def test_html_has_the_markdown_cells_and_figures(results):
         head, rows = scenario_table_data(summary[summary["scenario"] == sc], meta)
         for cells in rows:
             assert "| " + " | ".join(cells) + " |" in md  # the Markdown renders these cells
-            assert "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>" in page
+            assert "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>" in plain
         assert f'id="table-{sc}"' in page
-        for name in ("bounds_x1", "rel_rms_heatmap", "step_time"):
+        for name in ("bounds", "rel_rms_heatmap", "step_time"):
             for ext in ("png", "pdf"):
                 assert (results / "html_figures" / sc / f"{name}.{ext}").stat().st_size > 1000
                 assert f'href="html_figures/{sc}/{name}.{ext}" download' in page
+        assert f'id="bounds-{sc}"' in page  # the inline SVG of every state's bounds
     assert "(1.06)" in page  # FRad-A v1 of ARCH 2021 Table 3, as in the Markdown
+    # every state's bounds and radius panel of the 6-tank record, each observer a layer
+    svg = page[page.index('id="bounds-tank6-linear"'):]
+    svg = svg[:svg.index("</svg>")]
+    for i in range(1, 7):
+        assert f"x{i}: bounds" in svg and f"x{i}: interval radius (log scale)" in svg
+    assert len(set(re.findall(r'<g class="layer (layer-\d+)"', svg))) == len(OBSERVERS) + 1
+    # every table and figure names its reference; no "paper's" time where none is published
+    assert "among the observers compared in Althoff, ARCH 2021, Table 3" in page
+    assert "among all guaranteed observers of this run" in page  # alamo2d: no paper table
+    assert "no published times for this scenario" in page
+    assert "beside the published times of Althoff, ARCH 2021, Table 3" in page
+    assert page.count("reference:") >= 6
+    assert "Record: 261 steps of 0.5 s" in page and "measurement noise V: |v_i| ≤" in page
+    assert "<code>contained</code>" in page and "`" not in page.split("<body>")[1].split(
+        "<pre>")[0]  # the intro's Markdown code is rendered
     assert "git commit of the run" in page and "numpy" in page and "observers:" in page
     assert not re.search(r"(src|href)=\"https?://", page)  # nothing to fetch at view time
 
@@ -76,10 +94,39 @@ def test_index_links_reports_and_html(tmp_path, results):
     reports.mkdir()
     (reports / "res.md").write_text("# Small HTML test\n")
     (reports / "README.md").write_text("# not a table\n")
-    page = write_index(reports, results.parent).read_text()
-    assert 'href="res.md"' in page and "Small HTML test" in page
-    assert "../" in page and "res/index.html" in page and "README" not in page
+    out = tmp_path / "local" / "index.html"
+    page = write_index(reports, results.parent, out).read_text()
+    assert 'href="../reports/res.md"' in page and "Small HTML test" in page
+    assert "res/index.html" in page and "README" not in page
     assert main(["index", str(tmp_path / "none")]) == 2
+
+
+def test_index_never_writes_local_runs_into_the_reports_folder(tmp_path, results):
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    (reports / "a.md").write_text("# Same title\n")
+    (reports / "b.md").write_text("# Same title\n<!-- freshness: sha256=0 config=- command=x "
+                                  "--out reports/b.md -->\n")
+    local = tmp_path / "results"
+    (local / "a").mkdir(parents=True)
+    (local / "a" / "index.html").write_text("<html></html>")
+    # default: the page goes to the results folder, the reports folder is not touched
+    assert main(["index", str(reports), "--results", str(local)]) == 0
+    assert not (reports / "index.html").exists()
+    page = (local / "index.html").read_text()
+    assert 'href="a/index.html"' in page
+    # --committed: the Markdown reports only, the same bytes whatever results/ holds
+    assert main(["index", str(reports), "--committed"]) == 0
+    first = (reports / "index.html").read_bytes()
+    (local / "b").mkdir()
+    (local / "b" / "index.html").write_text("<html></html>")
+    assert main(["index", str(reports), "--committed", "--results", str(local)]) == 0
+    assert (reports / "index.html").read_bytes() == first
+    committed = first.decode()
+    assert "index.html" not in committed.split("<table")[1]  # no link to a local run
+    # two reports with one title are told apart by their file name; how each was made
+    assert "Same title (a)" in committed and "Same title (b)" in committed
+    assert "--out reports/b.md" in committed
 
 
 # -- a real browser ------------------------------------------------------------------------
@@ -138,7 +185,7 @@ def test_page_in_headless_chromium(browser, results):
     tables = browser.find_elements(By.CSS_SELECTOR, "table.sortable")
     assert len(tables) >= 5  # 2 scenario tables, 2 absolute tables, ranking, environment
     images = browser.find_elements(By.CSS_SELECTOR, "figure img")
-    assert len(images) == 6
+    assert len(images) == 4  # heat map and times of two scenarios; the bounds are inline SVG
     for img in images:  # every figure loaded from the file system and decoded
         assert browser.execute_script("return arguments[0].complete && "
                                       "arguments[0].naturalWidth", img) > 100
@@ -163,6 +210,43 @@ def test_page_in_headless_chromium(browser, results):
     assert names == sorted(names) and set(names) == set(OBSERVERS)
     errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     assert errors == []
+
+
+def _layer_shown(drv, fig_id: str, key: str) -> list[bool]:
+    return drv.execute_script(
+        "return Array.from(document.querySelectorAll('#'+arguments[0]+' g.layer.'+arguments[1]))"
+        ".map(g => getComputedStyle(g).display !== 'none' && g.getBBox().width > 0)",
+        fig_id, key)
+
+
+def test_legend_click_hides_and_shows_a_curve(browser, results):
+    from selenium.webdriver.common.by import By
+
+    browser.get((results / "index.html").resolve().as_uri())
+    fig = "bounds-tank6-linear"
+    labels = browser.find_elements(By.CSS_SELECTOR, f'.legend[data-figure="{fig}"] label')
+    names = [lab.get_attribute("data-name") for lab in labels]
+    assert set(OBSERVERS) <= set(names) and "true state" in names
+    label = labels[names.index("FRad-A")]
+    key = label.find_element(By.CSS_SELECTOR, "input").get_attribute("data-layer")
+    shown = _layer_shown(browser, fig, key)
+    assert len(shown) >= 3 * 6 and all(shown)  # lo, hi and radius curves in every panel
+    label.click()  # the legend entry: its curves disappear from every panel
+    assert not any(_layer_shown(browser, fig, key))
+    assert not label.find_element(By.CSS_SELECTOR, "input").is_selected()
+    other = labels[names.index("FRad-C")].find_element(By.CSS_SELECTOR, "input")
+    other_key = other.get_attribute("data-layer")
+    assert all(_layer_shown(browser, fig, other_key))  # the others stay
+    label.find_element(By.CSS_SELECTOR, "input").click()  # the check box brings it back
+    assert all(_layer_shown(browser, fig, key))
+    legend = browser.find_element(By.CSS_SELECTOR, f'.legend[data-figure="{fig}"]')
+    legend.find_element(By.CSS_SELECTOR, 'button[data-select="none"]').click()
+    assert not any(_layer_shown(browser, fig, key))
+    truth = labels[names.index("true state")].find_element(By.CSS_SELECTOR, "input")
+    assert all(_layer_shown(browser, fig, truth.get_attribute("data-layer")))
+    legend.find_element(By.CSS_SELECTOR, 'button[data-select="all"]').click()
+    assert all(_layer_shown(browser, fig, key)) and all(_layer_shown(browser, fig, other_key))
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
 
 
 def test_report_command_writes_index_html_beside_report_md(tmp_path, results):

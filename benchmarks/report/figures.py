@@ -7,8 +7,10 @@ imports matplotlib.
 
 * :func:`observer_bounds` -- one observer's interval bounds over time with the true state,
   one panel per state (the figures linked from ``report.md``);
-* :func:`bounds_over_time` -- the bounds of the tightest observers for one state (HTML report);
-* :func:`heat_map` -- relative RMS radius, observer x state (HTML report);
+* :func:`bounds_and_radii` -- every state's bounds and radius (log scale) over time, every
+  observer a layer the HTML page shows or hides (inline SVG, :class:`LayeredFigure`), extra
+  bands optional (``bands={"exact": (lo, hi)}``);
+* :func:`heat_map` -- a ratio per observer and state with its reference (HTML report);
 * :func:`step_times` -- per-step times on a log scale beside the papers' (HTML report);
 * :func:`history` -- the golden summaries over the commits (``setobs-bench history``);
 * :func:`scaling` -- step + hull time against the number of states (scaling study);
@@ -17,13 +19,20 @@ imports matplotlib.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import io
+import re
+import textwrap
+import warnings
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import matplotlib.colors  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -35,8 +44,6 @@ from ..io import atomic_write_with  # noqa: E402
 DPI = 100
 #: panels of :func:`observer_bounds` (the first states)
 MAX_FIGURE_STATES = 6
-#: observers drawn by :func:`bounds_over_time` (the tightest ones)
-BOUNDS_OBSERVERS = 4
 
 
 def save_figure(fig, base: str | Path, dpi: int = DPI) -> list[Path]:
@@ -80,77 +87,336 @@ def observer_bounds(runs: pd.DataFrame, scenario: str, observer: str,
     return save_figure(fig, base, dpi=90)
 
 
-def bounds_over_time(runs: pd.DataFrame, summary: pd.DataFrame, scenario: str, state: int,
-                     base: Path, label: str) -> list[Path] | None:
-    """The lower and upper bounds of the tightest observers (at most
-    :data:`BOUNDS_OBSERVERS`, by the RMS radius of ``state``) over time, with the true state,
-    like the papers' figures."""
-    ok = summary[(summary["scenario"] == scenario) & (summary["state"] == state)
-                 & (summary["status"] == "ok") & summary["rms_radius"].notna()]
-    best = ok.sort_values("rms_radius")["observer"].head(BOUNDS_OBSERVERS).tolist()
-    g = runs[(runs["scenario"] == scenario) & (runs["state"] == state)]
-    if not best or g.empty:
+@dataclass(frozen=True)
+class Layer:
+    """One selectable layer of a :class:`LayeredFigure` (an observer, the true state or an
+    extra band): its key (``layer-K`` is the class of its SVG groups), name, colour, SVG dash
+    pattern (for a legend swatch), whether it is shown at first, and a note (violations)."""
+
+    key: str
+    name: str
+    color: str
+    dash: str
+    visible: bool
+    kind: str = "observer"
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class LayeredFigure:
+    """A figure whose layers can be shown and hidden in the page: ``svg`` is inline SVG text
+    in which every artist of layer ``L`` is a ``<g class="layer L">`` (hidden ones with
+    ``display:none``); ``paths`` are the PNG and PDF of the first view (the visible layers)."""
+
+    svg: str
+    layers: list[Layer]
+    paths: list[Path]
+
+
+#: line styles of the observer layers (cycled after the colours, so that curves that coincide,
+#: e.g. CZN-A, CZN-B and CZN-MV, stay distinguishable) and their SVG dash patterns
+LINE_STYLES = (("-", ""), ("--", "6,3"), (":", "1.5,2.5"), ("-.", "6,2,1.5,2"))
+#: colour of the bands (``bands=``) and of the violation marks
+BAND_COLORS = ("0.55", "tab:olive", "tab:cyan")
+VIOLATION_COLOR = "red"
+#: points per curve at most; longer records are drawn as a min/max envelope per bucket
+MAX_POINTS_PER_FIGURE = 400_000
+#: states per row of :func:`bounds_and_radii` above 8 states (two bounds-radius pairs)
+WIDE_STATES = 8
+
+
+def _log_ticks(axis) -> None:
+    """Plain labels at 1, 2 and 5 of each decade of a log axis, no minor labels (matplotlib's
+    default labels the minor ticks of short ranges, which overlap)."""
+    axis.set_major_locator(matplotlib.ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+
+
+def _style(k: int) -> tuple[str, str, str]:
+    """Colour, matplotlib line style and SVG dash pattern of observer layer ``k``."""
+    colors = plt.get_cmap("tab10").colors
+    ls, dash = LINE_STYLES[(k // len(colors)) % len(LINE_STYLES)]
+    return matplotlib.colors.to_hex(colors[k % len(colors)]), ls, dash
+
+
+def _buckets(n_steps: int, max_points: int) -> np.ndarray | None:
+    """Bucket boundaries for an envelope of ``max_points`` points, ``None`` if all fit."""
+    if n_steps <= max_points:
         return None
-    fig, ax = plt.subplots(figsize=(7, 3.2))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for obs, color in zip(best, colors, strict=False):
-        s = g[g["observer"] == obs]
-        ax.plot(s["t"], s["lo"], color=color, lw=1, label=obs)
-        ax.plot(s["t"], s["hi"], color=color, lw=1)
-    s = g[g["observer"] == best[0]]
-    if np.isfinite(s["x_true"]).any():
-        ax.plot(s["t"], s["x_true"], color="k", lw=1.2, ls="--", label="true state")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel(label)
-    ax.set_title(f"{scenario}: bounds of {label} (the {len(best)} tightest observers)",
-                 fontsize=9)
-    ax.legend(fontsize=7, ncol=3)
+    return np.linspace(0, n_steps, max(max_points // 2, 2) + 1).astype(int)
+
+
+def _envelope(x: np.ndarray, edges: np.ndarray | None, how: str) -> np.ndarray:
+    """``x`` (steps x states) reduced per bucket by ``how`` (``min``/``max``/``first``)."""
+    if edges is None:
+        return x
+    parts = [x[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+    if how == "first":
+        return np.array([q[0] for q in parts])
+    f = np.nanmin if how == "min" else np.nanmax
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.array([f(q, axis=0) for q in parts])
+
+
+def _layer_svg(svg: str, layers: Sequence[Layer]) -> str:
+    """Matplotlib's SVG made inline and selectable: no XML prologue, scalable width, each
+    ``<g id="KEY__j">`` group of a layer's artists becomes ``<g class="layer KEY">`` (hidden
+    layers ``display:none``), coordinates rounded to 0.1 pt."""
+    svg = svg[svg.index("<svg"):]
+    svg = re.sub(r'<svg([^>]*?) width="[\d.]+pt" height="[\d.]+pt"',
+                 r'<svg\1 width="100%" preserveAspectRatio="xMinYMin meet"', svg, count=1)
+    hidden = {la.key for la in layers if not la.visible}
+
+    def group(m: re.Match) -> str:
+        key = m.group(1)
+        style = ' style="display:none"' if key in hidden else ""
+        return f'<g class="layer {key}" data-layer="{key}"{style}>'
+
+    svg = re.sub(r'<g id="(layer-\d+)__\d+">', group, svg)
+    return re.sub(r"(\d+\.\d)\d+", r"\1", svg)
+
+
+def _fit_first_view(ax, bounds: list[tuple[np.ndarray, np.ndarray]], i: int) -> None:
+    """The y-range of a bounds panel: that of the observers shown at first (and the true
+    state), so that loose observers shown later do not squash the tight ones (their curves are
+    clipped; the radius panels show every observer at full range)."""
+    vals = [v[:, i] for pair in bounds for v in pair]
+    vals = np.concatenate(vals) if vals else np.array([])
+    vals = vals[np.isfinite(vals)]
+    if not vals.size:
+        return
+    # the first step holds the initial set, often far wider than the rest: skip it unless
+    # it is all there is
+    lo, hi = float(vals.min()), float(vals.max())
+    rest = [np.concatenate([v[1:, i] for v in pair]) for pair in bounds]
+    rest = np.concatenate(rest) if rest else np.array([])
+    rest = rest[np.isfinite(rest)]
+    if rest.size:
+        lo, hi = float(rest.min()), float(rest.max())
+    for line in ax.get_lines():
+        if line.get_gid() and line.get_label() == "_truth":
+            y = np.asarray(line.get_ydata(), float)
+            y = y[np.isfinite(y)]
+            if y.size:
+                lo, hi = min(lo, float(y.min())), max(hi, float(y.max()))
+    pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
+    ax.set_ylim(lo - pad, hi + pad)
+
+
+def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str],
+                     state_names: Sequence[str], base: Path, *,
+                     visible: Collection[str] | None = None,
+                     bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+                     title: str = "") -> LayeredFigure | None:
+    """Every state's bounds over time (left) and interval radius on a log scale (right), one
+    row per state (two states per row above :data:`WIDE_STATES`), each observer a selectable
+    layer, with the true state and the steps of any containment violation marked.
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        ``runs.csv`` rows (``scenario, observer, t, state, lo, hi, x_true, in_set``).
+    scenario : str
+        The scenario to draw.
+    observers : sequence of str
+        The observers (labels) to draw, in legend order; those without finite bounds are left
+        out.
+    state_names : sequence of str
+        Axis labels of the states (default ``x1, x2, ...``).
+    base : Path
+        ``base.png`` and ``base.pdf`` get the first view (the visible layers).
+    visible : collection of str, optional
+        The observers shown at first (default: all); the others are drawn hidden. Observers
+        with a containment violation are always shown at first.
+    bands : mapping of str to (lo, hi), optional
+        Extra bands per state, e.g. ``{"exact": (lo, hi)}`` with ``lo`` and ``hi`` arrays of
+        shape (steps, states) over the record's time steps: drawn filled behind the bounds and
+        as a radius curve, each a selectable layer named by its key.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    LayeredFigure or None
+        ``None`` where no observer has finite bounds on ``scenario``.
+    """
+    g = runs[runs["scenario"] == scenario]
+    g = g[g["observer"].isin(list(observers))]
+    if g.empty:
+        return None
+    t_all = np.sort(g["t"].unique())
+    steps = len(t_all)
+    n = int(g["state"].max()) + 1
+    names = [state_names[i] if i < len(state_names) else f"x{i + 1}" for i in range(n)]
+
+    def grid(frame: pd.DataFrame, column: str) -> np.ndarray:
+        piv = frame.pivot_table(index="t", columns="state", values=column, aggfunc="first",
+                                dropna=False)
+        return piv.reindex(index=t_all, columns=range(n)).to_numpy(float)
+
+    data, truth = {}, None
+    for obs in observers:
+        o = g[g["observer"] == obs]
+        if o.empty or not np.isfinite(o["lo"].to_numpy(float)).any():
+            continue
+        # a violation: the set missed the true state at that step (exact test, ``in_set``)
+        miss = grid(o.assign(_bad=(o["in_set"] == 0).astype(float)), "_bad")
+        data[obs] = (grid(o, "lo"), grid(o, "hi"), np.nan_to_num(miss).any(axis=1))
+        if truth is None and np.isfinite(o["x_true"].to_numpy(float)).any():
+            truth = grid(o, "x_true")
+    if not data:
+        return None
+    bands = dict(bands or {})
+    budget = max(MAX_POINTS_PER_FIGURE // max(3 * n * (len(data) + len(bands)), 1), 50)
+    edges = _buckets(steps, budget)
+    t = _envelope(t_all[:, None], edges, "first")[:, 0]
+
+    layers: list[Layer] = []
+    shown = set(data) if visible is None else set(visible)
+    for k, obs in enumerate(data):
+        color, _, dash = _style(k)
+        bad = data[obs][2]
+        note = f"{int(bad.sum())} violating steps" if bad.any() else ""
+        layers.append(Layer(f"layer-{len(layers)}", obs, color, dash,
+                            obs in shown or bad.any(), "observer", note))
+    for j, name in enumerate(bands):
+        layers.append(Layer(f"layer-{len(layers)}", name,
+                            matplotlib.colors.to_hex(BAND_COLORS[j % len(BAND_COLORS)]), "",
+                            True, "band"))
+    if truth is not None:
+        layers.append(Layer(f"layer-{len(layers)}", "true state", "#000000", "3,2", True,
+                            "truth"))
+    by_name = {la.name: la for la in layers}
+    count = [0]
+
+    def gid(name: str) -> str:
+        count[0] += 1
+        return f"{by_name[name].key}__{count[0]}"
+
+    per_row = 2 if n > WIDE_STATES else 1
+    rows = -(-n // per_row)
+    fig, axes = plt.subplots(rows, 2 * per_row, figsize=(14, 0.6 + 2.3 * rows), squeeze=False,
+                             sharex=True)
+    artists: dict[str, list] = {la.key: [] for la in layers}
+    for i in range(n):
+        ax_b, ax_r = axes[i // per_row, 2 * (i % per_row)], axes[i // per_row,
+                                                                  2 * (i % per_row) + 1]
+        for j, (name, (blo, bhi)) in enumerate(bands.items()):
+            lo_b = _envelope(np.asarray(blo, float), edges, "min")[:, i]
+            hi_b = _envelope(np.asarray(bhi, float), edges, "max")[:, i]
+            color = BAND_COLORS[j % len(BAND_COLORS)]
+            a = ax_b.fill_between(t, lo_b, hi_b, color=color, alpha=0.3, lw=0, gid=gid(name))
+            (b,) = ax_r.plot(t, np.where(hi_b > lo_b, (hi_b - lo_b) / 2, np.nan), color=color,
+                             lw=2.5, alpha=0.6, gid=gid(name))
+            artists[by_name[name].key] += [a, b]
+        for k, (obs, (lo, hi, bad)) in enumerate(data.items()):
+            color, ls, _ = _style(k)
+            lo_i = _envelope(lo, edges, "min")[:, i]
+            hi_i = _envelope(hi, edges, "max")[:, i]
+            radius = (hi_i - lo_i) / 2
+            radius = np.where(radius > 0, radius, np.nan)
+            key = by_name[obs].key
+            (a,) = ax_b.plot(t, lo_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
+            (b,) = ax_b.plot(t, hi_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
+            (c,) = ax_r.plot(t, radius, color=color, ls=ls, lw=0.9, gid=gid(obs))
+            artists[key] += [a, b, c]
+            if bad.any():
+                steps_bad = np.flatnonzero(bad)
+                xs = t_all[steps_bad]
+                ref = truth[steps_bad, i] if truth is not None else lo[steps_bad, i]
+                (d,) = ax_b.plot(xs, ref, ls="none", marker="x", ms=5, mew=1.2,
+                                 color=VIOLATION_COLOR, gid=gid(obs))
+                r_bad = (hi[steps_bad, i] - lo[steps_bad, i]) / 2
+                (e,) = ax_r.plot(xs, np.where(r_bad > 0, r_bad, np.nan), ls="none",
+                                 marker="x", ms=5, mew=1.2, color=VIOLATION_COLOR,
+                                 gid=gid(obs))
+                artists[key] += [d, e]
+        if truth is not None:
+            x_i = _envelope(truth, edges, "first")[:, i]
+            (a,) = ax_b.plot(t, x_i, color="k", lw=1.1, ls=(0, (3, 2)), gid=gid("true state"),
+                             label="_truth")
+            artists[by_name["true state"].key].append(a)
+        _fit_first_view(ax_b, [data[la.name][:2] for la in layers
+                               if la.kind == "observer" and la.visible], i)
+        ax_b.set_ylabel(names[i], fontsize=8)
+        ax_b.set_title(f"{names[i]}: bounds", fontsize=8, loc="left")
+        ax_r.set_yscale("log")
+        _log_ticks(ax_r.yaxis)
+        ax_r.set_title(f"{names[i]}: interval radius (log scale)", fontsize=8, loc="left")
+        for ax in (ax_b, ax_r):
+            ax.tick_params(labelsize=7)
+            ax.grid(True, which="major", alpha=0.25)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]", fontsize=8)
+    for j in range(n, rows * per_row):  # an empty slot of the last row
+        axes[-1, 2 * (j % per_row)].set_visible(False)
+        axes[-1, 2 * (j % per_row) + 1].set_visible(False)
+    if title:
+        fig.suptitle(title, fontsize=9, x=0.01, ha="left")
     fig.tight_layout()
-    return save_figure(fig, base)
+    buf = io.StringIO()
+    with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": str(base)}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    svg = _layer_svg(buf.getvalue(), layers)
+    for la in layers:
+        for a in artists[la.key]:
+            a.set_visible(la.visible)
+    return LayeredFigure(svg, layers, save_figure(fig, base))
 
 
-def heat_map(df: pd.DataFrame, scenario: str, base: Path) -> list[Path] | None:
-    """Relative RMS (eq. 9, ``rel_rms``) as a heat map, observer x state, log colour scale."""
-    ok = df[(df["status"] == "ok") & df["rel_rms"].notna()]
-    if ok.empty:
+def heat_map(values: pd.DataFrame, title: str, reference: str,
+             base: Path) -> list[Path] | None:
+    """A ratio per observer and state (``values``: observers as rows in table order, states as
+    columns, e.g. the v_i of the scenario table) as a heat map with a log colour scale; the
+    title names the reference of the ratios."""
+    vals = values.to_numpy(float)
+    if not np.isfinite(vals).any():
         return None
-    mat = ok.pivot_table(index="observer", columns="state", values="rel_rms")
-    mat = mat.reindex(table_order(mat.index))
-    vals = mat.to_numpy(float)
     n_obs, n = vals.shape
-    fig, ax = plt.subplots(figsize=(min(2.5 + 0.5 * n, 12), 1.2 + 0.2 * n_obs))
-    im = ax.imshow(np.log10(vals), cmap="viridis_r", aspect="auto")
-    ax.set_yticks(range(n_obs), mat.index, fontsize=7)
-    ax.set_xticks(range(n), [f"x{i + 1}" for i in mat.columns], fontsize=7)
+    fig, ax = plt.subplots(figsize=(min(3.5 + 0.5 * n, 13), 1.5 + 0.2 * n_obs))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logs = np.log10(vals)
+    im = ax.imshow(logs, cmap="viridis_r", aspect="auto")
+    ax.set_yticks(range(n_obs), list(values.index), fontsize=7)
+    ax.set_xticks(range(n), [str(c) for c in values.columns], fontsize=7)
     if n <= 10:
+        mid = np.nanmean(logs[np.isfinite(logs)])
         for (i, j), v in np.ndenumerate(vals):
-            if np.isfinite(v):
+            if np.isfinite(v) and v > 0:
                 ax.text(j, i, f"{v:.3g}", ha="center", va="center", fontsize=6,
-                        color="w" if np.log10(v) > np.nanmean(np.log10(vals)) else "k")
+                        color="w" if np.log10(v) > mid else "k")
     cb = fig.colorbar(im, ax=ax)
-    cb.set_label("log10 relative RMS", fontsize=7)
-    ax.set_title(f"{scenario}: relative RMS radius (1 = tightest)", fontsize=9)
+    cb.set_label("log10 v_i", fontsize=7)
+    width = max(int(fig.get_figwidth() * 14), 40)
+    ax.set_title(textwrap.fill(title, width) + "\n" + textwrap.fill(reference, width),
+                 fontsize=8, loc="left")
     fig.tight_layout()
     return save_figure(fig, base)
 
 
 def step_times(observers: Sequence[str], ours: np.ndarray, theirs: np.ndarray, scenario: str,
-               parallel: bool, base: Path) -> list[Path] | None:
-    """Per-step time (median ms, log scale) of every observer, beside the paper's time
-    (``theirs``: NaN where the paper has none)."""
+               parallel: bool, base: Path, source: str | None = None) -> list[Path] | None:
+    """Per-step time (median ms, log scale) of every observer, beside the published time
+    (``theirs``: NaN where the paper has none; ``source`` names the paper table)."""
     if not np.isfinite(ours).any():
         return None
     y = np.arange(len(observers))
-    fig, ax = plt.subplots(figsize=(6, 1.2 + 0.2 * len(observers)))
+    fig, ax = plt.subplots(figsize=(7, 1.4 + 0.2 * len(observers)))
     ax.barh(y - 0.2, ours, height=0.4, label="ours (median step, this machine"
             + (", jobs in parallel)" if parallel else ")"))
     if np.isfinite(theirs).any():
-        ax.barh(y + 0.2, theirs, height=0.4, label="paper (MATLAB)")
+        ax.barh(y + 0.2, theirs, height=0.4,
+                label=f"{source or 'paper'} (MATLAB, i7-8565U)")
     ax.set_xscale("log")
+    _log_ticks(ax.xaxis)
     ax.set_yticks(y, list(observers), fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel("time per step [ms]")
-    ax.set_title(f"{scenario}: per-step time", fontsize=9)
+    ax.set_title(f"{scenario}: per-step time" + (
+        f" beside {source}" if np.isfinite(theirs).any() else " (no published times)"),
+        fontsize=9, loc="left")
     ax.legend(fontsize=7)
     fig.tight_layout()
     return save_figure(fig, base)

@@ -113,6 +113,15 @@ class Stale:
     command: str
 
 
+def read_stamp(path: Path) -> tuple[str, str | None, str] | None:
+    """The last stamp of a report: ``(digest, config or None, command)``; None without one."""
+    found = _STAMP.findall(path.read_text(encoding="utf-8", errors="replace"))
+    if not found:
+        return None
+    digest, config, command = found[-1]
+    return digest, None if config == "-" else config, command
+
+
 def check_report(path: Path, root: Path = ROOT) -> Stale | None:
     """None if the report's stamp matches the current tree, else why not."""
     text = path.read_text(errors="replace")

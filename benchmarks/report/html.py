@@ -1,13 +1,19 @@
 """The HTML report of a results folder (``DIR/index.html``) and the index of all reports.
 
 The page renders the same table data as the Markdown report (:func:`benchmarks.report.
-scenario_table_data`, :func:`~benchmarks.report.tables.absolute_table_data`): one source of the
-cells, two renderers. It adds a ranking summary, per scenario the bounds of the tightest
-observers over time for one state with the true state, a heat map of the relative RMS
-(observer x state) and the per-step times on a log scale beside the papers' times, and the
-configuration, environment and git commit of the run. Everything is inline (CSS and a small
-sorting script, no network at view time); figures are matplotlib PNG files beside the page,
-each with a PDF copy to download.
+tables.scenario_table_data`, :func:`~benchmarks.report.tables.absolute_table_data`): one source
+of the cells, two renderers. Per scenario it states the record length and the noise bounds,
+names the reference of every table and figure, and shows every state's bounds and interval
+radius (log scale) over time with the true state and the steps of any violation
+(:func:`~benchmarks.report.figures.bounds_and_radii`, inline SVG whose observers are shown and
+hidden with the legend's check boxes), a heat map of the table's ratios and the per-step times
+beside the papers' times; then a ranking summary and the configuration, environment and git
+commit of the run. Everything is inline (CSS and small scripts for sorting and for the layers,
+no network at view time); the heat map and time figures are matplotlib PNG files beside the
+page, every figure with PNG and PDF copies to download.
+
+:func:`write_index` links every report; it writes into the results folder, and rewrites the
+committed ``reports/index.html`` (from the committed Markdown reports only) just when asked.
 """
 
 from __future__ import annotations
@@ -27,15 +33,25 @@ from ..errors import ConfigError
 from ..io import atomic_write_text, environment, load_results
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
-from .figures import bounds_over_time, heat_map, step_times
-from .numbers import MISSING, fmt
-from .paper import paper_rows
-from .tables import INTRO, absolute_table_data, scenario_notes, scenario_table_data
+from .figures import LayeredFigure, bounds_and_radii, heat_map, step_times
+from .freshness import read_stamp
+from .numbers import MISSING, Num, format_columns
+from .paper import paper_rows, paper_title
+from .tables import (
+    INTRO,
+    absolute_table_caption,
+    absolute_table_data,
+    relative_values,
+    scenario_facts,
+    scenario_notes,
+    scenario_table_caption,
+    scenario_table_data,
+)
 
 FIGURE_DIR = "html_figures"
 
 CSS = """
-body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1200px;padding:0 1em;
+body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1500px;padding:0 1em;
 color:#222}
 h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2em}
 h3{font-size:1.05em}
@@ -43,14 +59,24 @@ table.sortable{border-collapse:collapse;font-size:.85em;margin:.5em 0}
 table.sortable th,table.sortable td{border:1px solid #ccc;padding:2px 6px;text-align:right;
 white-space:nowrap}
 table.env td{text-align:left}
-table.sortable td:first-child,table.sortable th:first-child{text-align:left}
+table.sortable td:first-child,table.sortable th:first-child,table.sortable td.text{text-align:left}
 table.sortable th{background:#eef;cursor:pointer;user-select:none;white-space:nowrap}
 table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
 table.sortable tr:nth-child(even) td{background:#fafafa}
-figure{display:inline-block;margin:.5em 1em .5em 0;vertical-align:top}
-figure img{max-width:560px;border:1px solid #ddd}
+figure{display:inline-block;margin:.5em 1em .5em 0;vertical-align:top;max-width:100%}
+figure img{max-width:100%;border:1px solid #ddd}
+figure.layered{display:block;margin:.5em 0}
+figure.layered .svgfig svg{display:block;width:100%;height:auto;border:1px solid #ddd}
 figcaption{font-size:.8em}
+p.caption{font-size:.85em;color:#444;margin:.3em 0}
+p.facts{font-size:.9em}
+code{background:#f4f4f4;padding:0 .2em}
+.legend{font-size:.8em;margin:.4em 0;line-height:1.9}
+.legend label{display:inline-block;margin-right:1em;cursor:pointer;white-space:nowrap}
+.legend label.violating{color:#b00}
+.legend svg{vertical-align:middle;margin-right:.2em}
+.legend button{font-size:.9em;margin-right:.4em}
 pre{background:#f4f4f4;padding:.6em;overflow-x:auto;font-size:.8em}
 .notes{font-size:.85em;color:#633}
 nav a{margin-right:1em}
@@ -76,20 +102,51 @@ document.querySelectorAll('table.sortable th').forEach(function(th){
 th.addEventListener('click',function(){sortTable(th)})})});
 """
 
+#: show and hide the layers of a figure with the check boxes of its legend (no network)
+LAYER_JS = """
+function showLayer(fig,key,on){fig.querySelectorAll('g.layer.'+key).forEach(function(g){
+g.style.display=on?'':'none'})}
+function syncLegend(legend){var fig=document.getElementById(legend.dataset.figure);
+legend.querySelectorAll('input[data-layer]').forEach(function(cb){
+showLayer(fig,cb.dataset.layer,cb.checked)})}
+document.addEventListener('DOMContentLoaded',function(){
+document.querySelectorAll('.legend[data-figure]').forEach(function(legend){
+legend.querySelectorAll('input[data-layer]').forEach(function(cb){
+cb.addEventListener('change',function(){syncLegend(legend)})});
+legend.querySelectorAll('button[data-select]').forEach(function(b){
+b.addEventListener('click',function(){var how=b.dataset.select;
+legend.querySelectorAll('input[data-layer]').forEach(function(cb){
+cb.checked=how==='all'?true:how==='none'?cb.dataset.kind!=='observer':cb.defaultChecked});
+syncLegend(legend)})})})});
+"""
 
-def _cell(text: str) -> str:
-    """Escape a table cell; Markdown bold (``**x**``) becomes ``<strong>``."""
-    return re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", html.escape(str(text)))
+
+def inline(text: str) -> str:
+    """Escape a line of text; Markdown bold (``**x**``) becomes ``<strong>``, code
+    (```x```) ``<code>``."""
+    out = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", html.escape(str(text)))
+    return re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
+
+
+_cell = inline
+
+
+_NUMBER = re.compile(r"^\**[-+]?(\d|\.\d)")
 
 
 def html_table(head: list[str], rows: list[list[str]], table_id: str = "") -> str:
-    """A sortable HTML table of cell strings (the same cells as the Markdown tables)."""
+    """A sortable HTML table of cell strings (the same cells as the Markdown tables); columns
+    without any number are left-aligned (class ``text``)."""
     ident = f' id="{html.escape(table_id)}"' if table_id else ""
     out = [f'<table class="sortable"{ident}><thead><tr>']
     out += [f"<th>{html.escape(h)}</th>" for h in head]
     out.append("</tr></thead><tbody>")
+    text = [i > 0 and not any(_NUMBER.match(str(r[i])) for r in rows if i < len(r))
+            for i in range(len(head))]
     for cells in rows:
-        out.append("<tr>" + "".join(f"<td>{_cell(c)}</td>" for c in cells) + "</tr>")
+        out.append("<tr>" + "".join(
+            f'<td class="text">{_cell(c)}</td>' if i < len(text) and text[i]
+            else f"<td>{_cell(c)}</td>" for i, c in enumerate(cells)) + "</tr>")
     out.append("</tbody></table>")
     return "".join(out)
 
@@ -141,29 +198,40 @@ def ranking(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of :func:`ranking`."""
+    """Header and rows of :func:`ranking` (each number column in one notation)."""
     rk = ranking(summary)
     head = ["Observer", "mean rank", "mean rel. RMS", "scenarios ranked", "failed",
             "violations"]
-    rows = [[obs, fmt(r.mean_rank, 3), fmt(r.mean_rel_rms), str(int(r.ranked))
+    rows = [[obs, Num(r.mean_rank), Num(r.mean_rel_rms), str(int(r.ranked))
              if pd.notna(r.ranked) else "0", str(int(r.failed)),
              MISSING if pd.isna(r.violations) else str(int(r.violations))]
             for obs, r in rk.iterrows()]
-    return head, rows
+    return head, format_columns(rows)
 
 
-def time_figure(df: pd.DataFrame, scenario: str, meta: dict, base: Path) -> list[Path] | None:
-    """Per-step time (median ms, log scale) of every observer, beside the paper's time."""
-    pairs = df.drop_duplicates("observer").set_index("observer")
+def time_figure(df: pd.DataFrame, scenario: str, meta: dict,
+                base: Path) -> tuple[list[Path] | None, str]:
+    """Per-step time (median ms, log scale) of every observer, beside the paper's time where
+    one is published; returns the figure's paths and its caption."""
+    pairs = df[df["status"] != "unsupported"].drop_duplicates("observer").set_index("observer")
     pairs = pairs.reindex(table_order(pairs.index))
     info = meta.get("scenarios", {}).get(scenario, {})
     n = int(df["state"].max()) + 1
     variant = "nonlinear" if "nonlinear" in scenario else "linear"
-    paper = paper_rows(info.get("paper_table"), n, variant)
-    theirs = np.array([paper[o].t_ms if o in paper and paper[o].t_ms else np.nan
+    key = info.get("paper_table")
+    paper = paper_rows(key, n, variant)
+    theirs = np.array([paper[o.split("[")[0]].t_ms
+                       if o.split("[")[0] in paper and paper[o.split("[")[0]].t_ms else np.nan
                        for o in pairs.index], float)
-    return step_times(list(pairs.index), pairs["step_ms"].to_numpy(float), theirs,
-                              scenario, timed_in_parallel(df), base)
+    source = paper_title(key, variant)
+    parallel = timed_in_parallel(df)
+    paths = step_times(list(pairs.index), pairs["step_ms"].to_numpy(float), theirs,
+                       scenario, parallel, base, source)
+    caption = "per-step time (median ms, log scale) on this machine" + (
+        " with jobs running in parallel (indicative only)" if parallel else "")
+    caption += (f", beside the published times of {source} (MATLAB, i7-8565U)"
+                if np.isfinite(theirs).any() else "; no published times for this scenario")
+    return paths, caption
 
 
 def figure_html(paths: list[Path] | None, page_dir: Path, caption: str) -> str:
@@ -173,16 +241,80 @@ def figure_html(paths: list[Path] | None, page_dir: Path, caption: str) -> str:
         return ""
     png, pdf = (p.relative_to(page_dir).as_posix() for p in paths)
     return (f'<figure><img src="{html.escape(png)}" alt="{html.escape(caption)}">'
-            f"<figcaption>{html.escape(caption)} — download "
+            f"<figcaption>{inline(caption)} — download "
             f'<a href="{html.escape(png)}" download>PNG</a> '
             f'<a href="{html.escape(pdf)}" download>PDF</a></figcaption></figure>')
 
 
+def _swatch(color: str, dash: str, kind: str) -> str:
+    if kind == "band":
+        return (f'<svg width="28" height="10"><rect x="1" y="1" width="26" height="8" '
+                f'fill="{color}" fill-opacity="0.4"/></svg>')
+    dasharray = f' stroke-dasharray="{dash}"' if dash else ""
+    return (f'<svg width="28" height="10"><line x1="1" y1="5" x2="27" y2="5" '
+            f'stroke="{color}" stroke-width="2"{dasharray}/></svg>')
+
+
+def layered_figure_html(fig: LayeredFigure | None, fig_id: str, page_dir: Path,
+                        caption: str) -> str:
+    """A figure of selectable layers: a legend of check boxes (click a name or a box to show
+    or hide that observer's curves; buttons for all, none and the first view), the inline
+    SVG and download links to the PNG and PDF of the first view."""
+    if fig is None:
+        return ""
+    items = []
+    for la in fig.layers:
+        checked = " checked" if la.visible else ""
+        note = f" ({html.escape(la.note)})" if la.note else ""
+        cls = ' class="violating"' if la.note else ""
+        items.append(f'<label{cls} data-name="{html.escape(la.name)}"><input type="checkbox" '
+                     f'data-layer="{la.key}" data-kind="{la.kind}"{checked}>'
+                     f"{_swatch(la.color, la.dash, la.kind)}{html.escape(la.name)}{note}"
+                     "</label>")
+    buttons = "".join(f'<button type="button" data-select="{k}">{t}</button>'
+                      for k, t in (("all", "all observers"), ("none", "no observer"),
+                                   ("first", "first view")))
+    png, pdf = (p.relative_to(page_dir).as_posix() for p in fig.paths)
+    return (f'<figure class="layered"><div class="legend" data-figure="{fig_id}">{buttons}'
+            + "".join(items) + f'</div><div class="svgfig" id="{fig_id}">{fig.svg}</div>'
+            f"<figcaption>{inline(caption)} — download the first view: "
+            f'<a href="{html.escape(png)}" download>PNG</a> '
+            f'<a href="{html.escape(pdf)}" download>PDF</a></figcaption></figure>')
+
+
+#: observers shown at first in the bounds figure (the tightest by average ratio; observers
+#: with a violation are always shown)
+FIRST_VIEW = 6
+
+
+def bounds_figure(runs: pd.DataFrame, df: pd.DataFrame, scenario: str, info: dict,
+                  meta: dict, base: Path, bands: dict | None = None
+                  ) -> tuple[LayeredFigure | None, str]:
+    """The bounds-and-radius figure of one scenario (every observer a layer, the
+    :data:`FIRST_VIEW` tightest shown at first) and its caption."""
+    rel, reference = relative_values(df, meta)
+    ok = df.assign(_rel=rel)
+    ok = ok[(ok["status"] == "ok") & ok["_rel"].notna()]
+    order = ok.groupby("observer")["_rel"].mean().sort_values()
+    names = table_order(df[df["status"] != "unsupported"]["observer"].unique())
+    fig = bounds_and_radii(runs, scenario, names, info.get("state_names") or [], base,
+                           visible=set(order.index[:FIRST_VIEW]), bands=bands,
+                           title=f"{scenario}: bounds and interval radius of every state")
+    truth = runs.loc[runs["scenario"] == scenario, "x_true"].notna().any()
+    caption = ("every state's interval bounds (left) and radius on a log scale (right) over "
+               "time, " + ("with the true state (dashed black) and the steps where a set "
+                           "missed it (red x)" if truth else
+                           "(the record has no true state, so no containment check)")
+               + f"; shown at first: the {FIRST_VIEW} observers of smallest average v_i "
+               f"({reference}) and any observer with a violation; tick a name to show it")
+    return fig, caption
+
+
 def html_page(title: str, body: list[str]) -> str:
-    """A complete page with the inline style sheet and sorting script (no external file)."""
+    """A complete page with the inline style sheet and scripts (no external file)."""
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{CSS}</style>"
-            f"<script>{SORT_JS}</script></head><body>\n" + "\n".join(body)
+            f"<script>{SORT_JS}{LAYER_JS}</script></head><body>\n" + "\n".join(body)
             + "\n</body></html>\n")
 
 
@@ -193,19 +325,40 @@ def _definition_table(items: dict) -> str:
            f"<tbody>{rows}</tbody></table>"
 
 
+#: the built documentation site (``make docs``), linked from every page when present
+DOCS_INDEX = Path(__file__).resolve().parents[2] / "docs" / "_build" / "html" / "index.html"
+
+
+def docs_link(page_dir: Path) -> str:
+    """A paragraph linking the documentation site (relative link when it is built, else how
+    to build it)."""
+    if DOCS_INDEX.is_file():
+        rel = _relpath(DOCS_INDEX, page_dir)
+        return (f'<p class="caption">Documentation: <a href="{html.escape(Path(rel).as_posix())}">'
+                "the setobs-bench documentation site</a> (observers, configs, records, "
+                "plugins, the gate and the audit).</p>")
+    return ('<p class="caption">Documentation: the setobs-bench documentation site, built by '
+            "<code>make docs</code> into <code>docs/_build/html/</code> of the repository "
+            "(observers, configs, records, plugins, the gate and the audit).</p>")
+
+
 def write_html(results_dir: str | Path, out: str | Path | None = None,
-               figures: bool = True) -> Path:
+               figures: bool = True, bands: dict | None = None) -> Path:
     """Write the HTML report of a results folder (default ``DIR/index.html``).
 
     Parameters
     ----------
     results_dir : str or Path
-        A folder written by ``python -m benchmarks run`` (``summary.csv``, optionally
+        A folder written by ``setobs-bench run`` (``summary.csv``, optionally
         ``runs.csv`` and ``meta.json``).
     out : str or Path, optional
         The HTML file; its figures go to ``html_figures/`` beside it.
     figures : bool
         Draw the figures (``False``: tables, ranking and environment only).
+    bands : dict, optional
+        Extra bands of the bounds figures per scenario:
+        ``{scenario: {name: (lo, hi)}}`` with arrays of shape (steps, states)
+        (:func:`~benchmarks.report.figures.bounds_and_radii`).
 
     Returns
     -------
@@ -227,46 +380,58 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
             "<nav>" + "".join(f'<a href="#sc-{html.escape(s)}">{html.escape(s)}</a>'
                               for s in scenarios)
             + '<a href="#ranking">ranking</a><a href="#environment">configuration</a></nav>',
-            f"<p>{html.escape(INTRO)} Click a column header to sort.</p>"]
+            f"<p>{inline(INTRO)} Click a column header to sort.</p>", docs_link(page_dir)]
     if sweep:  # several seeds or option variants: the aggregated tables of the Markdown report
         body += ["<p>Sweep: relative RMS radius over the seeds (mean, std, min, max over the "
-                 "successful runs), as in report.md.</p>"]
+                 "successful runs; reference: the best observer of the same scenario and "
+                 "seed), as in report.md.</p>"]
         body += markdown_to_html(sweep_tables(summary))
     for sc in scenarios:
         full = summary[summary["scenario"] == sc]
         info = meta.get("scenarios", {}).get(sc, {})
         df = full[full["status"] != "unsupported"]
         body += [f'<h2 id="sc-{html.escape(sc)}">{html.escape(sc)}</h2>',
-                 f"<p>{html.escape(info.get('description', ''))}</p>",
-                 html_table(*scenario_table_data(df, meta), table_id=f"table-{sc}")]
-        absolute = absolute_table_data(df, meta)
+                 f"<p>{inline(info.get('description', ''))}</p>"]
+        facts = scenario_facts(info)
+        if facts:
+            body.append(f'<p class="facts">{inline(facts[0].upper() + facts[1:])}</p>')
+        body += [f'<p class="caption">{inline(scenario_table_caption(full, meta))}</p>',
+                 html_table(*scenario_table_data(full, meta), table_id=f"table-{sc}")]
+        absolute = absolute_table_data(df, meta) if len(df) else None
         if absolute:
-            body += ["<h3>Absolute RMS radii (published: relative value x smallest radius)</h3>",
+            body += ["<h3>Absolute RMS radii</h3>",
+                     f'<p class="caption">{inline(absolute_table_caption(df, meta))}</p>',
                      html_table(*absolute, table_id=f"absolute-{sc}")]
         notes = scenario_notes(full)
         if notes:
             body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"
                                                       for n in notes) + "</ul>")
-        if figures:
-            names = info.get("state_names") or []
-            label = names[0] if names else "x1"
-            figs = [figure_html(heat_map(df, sc, fig_dir / sc / "rel_rms_heatmap"), page_dir,
-                            "relative RMS, observer x state"),
-                    figure_html(time_figure(df, sc, meta, fig_dir / sc / "step_time"), page_dir,
-                            "per-step time, log scale, with the paper's")]
+        if figures and len(df):
+            base = fig_dir / sc
             if runs is not None:
-                truth = runs.loc[runs["scenario"] == sc, "x_true"].notna().any()
-                figs.insert(0, figure_html(bounds_over_time(
-                    runs, df, sc, 0, fig_dir / sc / "bounds_x1", label), page_dir,
-                    f"bounds of {label} over time "
-                    + ("with the true state" if truth else "(the record has no true state)")))
+                fig, caption = bounds_figure(runs, df, sc, info, meta, base / "bounds",
+                                             (bands or {}).get(sc))
+                body.append(layered_figure_html(fig, f"bounds-{sc}", page_dir, caption))
+            rel, reference = relative_values(df, meta)
+            mat = (df.assign(_rel=rel)[df["status"] == "ok"]
+                   .pivot_table(index="observer", columns="state", values="_rel"))
+            mat = mat.reindex(table_order(mat.index))
+            names = info.get("state_names") or []
+            mat.columns = [names[i] if i < len(names) else f"x{i + 1}" for i in mat.columns]
+            heat = heat_map(mat, f"{sc}: v_i per observer and state (1 = the reference)",
+                            reference, base / "rel_rms_heatmap") if len(mat) else None
+            times, time_caption = time_figure(full, sc, meta, base / "step_time")
+            figs = [figure_html(heat, page_dir, f"v_i of the table above, per observer and "
+                                f"state, log colour scale; {reference}"),
+                    figure_html(times, page_dir, time_caption)]
             body.append('<div class="figures">' + "".join(f for f in figs if f) + "</div>")
     body += ['<h2 id="ranking">Ranking summary</h2>',
-             "<p>Mean over the scenarios of each observer's average relative RMS (eq. 9 against "
-             "all observers of the run) and of its rank in each scenario (1 = tightest); "
-             "failed runs are not ranked. Violations: steps whose true state lay outside the "
-             "set, summed over the scenarios where containment was checked (n/a: checked in "
-             "none).</p>",
+             "<p>Mean over the scenarios of each observer's average relative RMS (reference: "
+             "eq. 9 against all guaranteed observers of the run, <code>rel_rms</code> of "
+             "summary.csv, not a paper's observers) and of its rank in each scenario "
+             "(1 = tightest); failed runs are not ranked. Violations: steps whose true state "
+             "lay outside the set, summed over the scenarios where containment was checked "
+             "(n/a: checked in none).</p>",
              html_table(*ranking_table(summary), table_id="ranking-table")] if not sweep else []
     raw = meta.get("config", {}).get("raw")
     env = {"created": meta.get("created", "?"), **meta.get("versions", {})}
@@ -291,29 +456,69 @@ def _title(path: Path) -> str:
     return path.stem
 
 
-def write_index(reports_dir: str | Path, results_root: str | Path | None = None) -> Path:
-    """Write ``REPORTS/index.html`` linking every Markdown report of ``reports_dir`` and, where
-    it exists, the HTML report ``RESULTS/<name>/index.html`` of the same name."""
+def _made_by(path: Path) -> str:
+    """How a report was made: its configuration file, else the command of its stamp."""
+    stamp = read_stamp(path)
+    if stamp is None:
+        return ""
+    _, config, command = stamp
+    return Path(config).name if config else command
+
+
+def write_index(reports_dir: str | Path, results_root: str | Path | None = None,
+                out: str | Path | None = None) -> Path:
+    """Write an index page linking every Markdown report of ``reports_dir`` and, where
+    ``results_root`` is given, the HTML report ``RESULTS/<name>/index.html`` of the same name
+    where it exists.
+
+    Parameters
+    ----------
+    reports_dir : str or Path
+        The folder of the Markdown reports (``reports``).
+    results_root : str or Path, optional
+        The folder of the runs (``results``); without it the page links the Markdown reports
+        only (the committed ``reports/index.html``: its content depends on the committed
+        reports alone, so rewriting it leaves the repository clean).
+    out : str or Path, optional
+        The page to write; default ``RESULTS/index.html`` with ``results_root`` (the local
+        runs never enter a committed file), else ``REPORTS/index.html``.
+
+    Returns
+    -------
+    Path
+        The page written.
+    """
     reports_dir = Path(reports_dir)
     if not reports_dir.is_dir():
         raise ConfigError(f"no folder {reports_dir}")
+    if out is None:
+        out = (Path(results_root) if results_root is not None else reports_dir) / "index.html"
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    files = [md for md in sorted(reports_dir.glob("*.md")) if md.name.lower() != "readme.md"]
+    titles = {md: _title(md) for md in files}
+    counts = pd.Series(list(titles.values())).value_counts() if titles else pd.Series()
     rows = []
-    for md in sorted(reports_dir.glob("*.md")):
-        if md.name.lower() == "readme.md":
-            continue
-        links = f'<a href="{html.escape(md.name)}">{html.escape(md.name)}</a>'
+    for md in files:
+        title = titles[md] + (f" ({md.stem})" if counts.get(titles[md], 0) > 1 else "")
+        rel_md = Path(_relpath(md, out.parent)).as_posix()
+        links = f'<a href="{html.escape(rel_md)}">{html.escape(md.name)}</a>'
         if results_root is not None:
             page = Path(results_root) / md.stem / "index.html"
             if page.is_file():
-                rel = Path(_relpath(page, reports_dir))
+                rel = Path(_relpath(page, out.parent))
                 links += f' · <a href="{html.escape(rel.as_posix())}">HTML report</a>'
-        rows.append(f"<tr><td>{html.escape(_title(md))}</td><td>{links}</td></tr>")
+        rows.append(f"<tr><td>{html.escape(title)}</td><td>{html.escape(_made_by(md))}</td>"
+                    f"<td>{links}</td></tr>")
+    local = ("and, where the run is present in this checkout's results folder, its HTML "
+             "report" if results_root is not None else
+             "(the HTML reports of local runs: <code>setobs-bench index</code> writes "
+             "<code>results/index.html</code>)")
     body = ["<h1>setobs-bench reports</h1>",
-            "<p>Every table of <code>make bench</code> (Markdown, published values in "
-            "parentheses) and, where the run is present, its HTML report.</p>",
-            '<table class="sortable" id="reports"><thead><tr><th>report</th><th>files</th>'
-            "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>"]
-    out = reports_dir / "index.html"
+            f"<p>Every committed report (Markdown, published values in parentheses) {local}."
+            "</p>", docs_link(out.parent),
+            '<table class="sortable" id="reports"><thead><tr><th>report</th><th>made by</th>'
+            "<th>files</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table>"]
     atomic_write_text(out, html_page("setobs-bench reports", body))
     return out
 

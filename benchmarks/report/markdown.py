@@ -15,7 +15,15 @@ from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
 from .figures import observer_bounds
-from .tables import INTRO, absolute_table, scenario_notes, scenario_table
+from .tables import (
+    INTRO,
+    absolute_table,
+    absolute_table_caption,
+    scenario_facts,
+    scenario_notes,
+    scenario_table,
+    scenario_table_caption,
+)
 
 
 def write_report(results_dir: str | Path, out: str | Path | None = None,
@@ -44,12 +52,15 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         runs = pd.read_csv(results_dir / "runs.csv")
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
-        df = full[full["status"] != "unsupported"]  # listed below the tables instead
-        parts += [f"## {sc}", "", info.get("description", ""), "", scenario_table(df, meta), ""]
-        abs_table = absolute_table(df, meta)
+        df = full[full["status"] != "unsupported"]  # status rows of the scenario table only
+        facts = scenario_facts(info)
+        parts += [f"## {sc}", "", info.get("description", ""), ""]
+        if facts:
+            parts += [facts[0].upper() + facts[1:], ""]
+        parts += [scenario_table_caption(full, meta), "", scenario_table(full, meta), ""]
+        abs_table = absolute_table(df, meta) if len(df) else ""
         if abs_table:
-            parts += ["Absolute RMS radii (published: relative value x smallest radius):", "",
-                      abs_table, ""]
+            parts += [absolute_table_caption(df, meta), "", abs_table, ""]
         notes = scenario_notes(full)
         parts += [f"- {note}" for note in notes] + ([""] if notes else [])
         if runs is not None:

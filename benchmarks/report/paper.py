@@ -11,6 +11,25 @@ import yaml
 #: one published row stands for several of our observers (CORA has a single PRad-C)
 ALIASES = {"PRad-C": ("PRad-C-I", "PRad-C-II")}
 
+#: the short name of each published table (per variant where one file holds two tables)
+TITLES = {
+    "arch2021_table3_tank6_linear": "Althoff, ARCH 2021, Table 3",
+    "arch2021_table4_tank6_nonlinear": "Althoff, ARCH 2021, Table 4",
+    "arch2021_table5_6_tank_scaling": {"linear": "Althoff, ARCH 2021, Table 5",
+                                       "nonlinear": "Althoff, ARCH 2021, Table 6"},
+    "automatica2021_table3_vehicle6": "Althoff & Rath, Automatica 2021, Table 3",
+    "alanwar2022_datadriven": "Alanwar et al., 2022, Sec. IV",
+}
+
+
+def paper_title(key: str | None, variant: str = "linear") -> str | None:
+    """The short name of published table ``key`` (e.g. ``"Althoff, ARCH 2021, Table 3"``),
+    ``None`` without a table."""
+    if not key:
+        return None
+    title = TITLES.get(key, key)
+    return title.get(variant, key) if isinstance(title, dict) else title
+
 
 @dataclass(frozen=True)
 class PaperRow:

@@ -2,14 +2,24 @@
 (:mod:`.markdown`) and the HTML page (:mod:`.html`): one source of the cells, two renderers.
 
 * :func:`scenario_table_data` -- relative RMS per state (eq. 9, the published value beside it),
-  average, times and the containment verdict of every observer on one scenario;
-* :func:`absolute_table_data` -- absolute RMS radii with the published ones;
-* :func:`scenario_notes` -- failures and observers that do not apply;
+  average, times and the containment verdict of every observer on one scenario, observers that
+  do not apply as status rows; :func:`scenario_table_caption` names its reference;
+* :func:`relative_values` -- the ratios of that table (and of the heat map) with the sentence
+  naming their reference;
+* :func:`absolute_table_data` -- absolute RMS radii with the published ones
+  (:func:`absolute_table_caption`);
+* :func:`scenario_facts` -- the record length and the bounds of the noise and initial sets;
+* :func:`scenario_notes` -- failures with their messages;
 * :data:`INTRO` -- the paragraph that opens both reports;
 * :func:`design_times_table` -- the offline designs' times (``setobs-bench designs``).
+
+Every number cell is a :class:`~.numbers.Num`, written in its column's notation
+(:func:`~.numbers.format_columns`).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -18,24 +28,27 @@ from observers.registry import table_order
 
 from ..metrics import timed_in_parallel
 from ..verdicts import NA, NO, contained_column, reference_rows, violating
-from .numbers import fmt, fmt_pair, markdown_table, text_table
-from .paper import paper_rows, paper_status
+from .numbers import Num, fmt, format_columns, markdown_table, text_table
+from .paper import PaperRow, paper_rows, paper_status, paper_title
 
 #: the paragraph that opens the Markdown and the HTML report
-INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state; the "
-         "published value is in parentheses where a paper table exists, and then our ratios "
-         "are taken against the best of the observers that table compares (so both share "
-         "their reference; observers the paper did not run, e.g. CZN in ARCH 2021, can be "
-         "below 1). `rel_rms` in summary.csv is against all observers of the run. Times "
-         "are medians "
-         "per step on this machine (the papers' times: MATLAB, i7-8565U). `contained`: "
-         "`yes` if the true state lies in every estimated set (exact membership test; "
-         "`contained (hull only)`: in every interval hull), `no` with the number of "
-         "violating steps, `n/a` where it was not checked (no true state in the record). "
-         "A row marked (unsound) violates containment and is never the reference of a "
-         "ratio. `(n/a)` after the average and the time: the observer is not part of the "
-         "published comparison (the paper has no row for it, e.g. ROPO, CZN, the data-driven "
-         "observers), so there is no published value to deviate from.")
+INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state: the RMS "
+         "over the record of the radius of the interval hull of state i, divided by the "
+         "smallest such RMS among a reference set of observers, named above every table and "
+         "figure. Where a paper table exists the reference is the observers that table "
+         "compares (so our ratios and the published ones, in parentheses, share their "
+         "reference; observers the paper did not run, e.g. CZN in ARCH 2021, can be below 1); "
+         "elsewhere it is every guaranteed observer of the run. `rel_rms` in summary.csv is "
+         "always against all observers of the run. Times are medians per step on this "
+         "machine; the papers' times (MATLAB, i7-8565U) are in parentheses where published. "
+         "`contained`: `yes` if the true state lies in every estimated set (exact membership "
+         "test; `contained (hull only)`: in every interval hull), `no` with the number of "
+         "violating steps, `n/a` where it was not checked (no true state in the record); "
+         "observers that do not apply to a scenario are rows with the reason. A row marked "
+         "(unsound) violates containment and is never the reference of a ratio. `(n/a)` after "
+         "the average and the time: the observer is not part of the published comparison "
+         "(the paper has no row for it, e.g. ROPO, CZN, the data-driven observers), so there "
+         "is no published value to deviate from.")
 
 
 def _contained_col(df: pd.DataFrame) -> str:
@@ -46,8 +59,14 @@ def _contained_col(df: pd.DataFrame) -> str:
 def _status_cell(g: pd.DataFrame) -> str:
     """The ``contained`` cell: ``yes``, ``n/a`` (nothing to check it against, or not
     checked to the end), the number of violations, or the failure status; a row that is not
-    guaranteed (a labelled CORA variant) says so, with its violations counted."""
+    guaranteed (a labelled CORA variant) says so, with its violations counted; an observer
+    that does not apply says why."""
     status, verdict = g["status"].iloc[0], g[_contained_col(g)].iloc[0]
+    if status == "unsupported":
+        msg = str(g["message"].iloc[0]) if pd.notna(g["message"].iloc[0]) else ""
+        obs = str(g["observer"].iloc[0])
+        msg = msg[len(obs):].strip() if msg.startswith(obs) else msg
+        return "unsupported" + (f": {msg}" if msg else "")
     if not bool(g["guaranteed"].iloc[0]) and status == "ok":
         viol = g["violations"].iloc[0]
         return "not guaranteed" + ("" if pd.isna(viol) else f": {int(viol)} violations")
@@ -67,25 +86,70 @@ def paper_relative(df: pd.DataFrame, paper_names) -> pd.Series:
     return df["rms_radius"] / df["state"].map(best)
 
 
-def scenario_table(df: pd.DataFrame, meta: dict) -> str:
-    """Markdown table of one scenario (:func:`scenario_table_data`)."""
-    return markdown_table(*scenario_table_data(df, meta))
-
-
-def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]]:
-    """Header and rows (cell strings) of one scenario's table: relative RMS per state (paper
-    value in parentheses), average, per-step time, design time and containment.
-
-    Where a paper table exists, the ratios are taken against the best of the observers that
-    table compares (:func:`paper_relative`), like the paper's own;
-    otherwise against all observers of the run (``rel_rms``). The Markdown and the HTML
-    report both render these cells."""
+def _paper(df: pd.DataFrame, meta: dict) -> tuple[str | None, str, dict[str, PaperRow]]:
+    """The published table of the scenario of ``df``: its key, variant and rows."""
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
     n = int(df["state"].max()) + 1
     key = info.get("paper_table")
     variant = "nonlinear" if "nonlinear" in sc else "linear"
-    paper = paper_rows(key, n, variant)
+    return key, variant, paper_rows(key, n, variant)
+
+
+def relative_values(df: pd.DataFrame, meta: dict) -> tuple[pd.Series, str]:
+    """The ratios v_i of the scenario table (and of the heat map) for the rows of ``df`` (one
+    scenario), and the sentence naming their reference.
+
+    Where a paper table exists the minimum of eq. (9) is taken over the observers that table
+    compares (:func:`paper_relative`), like the paper's own; otherwise over all guaranteed
+    observers of the run without a violation (``rel_rms``).
+    """
+    key, variant, paper = _paper(df, meta)
+    if paper:
+        title = paper_title(key, variant)
+        return paper_relative(df, paper), (
+            f"reference: the smallest RMS radius of each state among the observers compared "
+            f"in {title} that ran here without a violation (the paper's own reference)")
+    return df["rel_rms"], ("reference: the smallest RMS radius of each state among all "
+                           "guaranteed observers of this run without a violation")
+
+
+def scenario_table(df: pd.DataFrame, meta: dict) -> str:
+    """Markdown table of one scenario (:func:`scenario_table_data`)."""
+    return markdown_table(*scenario_table_data(df, meta))
+
+
+def scenario_table_caption(df: pd.DataFrame, meta: dict) -> str:
+    """The sentence above a scenario table: what v_i is relative to, where the published
+    values and times come from, and how the times were measured."""
+    key, variant, paper = _paper(df, meta)
+    _, reference = relative_values(df, meta)
+    parts = [f"v_i = RMS radius of state i / {reference[len('reference: '):]}."]
+    if paper:
+        title = paper_title(key, variant)
+        times = any(p.t_ms for p in paper.values())
+        parts.append(f"In parentheses: {title}" + (" (its times: MATLAB, i7-8565U)."
+                                                   if times else "."))
+    else:
+        parts.append("No published table for this scenario.")
+    par = timed_in_parallel(df)
+    parts.append("Times: median per step on this machine" + (
+        ", measured while jobs ran in parallel (indicative only)." if par else "."))
+    return " ".join(parts)
+
+
+def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]]:
+    """Header and rows (cell strings) of one scenario's table: relative RMS per state (paper
+    value in parentheses), average, per-step time, design time and containment; an observer
+    that does not apply (``unsupported``) is a row with the reason.
+
+    The ratios are :func:`relative_values` (their reference: :func:`scenario_table_caption`).
+    Each number column is written in one notation. The Markdown and the HTML report both
+    render these cells."""
+    key, variant, paper = _paper(df, meta)
+    sc = df["scenario"].iloc[0]
+    info = meta.get("scenarios", {}).get(sc, {})
+    n = int(df["state"].max()) + 1
     names = info.get("state_names") or [f"x{i + 1}" for i in range(n)]
     show = list(range(n)) if n <= 8 else []
     contained = "contained" if _contained_col(df) == contained_column("exact") else (
@@ -94,33 +158,45 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     par = " (parallel)" if timed_in_parallel(df) else ""
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show]
             + ["avg", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained])
-    rows = []
-    df = df.assign(_rel=paper_relative(df, paper) if paper else df["rel_rms"],
-                   _bad=violating(df))
+    rows: list[list[Any]] = []
+    rel, _ = relative_values(df, meta)
+    df = df.assign(_rel=rel, _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
+        if g["status"].iloc[0] == "unsupported":
+            rows.append([obs] + [Num(None)] * (len(show) + 4) + [_status_cell(g)])
+            continue
         p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
-        rel = g["_rel"].to_numpy(float)
-        cells = [f"**{obs}** (unsound)" if g["_bad"].any() else obs]
+        r = g["_rel"].to_numpy(float)
+        cells: list[Any] = [f"**{obs}** (unsound)" if g["_bad"].any() else obs]
         for i in show:
-            cells.append(fmt_pair(rel[i], p.v[i] if p and p.v else None))
-        avg = float(np.mean(rel)) if g["status"].iloc[0] == "ok" else float("nan")
+            cells.append(Num(r[i], p.v[i] if p and p.v else None))
+        avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
         if paper and p is None and not pstat:  # not part of the published comparison
-            cells += [f"{fmt(avg)} ({NA})", f"{fmt(g['step_ms'].iloc[0])} ({NA})"]
+            cells += [Num(avg, note=NA), Num(g["step_ms"].iloc[0], note=NA)]
         else:
-            cells.append(fmt_pair(avg, p.avg if p else None) if not pstat
-                         else f"{fmt(avg)} ({pstat})")
-            cells.append(fmt_pair(g["step_ms"].iloc[0], p.t_ms if p else None))
-        cells += [fmt(g["hull_ms"].iloc[0]), fmt(g["design_s"].iloc[0]), _status_cell(g)]
+            cells.append(Num(avg, p.avg if p else None) if not pstat else Num(avg, note=pstat))
+            cells.append(Num(g["step_ms"].iloc[0], p.t_ms if p else None))
+        cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _status_cell(g)]
         rows.append(cells)
-    return head, rows
+    return head, format_columns(rows)
 
 
 def absolute_table(df: pd.DataFrame, meta: dict) -> str:
     """Markdown table of absolute RMS radii (:func:`absolute_table_data`); ``""`` if none."""
     data = absolute_table_data(df, meta)
     return markdown_table(*data) if data else ""
+
+
+def absolute_table_caption(df: pd.DataFrame, meta: dict) -> str:
+    """The sentence above the absolute table: what its published values are."""
+    key, variant, paper = _paper(df, meta)
+    text = "Absolute RMS radii r_i (no ratio: every observer on its own)"
+    if any(p.absolute for p in paper.values()):
+        return (text + f"; in parentheses {paper_title(key, variant)}'s v_i times its "
+                "smallest absolute radius of state i (the table's own reference).")
+    return text + "."
 
 
 def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]] | None:
@@ -133,26 +209,61 @@ def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         return None
     paper = paper_rows(info.get("paper_table"), n)
     head = ["Observer"] + [f"r{i + 1}" for i in range(n)]
-    rows = []
+    rows: list[list[Any]] = []
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         r = g["rms_radius"].to_numpy(float)
-        rows.append([obs] + [fmt_pair(r[i], p.absolute[i] if p and p.absolute else None)
+        rows.append([obs] + [Num(r[i], p.absolute[i] if p and p.absolute else None)
                              for i in range(n)])
-    return head, rows
+    return head, format_columns(rows)
+
+
+def _vector(values: list[float], term: str) -> str:
+    """``|term| <= r`` for a vector of radii (one value if all are equal, a range if long)."""
+    v = np.asarray(values, float)
+    if v.size and np.all(v == v[0]):
+        return f"|{term}| ≤ {fmt(v[0])}" + (f" (i = 1..{v.size})" if v.size > 1 else "")
+    if v.size <= 8:
+        return f"|{term}| ≤ (" + ", ".join(fmt(x) for x in v) + ")"
+    return f"|{term}| ≤ {fmt(v.min())} .. {fmt(v.max())} (i = 1..{v.size})"
+
+
+def scenario_facts(info: dict) -> str:
+    """One sentence on a scenario's record and sets (from ``meta.json``): its length and time
+    step, and per set (W, V, X0) its interval-hull radii, its centre when not zero and whether
+    it is that box. ``""`` where ``meta.json`` has none of these."""
+    parts = []
+    if info.get("N"):
+        dt = info.get("dt")
+        parts.append(f"record: {int(info['N'])} steps" + (
+            f" of {fmt(dt)} s (t = 0 .. {fmt(dt * (int(info['N']) - 1))} s)" if dt else ""))
+    sets = info.get("sets") or {}
+    terms = {"W": ("process noise W", "w_i"), "V": ("measurement noise V", "v_i"),
+             "X0": ("initial set X0", "x0_i - c_i")}
+    for name, (label, term) in terms.items():
+        s = sets.get(name)
+        if not s:
+            continue
+        text = f"{label}: {_vector(s['radius'], term)}"
+        centre = np.asarray(s.get("center", []), float)
+        if name != "X0" and centre.size and np.any(centre != 0):
+            text += " around (" + ", ".join(fmt(x) for x in centre) + ")"
+        if name == "X0" and centre.size:
+            text += (" with c = (" + ", ".join(fmt(x) for x in centre[:8])
+                     + (", ..." if centre.size > 8 else "") + ")")
+        if not s.get("box"):
+            k = s.get("generators")
+            text += f" (interval hull of a zonotope with {k} generator{'s' if k != 1 else ''})"
+        parts.append(text)
+    return ("; ".join(parts) + ".") if parts else ""
 
 
 def scenario_notes(full: pd.DataFrame) -> list[str]:
-    """One line per observer that failed on a scenario (status and reason), and one listing
-    the observers that do not apply to it (``unsupported``, left out of the tables)."""
-    unsupported = full[full["status"] == "unsupported"].drop_duplicates("observer")
+    """One line per observer that failed on a scenario (status and reason); observers that do
+    not apply are status rows of the table (:func:`scenario_table_data`), not notes."""
     failures = full[~full["status"].isin(["ok", "unsupported"])].drop_duplicates("observer")
-    notes = [f"{r['observer']}: {r['status']}: {r['message']}" for _, r in failures.iterrows()]
-    if len(unsupported):
-        notes.append("not applicable here (unsupported): " + ", ".join(
-            f"{r['observer']} ({r['message']})" for _, r in unsupported.iterrows()))
-    return notes
+    return [f"{r['observer']}: {r['status']}: {r['message']}" for _, r in failures.iterrows()]
 
 
 def design_times_table(done: list[tuple[str, str, str, float]], top: int | None = None) -> str:

@@ -44,6 +44,7 @@ import observers
 from systems import Scenario
 
 from ..errors import ConfigError
+from .shipped import resolve_config
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
@@ -362,8 +363,9 @@ def inline_config(scenarios: list[str] | None, observer_names: list[str] | None 
 
 
 def load_config(path: str | Path) -> BenchConfig:
-    """Load and validate a YAML benchmark configuration."""
-    path = Path(path)
+    """Load and validate a YAML benchmark configuration: a file, or the name of a shipped one
+    (``arch2021_table3``, :func:`benchmarks.run.shipped.resolve_config`)."""
+    path = resolve_config(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

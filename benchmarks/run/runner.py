@@ -26,8 +26,9 @@ from systems import ModelError, Scenario, available_memory
 from ..errors import ConfigError
 from ..io import check_output_dir, environment, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
-from ..verdicts import contained_column, containment_verdict
+from ..verdicts import BenchResult, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
+from .describe import set_bounds
 from .executors import JobFailure, SerialExecutor
 from .membership import MembershipTester
 from .progress import progress_bar
@@ -360,7 +361,10 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                executor=None):
     """Run every job of ``cfg`` (scenario x observer x option variant).
 
-    Returns ``(runs, summary)`` data frames; with ``out`` they are also written there
+    Returns a :class:`~benchmarks.verdicts.BenchResult`: the pair ``(runs, summary)`` of data
+    frames (``runs, summary = run_config(...)``) that also carries the verdict of the run
+    (``.exit_code``, ``.meaning``, ``.problems``, ``.ok``: what ``setobs-bench run`` exits
+    with and prints); with ``out`` the frames are also written there
     (``runs.csv``, ``summary.csv``, ``meta.json``) as one generation
     (:func:`benchmarks.io.write_results`), only once every job has finished. The output folder
     and the memory needed are checked before any job runs (:class:`ConfigError`).
@@ -396,10 +400,11 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
                 "N": sc.N, "n": sc.system.n, "dt": sc.system.dt, "paper_table": sc.paper_table,
                 "description": sc.description, "source": sc.source,
                 "state_names": list(sc.state_names), "tolerance": sc.tolerance,
+                "sets": set_bounds(sc.system),
             } for sc in cfg.scenarios},
             "executor": {"name": executor.name, "workers": executor.workers,
                          "jobs": len(jobs)},
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "versions": environment(),
         })
-    return runs_df, summary
+    return BenchResult(runs_df, summary)

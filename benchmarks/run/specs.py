@@ -21,6 +21,9 @@ An inline definition::
         dt: 0.1
       u: {file: u.csv}                               # N x nu rows (or a nested list)
       y: [[0.1], [0.2], ...]                         # N x ny, or `simulate:` instead
+      # or: record: rec.csv  -- one CSV with a header row naming its columns y1, y2, u1, x1, ..
+      # ({file: rec.csv, columns: [...]} or a header row also work for u, y, x_true alone;
+      # see benchmarks/run/records.py)
       simulate: {steps: 200, seed: 0, noise: uniform}
       options: {order: 50, reduction: girard}
 """
@@ -45,11 +48,12 @@ from systems import (
 )
 
 from ..errors import ConfigError
+from .records import read_signal, signals_in
 
 NAMED_KWARGS = {"seed", "noise", "steps"}
 NAMED_KEYS = NAMED_KWARGS | {"options", "label"}
-INLINE_KEYS = {"name", "system", "u", "y", "x_true", "simulate", "options", "tolerance",
-               "description"}
+INLINE_KEYS = {"name", "system", "u", "y", "x_true", "record", "simulate", "options",
+               "tolerance", "description"}
 SYSTEM_KEYS = {"A", "B", "C", "W", "V", "X0", "dt"}
 
 
@@ -85,20 +89,14 @@ def simulation_kwargs(spec: dict, where: str) -> dict[str, Any]:
     return out
 
 
-def _array(value: Any, what: str, base: Path | None, ndim: int = 2) -> np.ndarray:
+def _array(value: Any, what: str, base: Path | None, ndim: int = 2, signal: str | None = None,
+           width: int | None = None, notes: list[str] | None = None) -> np.ndarray:
+    """An array from a nested list or ``{file: path}`` (:mod:`.records`: header rows and named
+    columns of ``signal`` accepted; which columns were read is appended to ``notes``)."""
     if isinstance(value, dict):
-        if set(value) != {"file"}:
-            raise ConfigError(
-                f"{what}: expected a list or {{file: path}}, got keys {sorted(value)}")
-        path = Path(value["file"])
-        if not path.is_absolute() and base is not None:
-            path = base / path
-        try:
-            a = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
-        except OSError:
-            raise ConfigError(f"{what}: cannot read file {path}") from None
-        except ValueError as exc:
-            raise ConfigError(f"{what}: file {path} is not numeric CSV ({exc})") from None
+        a, note = read_signal(value, signal or "values", what, base, width)
+        if notes is not None and signal is not None:
+            notes.append(note)
     else:
         try:
             a = np.array(value, dtype=float)
@@ -197,6 +195,27 @@ def _check_record(a: np.ndarray, what: str, cols: int, rows: int | None = None) 
     return a
 
 
+def _expand_record(spec: dict, where: str, base: Path | None) -> dict:
+    """``record: FILE`` (or ``{file: FILE}``) as ``y``, ``u`` and ``x_true`` entries for the
+    signals the file has named columns for (:func:`.records.signals_in`)."""
+    if "record" not in spec:
+        return spec
+    rec = spec["record"]
+    rec = {"file": rec} if isinstance(rec, str) else rec
+    if not isinstance(rec, dict) or set(rec) != {"file"}:
+        raise ConfigError(f"{where}: 'record' must be a file name or {{file: path}}")
+    spec = {k: v for k, v in spec.items() if k != "record"}
+    path = Path(rec["file"])
+    path = path if path.is_absolute() or base is None else base / path
+    found = signals_in(path, f"{where}: record")
+    both = [s for s in found if s in spec]
+    if both:
+        raise ConfigError(f"{where}: {both} given both in 'record' and on their own")
+    if "y" not in found:
+        raise ConfigError(f"{where}: record file {path} has no columns named y1, y2, ...")
+    return {**spec, **{s: dict(rec) for s in found}}
+
+
 def build_inline(spec: dict, base: Path | None) -> Scenario:
     """A scenario from an inline definition (see the module docstring)."""
     name = str(spec["name"])
@@ -206,9 +225,12 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} (allowed: "
                           f"{', '.join(sorted(INLINE_KEYS))})")
     system = parse_system(spec["system"], where)
+    spec = _expand_record(spec, where, base)
+    notes: list[str] = []
     sim = spec.get("simulate")
     if ("y" in spec) == (sim is not None):
-        raise ConfigError(f"{where}: give exactly one of 'y' (measurements) or 'simulate'")
+        raise ConfigError(f"{where}: give exactly one of 'y' (measurements, or a 'record' "
+                          "file) or 'simulate'")
     if sim is not None:
         if not isinstance(sim, dict) or not set(sim) <= {"steps", "seed", "noise"}:
             raise ConfigError(f"{where}: 'simulate' takes steps, seed and noise")
@@ -220,7 +242,9 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
         u = (np.zeros((steps, system.nu)) if "u" not in spec
-             else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u", system.nu))
+             else _check_record(_array(spec["u"], f"{where}: u", base, signal="u",
+                                       width=system.nu, notes=notes),
+                                f"{where}: u", system.nu))
         try:
             run = simulate(system, u, steps=steps, seed=sim.get("seed", 0),
                            noise=sim.get("noise", "uniform"))
@@ -228,16 +252,19 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
             raise ConfigError(f"{where}: {exc}") from None
         u, y, x_true = run.u, run.y, run.x_true
     else:
-        y = _check_record(_array(spec["y"], f"{where}: y", base), f"{where}: y", system.ny)
+        y = _check_record(_array(spec["y"], f"{where}: y", base, signal="y", width=system.ny,
+                                 notes=notes), f"{where}: y", system.ny)
         N = y.shape[0]
         if N == 0:
             raise ConfigError(f"{where}: y is empty (0 steps)")
         u = (np.zeros((N, system.nu)) if "u" not in spec
-             else _check_record(_array(spec["u"], f"{where}: u", base), f"{where}: u",
+             else _check_record(_array(spec["u"], f"{where}: u", base, signal="u",
+                                       width=system.nu, notes=notes), f"{where}: u",
                                 system.nu, N))
         x_true = None
         if "x_true" in spec:
-            x_true = _check_record(_array(spec["x_true"], f"{where}: x_true", base),
+            x_true = _check_record(_array(spec["x_true"], f"{where}: x_true", base,
+                                          signal="x_true", width=system.n, notes=notes),
                                    f"{where}: x_true", system.n)
             if x_true.shape[0] != N:
                 raise ConfigError(f"{where}: x_true has {x_true.shape[0]} rows, y has {N}")
@@ -246,7 +273,8 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         raise ConfigError(f"{where}: 'options' must be a mapping")
     return Scenario(
         name=name, system=system, u=u, y=y, x_true=x_true, options=dict(options),
-        description=str(spec.get("description", "inline scenario")), source="config",
+        description=str(spec.get("description", "inline scenario")),
+        source="config" + ("; read " + "; ".join(notes) if notes else ""),
         tolerance=_number(spec.get("tolerance", 1e-9), f"{where}: tolerance", positive=False),
         state_names=tuple(f"x{i + 1}" for i in range(system.n)),
     )

@@ -28,11 +28,20 @@ from .ellipsoid import Ellipsoid
 from .errors import EmptySet, SetError
 from .interval import Interval
 from .matrix_zonotope import IntervalMatrix, MatrixZonotope
-from .reduction import PCA, Girard, Reduction, get_reduction, reduction_names, register_reduction
+from .reduction import (
+    PCA,
+    CoraPCA,
+    Girard,
+    Reduction,
+    get_reduction,
+    reduction_names,
+    register_reduction,
+)
 from .zonotope import Zonotope
 
 __all__ = [
     "ConZonotope",
+    "CoraPCA",
     "Ellipsoid",
     "EmptySet",
     "Girard",
