@@ -54,6 +54,7 @@ bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: se
 	done
 	$(PY) -m benchmarks speed
 	$(MAKE) scaling
+	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)

@@ -144,7 +144,7 @@ class LinearSystem:
         return np.real_if_close(np.array(bad))
 
     def is_detectable(self) -> bool:
-        """Whether every unobservable mode is strictly stable (|lambda| < 1)."""
+        """Whether every unobservable mode is strictly stable (``|lambda| < 1``)."""
         return bool(np.all(np.abs(self.unobservable_modes()) < 1.0))
 
     def require_detectable(self, who: str) -> None:

@@ -133,7 +133,8 @@ def min_eig(M: np.ndarray) -> float:
 
 
 def require_psd(M: np.ndarray, what: str, tol: float = 1e-8) -> float:
-    """Check ``M >= -tol * scale`` (scale = max(1, |M|_max)); returns the smallest eigenvalue."""
+    """Check ``M >= -tol * scale`` (``scale = max(1, |M|_max)``); returns the smallest
+    eigenvalue."""
     lam = min_eig(M)
     scale = max(1.0, float(np.abs(M).max()))
     if not np.isfinite(lam) or lam < -tol * scale:

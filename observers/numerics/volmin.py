@@ -187,7 +187,7 @@ def volume_lp_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray
     The enclosure has generators ``[(I - lambda c) G, sigma lambda]`` and, up to the factor
     ``2^n``, volume ``a |1 - c lambda| + sigma * sum_B |nu_B' lambda|`` with
     ``a = sum_J |det G_J|`` over the n-subsets J of the generators and ``nu_B`` the generalised
-    cross product of every (n-1)-subset B.  Minimising it is the LP
+    cross product of every (n-1)-subset B.  Minimising it is the LP::
 
         min a t + sigma sum_B ||nu_B|| z_B   s.t.  t >= |1 - c lambda|,  z_B >= |v_B' lambda|
 
