@@ -16,7 +16,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint bench bench-quick report reports check baseline history audit audit-short speed scaling clean
+.PHONY: help install test lint docs bench bench-quick report reports check baseline history audit audit-short speed scaling clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -32,14 +32,17 @@ $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,dask]'
+	$(PY) -m pip install --quiet -e '.[test,dask,docs]'
 	@touch $(STAMP)
 
-install: $(STAMP)  ## create .venv and install the project with its test and dask extras
+install: $(STAMP)  ## create .venv and install the project with its test, dask and docs extras
 
-test: $(STAMP)  ## run ruff and the test suite (CI runs this, then make check)
+test: $(STAMP)  ## run ruff and the test suite, which builds the docs with -W and runs their examples (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 	$(PY) -m pytest
+
+docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_build/html/index.html
+	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
 
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
@@ -60,7 +63,7 @@ bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: se
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
 
-bench-quick: $(STAMP)  ## a < 2 minute subset: results/quick/index.html (HTML report) and report.md
+bench-quick: $(STAMP)  ## a small subset (about 2 min of CPU once installed): results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
 
@@ -91,4 +94,4 @@ report: $(STAMP)  ## (re)write report.md, index.html and figures for every resul
 	done
 
 clean:  ## remove caches (keeps .venv and results)
-	rm -rf .pytest_cache .ruff_cache build *.egg-info
+	rm -rf .pytest_cache .ruff_cache build *.egg-info docs/_build docs/observers docs/api
