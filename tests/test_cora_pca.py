@@ -85,6 +85,8 @@ def test_paper_table_configs_use_coras_basis_and_the_gate_does_not():
     def reduction(name):
         return (yaml.safe_load(configs[name].read_text()).get("options") or {}).get("reduction")
 
-    for name in ("arch2021_table3", "arch2021_table4"):
+    for name in ("arch2021_table3", "arch2021_table4", "arch2021_table6"):
         assert reduction(name) == "pca-cora", name
+    # measured closer with the deterministic basis (the file says by how much)
+    assert reduction("arch2021_table6_12tanks") is None
     assert reduction("regression") is None  # the scenarios' deterministic "pca"
