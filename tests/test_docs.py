@@ -95,6 +95,15 @@ def test_every_page_is_in_the_site_and_has_examples_parsed():
         assert rel == "index" or rel in index, f"{rel} is not in the table of contents"
 
 
+def test_readme_is_a_front_page_whose_links_exist():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text) < 8000  # the rest lives in the site
+    first = text.split("```sh", 1)[1].split("```", 1)[0]
+    assert "make bench-quick" in first and "make test" in first  # the two commands first
+    links = re.findall(r"\]\(([^)#]+)\)", text)
+    assert links and all((ROOT / link).exists() for link in links), links
+
+
 # -- the build ----------------------------------------------------------------------------
 
 @pytest.mark.slow

@@ -13,7 +13,7 @@ import pandas as pd
 from observers.registry import table_order
 
 from ..metrics import timed_in_parallel
-from .numbers import fmt, markdown_table
+from .numbers import Num, markdown_table
 
 KEYS = ["scenario", "observer", "variant"]
 
@@ -81,9 +81,9 @@ def sweep_tables(summary: pd.DataFrame) -> list[str]:
         seeds = summary.loc[summary["scenario"] == sc, "seed"].nunique()
         order = {n: i for i, n in enumerate(table_order(g["observer"].unique()))}
         g = g.assign(_o=g["observer"].map(order)).sort_values(["_o", "variant"], kind="stable")
-        rows = [[r.observer, r.variant or "-", f"{r.runs} ({r.ok})", fmt(r.rel_mean),
-                 fmt(r.rel_std), fmt(r.rel_min), fmt(r.rel_max), fmt(r.step_ms), fmt(r.hull_ms),
-                 fmt(r.design_s), f"**{r.violations}**" if r.violations else "0",
+        rows = [[r.observer, r.variant or "-", f"{r.runs} ({r.ok})", Num(r.rel_mean),
+                 Num(r.rel_std), Num(r.rel_min), Num(r.rel_max), Num(r.step_ms),
+                 Num(r.hull_ms), Num(r.design_s), f"**{r.violations}**" if r.violations else "0",
                  r.failed or "-"] for r in g.itertuples(index=False)]
         out += [f"## {sc} ({seeds} seed{'s' if seeds != 1 else ''})", "",
                 markdown_table(head, rows), ""]

@@ -175,7 +175,9 @@ def _layer_svg(svg: str, layers: Sequence[Layer]) -> str:
         return f'<g class="layer {key}" data-layer="{key}"{style}>'
 
     svg = re.sub(r'<g id="(layer-\d+)__\d+">', group, svg)
-    return re.sub(r"(\d+\.\d)\d+", r"\1", svg)
+    # path coordinates to 0.1 pt (text, e.g. tick labels, untouched)
+    return re.sub(r'(\sd=")([^"]*)"',
+                  lambda m: m.group(1) + re.sub(r"(\d+\.\d)\d+", r"\1", m.group(2)) + '"', svg)
 
 
 def _fit_first_view(ax, bounds: list[tuple[np.ndarray, np.ndarray]], i: int) -> None:
