@@ -63,7 +63,7 @@ bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: se
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
 
-bench-quick: $(STAMP)  ## a small subset (about 2 min of CPU once installed): results/quick/index.html (HTML report) and report.md
+bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the first run): results/quick/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
 	$(PY) -m benchmarks report $(RESULTS)/quick
 

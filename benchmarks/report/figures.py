@@ -341,7 +341,9 @@ def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str]
                              label="_truth")
             artists[by_name["true state"].key].append(a)
         _fit_first_view(ax_b, [data[la.name][:2] for la in layers
-                               if la.kind == "observer" and la.visible], i)
+                               if la.kind == "observer" and la.visible]
+                        + [tuple(np.asarray(b, float) for b in pair) for pair in bands.values()],
+                        i)
         ax_b.set_ylabel(names[i], fontsize=8)
         ax_b.set_title(f"{names[i]}: bounds", fontsize=8, loc="left")
         ax_r.set_yscale("log")

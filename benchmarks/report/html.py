@@ -305,6 +305,7 @@ def bounds_figure(runs: pd.DataFrame, df: pd.DataFrame, scenario: str, info: dic
                "time, " + ("with the true state (dashed black) and the steps where a set "
                            "missed it (red x)" if truth else
                            "(the record has no true state, so no containment check)")
+               + (f"; filled bands: {', '.join(bands)}" if bands else "")
                + f"; shown at first: the {FIRST_VIEW} observers of smallest average v_i "
                f"({reference}) and any observer with a violation; tick a name to show it")
     return fig, caption
