@@ -297,3 +297,23 @@ def test_sweep_report_has_the_aggregated_tables(tmp_path):
     page = (out / "index.html").read_text()
     assert "<h2>alamo2d-sim (2 seeds)</h2>" in page and "<th>rel. RMS mean</th>" in page
     assert "Ranking summary" not in page  # per-seed rankings are not mixed into one
+
+
+def test_one_more_band_per_state_is_one_argument(results, tmp_path):
+    # the lead's "exact band": a (lo, hi) pair per scenario, drawn filled and as a radius curve,
+    # a selectable layer of its own
+    runs = pd.read_csv(results / "runs.csv")
+    g = runs[(runs["scenario"] == "tank6-linear") & (runs["observer"] == "CZN-A")]
+    lo = g.pivot(index="t", columns="state", values="lo").to_numpy()
+    hi = g.pivot(index="t", columns="state", values="hi").to_numpy()
+    mid, rad = (lo + hi) / 2, 0.5 * (hi - lo) / 2
+    page = write_html(results, out=tmp_path / "bands.html",
+                      bands={"tank6-linear": {"exact": (mid - rad, mid + rad)}}).read_text()
+    legend = page[page.index('data-figure="bounds-tank6-linear"'):]
+    legend = legend[:legend.index("</div>")]
+    assert 'data-name="exact"' in legend and 'data-kind="band"' in legend
+    key = re.search(r'data-name="exact"><input type="checkbox" data-layer="(layer-\d+)"',
+                    legend).group(1)
+    svg = page[page.index('id="bounds-tank6-linear"'):]
+    assert svg[:svg.index("</svg>")].count(f'class="layer {key}"') == 2 * 6  # band + radius
+    assert "filled bands: exact" in page
