@@ -171,8 +171,8 @@ def test_shared_specs():
     girard = reduction_module.Girard()
     assert red.check("Obs-X", "opt", girard) is girard  # a strategy object
     assert _message(red, "best") == (
-        "Obs-X: opt must be one of 'girard', 'pca' or a strategy with .reduce(G, order), "
-        "got 'best'")
+        "Obs-X: opt must be one of 'girard', 'pca', 'pca-cora' or a strategy with "
+        ".reduce(G, order), got 'best'")
     training = training_data()
     assert training.check("Obs-X", "opt", None) is None
     sc = systems.scenario("rotating-target", steps=5)

@@ -154,6 +154,10 @@ def family_classes(cls: type) -> list[type]:
             if k.__module__ in ("observers.families", "observers.base") and k.__doc__]
 
 
+#: the set operations of the constrained-zonotope observers' step
+CZN_METHODS = ("intersect_measurement", "reduce", "reduce_constraints")
+
+
 def observer_page(info, guaranteed_names: list[str]) -> str:
     cls = info.cls
     target = f"{cls.__module__}.{cls.__qualname__}"
@@ -181,6 +185,12 @@ def observer_page(info, guaranteed_names: list[str]) -> str:
         for f in funcs:
             kind = "autoclass" if inspect.isclass(_resolve(f)) else "autofunction"
             parts += [f".. {kind}:: {f}", "   :no-index:", ""]
+    if info.set_type == "conzonotope" and info.family != "data-driven":
+        parts += [_title("Set operations", "-"),
+                  "The constrained-zonotope operations of the step (:mod:`observers.sets`):", ""]
+        for meth in CZN_METHODS:
+            parts += [f".. automethod:: observers.sets.conzonotope.ConZonotope.{meth}",
+                      "   :no-index:", ""]
     specs = cls.option_specs() if hasattr(cls, "option_specs") else {}
     parts.append(_title("Options", "-"))
     if specs:
