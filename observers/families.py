@@ -43,7 +43,6 @@ Deviation from CORA in both conventions: the error set starts from ``X0 - c0`` (
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -214,38 +213,33 @@ class ZonotopeObserver(LinearModelObserver):
 
     def reset(self) -> None:
         super().reset()
-        #: (kernel, static data), built at the first compiled step of a run
-        self._kernel_run: tuple[Callable, _step_jit.StepData] | None = None
+        #: the compiled kernel with the static data of this run (at its first compiled step)
+        self._kernel_run: _step_jit.StepRun | None = None
 
-    def _compiled_run(self) -> tuple[Callable, _step_jit.StepData] | None:
-        """The compiled kernel and the static data of this run if the kernel may run this
-        step, else ``None``.  The data (read-only C-contiguous float copies) are made once
-        per run, so that every step passes arguments of the same types and numba compiles
-        each kernel once (a read-only array is a different type from a writable one)."""
-        if self._step_kernel is None or not _jit.use_compiled():
-            return None
-        if self._kernel_run is None:
-            self._kernel_run = _step_jit.prepare(
-                self._step_kernel.value, self._reduction_name, self.order, A=self.A,
-                B=self.B, W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F,
-                V_c=self.V.c, **self.kernel_inputs())
+    def _prepare_run(self) -> _step_jit.StepRun:
+        """The compiled kernel and the static data of this run (at its first compiled step).
+        The data are read-only C-contiguous float copies made once per run, so that every
+        step passes arguments of the same types and numba compiles each kernel once (a
+        read-only array is a different type from a writable one)."""
+        self._kernel_run = _step_jit.prepare(
+            self._step_kernel.value, self._reduction_name, self.order, A=self.A, B=self.B,
+            W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F, V_c=self.V.c,
+            **self.kernel_inputs())
         return self._kernel_run
 
-    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> tuple | None:
-        """``(c, G)`` of this step by the compiled kernel from the current set, the input
-        ``u`` and the measurement ``y`` the kernel consumes, or ``None``: the numpy path runs
-        (no kernel for this observer, or the kernel declined the step)."""
-        run = self._compiled_run()
-        if run is None:
+    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> Zonotope | None:
+        """The set of this step by the compiled kernel from the current set, the input ``u``
+        and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
+        path runs (no kernel for this observer, or the kernel declined the step)."""
+        if self._step_kernel is None or not _jit.use_compiled():
             return None
-        kernel, data = run
+        kernel, data, args = self._kernel_run or self._prepare_run()
         try:
-            # fresh writable C-contiguous float vectors: one argument type per position
-            c, G, ok = kernel(self._c, self._G, data.B @ u, np.array(y, dtype=np.float64),
-                              data)
+            # y.copy(): a fresh writable C-contiguous vector, one argument type per position
+            c, G, ok = kernel(self._c, self._G, data.B @ u, y.copy(), args)
         except np.linalg.LinAlgError:
             return None
-        return (c, G) if ok else None
+        return self._finish_step(c, G) if ok else None
 
     def _finish_step(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
         """Keep ``(c, G)`` as the current set, count the step and return the set (the end of
@@ -275,7 +269,7 @@ class StripBasedObserver(ZonotopeObserver):
             u = self._input(u_prev)
             out = self._compiled_step(u, y)
             if out is not None:
-                return self._finish_step(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
             r, re = self._G.shape[1], self.E.shape[1]
@@ -336,7 +330,7 @@ class PropagationObserver(ZonotopeObserver):
             out = self._compiled_step(u, self._y_prev)
             if out is not None:
                 self._y_prev = y
-                return self._finish_step(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(

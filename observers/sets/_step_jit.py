@@ -13,7 +13,8 @@ Doorway
 An observer declares its kernel by name (:class:`observers.kernels.StepKernel`); at the first
 compiled step of a run its family calls :func:`prepare` with that name and the static arrays
 of the run, and gets the kernel and one :class:`StepData`.  Every kernel is called as
-``kernel(c, G, d, y, data)`` (``d = B u``) and returns ``(c, G, ok)``:
+``kernel(c, G, d, y, args)`` (``d = B u``, ``args = tuple(data)``: see :class:`StepData`) and
+returns ``(c, G, ok)``:
 
 * :func:`strip_step`: prediction ``(A c + d + c_W, [A G, E])``, intersection with the strips
   ``|C x - y| <= sigma`` with a given gain (:func:`strip_update`; column by column for
@@ -731,7 +732,11 @@ class StepData(NamedTuple):
     """The static data of a run of a step kernel, built once per run by :func:`prepare`.
 
     One type for every kernel and observer (read-only C-contiguous float arrays, empty where a
-    kernel does not use them), so that numba compiles each kernel once.
+    kernel does not use them), so that numba compiles each kernel once.  A kernel takes it as
+    the plain tuple ``tuple(data)`` and names it again in its first line
+    (``data = StepData(*args)``, free in compiled code): numba types a named-tuple argument
+    from its class and field names at every call, about 1 us per step more than a plain
+    tuple.
     """
 
     #: the gain formula (internal number)
@@ -761,7 +766,8 @@ class StepData(NamedTuple):
     pivot_rtol: float
 
 
-def _strip_step_py(c, G, d, y, data):
+def _strip_step_py(c, G, d, y, args):
+    data = StepData(*args)
     cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
     mode = data.mode
     if mode == _PER_STRIP:
@@ -784,7 +790,8 @@ def _strip_step_py(c, G, d, y, data):
     return cn, out, ok
 
 
-def _propagate_step_py(c, G, d, y, data):
+def _propagate_step_py(c, G, d, y, args):
+    data = StepData(*args)
     if data.mode == _COMBASTEL:
         L, ok = combastel_gain(np.dot(G, np.ascontiguousarray(G.T)), data.A, data.C, data.F)
         if not ok:
@@ -799,7 +806,8 @@ def _propagate_step_py(c, G, d, y, data):
     return cn, out, ok
 
 
-def _bravo_step_py(c, G, d, y, data):
+def _bravo_step_py(c, G, d, y, args):
+    data = StepData(*args)
     cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
     for i in range(data.C.shape[0]):
         ci = data.C[i].copy()
@@ -813,16 +821,21 @@ def _bravo_step_py(c, G, d, y, data):
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
     (_pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
      _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
-     _solve_t, _predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
-     combastel_gain, propagate, bravo_update) = (njit(f) for f in (
+     _solve_t) = (njit(f) for f in (
          _pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
          _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
-         _solve_t, _predict, strip_update, _per_strip_update, alamo_frad_strips,
-         wang_frad_gain, combastel_gain, propagate, bravo_update))
-    bravo_choice = njit(bravo_choice, error_model="numpy")
+         _solve_t))
+    # the formulas of the kernels keep the kernels' error model (a division by zero gives
+    # inf or nan, as in numpy, instead of raising; no checks in the loops)
+    (_predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
+     combastel_gain, propagate, bravo_choice, bravo_update) = (
+        njit(f, error_model="numpy") for f in (
+            _predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
+            combastel_gain, propagate, bravo_choice, bravo_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
-#: the compiled step kernels ``kernel(c, G, d, y, data) -> (c, G, ok)`` (``None`` without numba)
+#: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
+#: ``args = tuple(data)`` of a :class:`StepData` (``None`` without numba)
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
 bravo_step = njit(_bravo_step_py, error_model="numpy")
@@ -853,10 +866,21 @@ def _frozen_c(a) -> np.ndarray:
     return out
 
 
+class StepRun(NamedTuple):
+    """A compiled step kernel with the static data of one run (:func:`prepare`)."""
+
+    #: ``kernel(c, G, d, y, args) -> (c, G, ok)``
+    kernel: Callable
+    #: the static data by name
+    data: StepData
+    #: ``tuple(data)``, the kernel's last argument
+    args: tuple
+
+
 def prepare(
     kernel: str, reduction: str, order: float, *, A, B, W_c, E, C, sigma, F, V_c,
     gain=None, bases=None, zero_projection: float = 0.0,
-) -> tuple[Callable, StepData]:
+) -> StepRun:
     """The compiled kernel named ``kernel`` and the static data of a run (the doorway of the
     step kernels: the only place where names become the kernels' numbers).
 
@@ -879,9 +903,10 @@ def prepare(
 
     Returns
     -------
-    tuple
-        ``(kernel, data)``: call ``kernel(c, G, B @ u, y, data)`` with writable C-contiguous
-        float ``B @ u`` and ``y`` and the ``c, G`` of the previous step (read-only).
+    StepRun
+        ``(kernel, data, args)``: call ``kernel(c, G, data.B @ u, y, args)`` with writable
+        C-contiguous float vectors ``data.B @ u`` and ``y`` and the ``c, G`` of the previous
+        step (read-only, as the sets keep them).
     """
     step, mode = _KERNELS[kernel]
     data = StepData(
@@ -889,4 +914,4 @@ def prepare(
         _NO_BASES if bases is None else _frozen_c(bases),
         *(_frozen_c(a) for a in (A, B, W_c, E, C, sigma, F, V_c)),
         float(zero_projection), float(order), REDUCTIONS[reduction], CLUSTER_RTOL, PIVOT_RTOL)
-    return step, data
+    return StepRun(step, data, tuple(data))
