@@ -38,9 +38,8 @@ import numpy as np
 from ..families import Linearised, ZonotopeObserver
 from ..options import Choice, Integer, Number
 from ..registry import register
-from ..sets import ConZonotope, HullLP
+from ..sets import ConZonotope, HullLP, HullLPStats
 from ..sets import conzono_ops as ops
-from ..sets._lp import HullLPStats
 from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m

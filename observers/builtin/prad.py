@@ -232,11 +232,8 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     DESIGN_VERSION = "4"
 
     def bound_gain(self) -> np.ndarray:
-        search = None
-        if self.options["design"] == "radius-bound-cora-rate":
-            s = -np.log10(1.0 - self.centre_rate())
-            search = {"s_range": (s, s), "grid": 1}  # one rate: no search
-        return wang_c1_gain(self.A, self.C, self.E, self.F, search=search).L
+        rate = self.centre_rate() if self.options["design"] == "radius-bound-cora-rate" else None
+        return wang_c1_gain(self.A, self.C, self.E, self.F, rate=rate).L
 
 
 @register(

@@ -22,7 +22,7 @@ solved together by a batched dual simplex with HiGHS as fallback, and can share 
 object across sets (:class:`HullLP`, ``S.with_solver(lp)``).
 """
 
-from ._lp import HullLP
+from ._lp import HullLP, HullLPStats
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .errors import EmptySet, SetError
@@ -37,6 +37,7 @@ __all__ = [
     "EmptySet",
     "Girard",
     "HullLP",
+    "HullLPStats",
     "Interval",
     "IntervalMatrix",
     "MatrixZonotope",
