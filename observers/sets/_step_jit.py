@@ -639,8 +639,6 @@ def propagate(c, G, A, d, C, L, y, V, W):
     return c_new, G_new
 
 
-
-
 def _adjugate_psd(S):
     """``(det S, adj S)`` of a symmetric positive semidefinite ``S``
     (:func:`observers.numerics.volmin._adjugate_psd`: Cholesky and ``det * inv`` when well
@@ -706,8 +704,6 @@ def bravo_choice(G, c_row, sigma, B, zero_projection):
                 quad += Gt[i, j] * AG[i, j]
             scores[j + 1] = scale * (det_S0 + (q / a[j] ** 2) * quad)
     return int(np.argmin(scores))
-
-
 
 
 def bravo_update(c, G, c_row, y, sigma, j):
