@@ -43,21 +43,17 @@ Deviation from CORA in both conventions: the error set starts from ``X0 - c0`` (
 from __future__ import annotations
 
 from abc import abstractmethod
+from typing import Any, ClassVar
 
 import numpy as np
 
 from .base import Observer
 from .errors import ObserverError, Unsupported
+from .kernels import KernelByOption, StepKernel
 from .options import Choice, reduction_method, zonotope_order
 from .prediction import LinearPrediction, prediction_for
-from .sets import Interval, Zonotope, get_reduction
-from .sets import _jit as _switch
-from .sets import _step_jit as _kernels
-from .sets.reduction import CLUSTER_RTOL, PIVOT_RTOL, kernel_method
-
-#: the gain argument of the compiled kernels' online-gain modes (which compute their own)
-NO_GAIN = np.zeros((0, 0))
-NO_GAIN.setflags(write=False)
+from .sets import Interval, Zonotope, _jit, _step_jit, get_reduction
+from .sets.reduction import compiled_name
 
 
 # -- one-step formulas (pure functions on centre/generator arrays) --------------------
@@ -181,9 +177,17 @@ class Linearised:
 
 
 class ZonotopeObserver(LinearModelObserver):
-    """Common options and system data of the zonotopic observers."""
+    """Common options and system data of the zonotopic observers.
+
+    A subclass whose step a compiled kernel computes exactly declares it in ``KERNEL``
+    (:mod:`observers.kernels`); on a linear system with a built-in reduction the family then
+    runs each step but the first as one compiled call (:mod:`observers.sets._step_jit`), with
+    the numpy path as fallback for a step the kernel cannot vouch for.
+    """
 
     OPTIONS = {"order": zonotope_order(100), "reduction": reduction_method("girard")}
+    #: the compiled one-step kernel of this observer (``None``: the numpy path only)
+    KERNEL: ClassVar[StepKernel | KernelByOption | None] = None
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""
@@ -192,60 +196,57 @@ class ZonotopeObserver(LinearModelObserver):
         self.F = self.V.G
         Vi = self.V.interval()
         self.sigma = np.maximum(np.abs(Vi.lo), np.abs(Vi.hi))  # strip half-widths
-        self.order = float(self.options["order"])
+        self.order = float(self.options["order"])  # >= 1: checked by its option spec
         strategy = get_reduction(self.options["reduction"])
         self._reduce = strategy.reduce
-        # the compiled one-step kernels (:mod:`observers.sets._step_jit`) serve linear systems
-        # with a built-in reduction; None: always the numpy path
-        method = kernel_method(strategy)
-        self._kernel_method = (method if isinstance(self.prediction, LinearPrediction)
-                               and self.order >= 1 else None)
+        # the compiled kernel serves linear systems with a built-in reduction
+        self._reduction_name = compiled_name(strategy)
+        kernel = None if self.KERNEL is None else self.KERNEL.select(self.options)
+        self._step_kernel = (kernel if self._reduction_name is not None
+                             and isinstance(self.prediction, LinearPrediction) else None)
 
-    def compiled_gain(self) -> tuple[int, np.ndarray] | None:
-        """The gain mode of the compiled kernel (:mod:`observers.sets._step_jit`) and its gain
-        matrix (ignored by the online-gain modes), or ``None`` (default): the numpy path.
-        A subclass returns a mode only where the kernel computes exactly its formula."""
-        return None
+    def kernel_inputs(self) -> dict[str, Any]:
+        """The observer's own static inputs of its compiled kernel (keywords of
+        :func:`observers.sets._step_jit.prepare`): the constant gain ``L`` for the kernels
+        that take one (default), nothing for the others."""
+        return {"gain": self.L} if self._step_kernel.given_gain else {}
 
     def reset(self) -> None:
         super().reset()
-        self._kernel_args: tuple | None = None  # built at the first compiled step of a run
+        #: the compiled kernel with the static data of this run (at its first compiled step)
+        self._kernel_run: _step_jit.StepRun | None = None
 
-    def _kernel(self) -> tuple | None:
-        """The static arguments of the compiled kernels if they may run this step, else
-        ``None``: ``(mode, L, A, B, c_W, E, C, sigma, F, c_V)``, read-only C-contiguous float
-        copies made once per run, so that the kernels see one argument type per position and
-        numba compiles them once (a read-only array is a different type from a writable one)."""
-        if self._kernel_method is None or not _switch.use_compiled():
+    def _prepare_run(self) -> _step_jit.StepRun:
+        """The compiled kernel and the static data of this run (at its first compiled step).
+        The data are read-only C-contiguous float copies made once per run, so that every
+        step passes arguments of the same types and numba compiles each kernel once (a
+        read-only array is a different type from a writable one)."""
+        self._kernel_run = _step_jit.prepare(
+            self._step_kernel.value, self._reduction_name, self.order, A=self.A, B=self.B,
+            W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F, V_c=self.V.c,
+            **self.kernel_inputs())
+        return self._kernel_run
+
+    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> Zonotope | None:
+        """The set of this step by the compiled kernel from the current set, the input ``u``
+        and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
+        path runs (no kernel for this observer, or the kernel declined the step)."""
+        if self._step_kernel is None or not _jit.use_compiled():
             return None
-        if self._kernel_args is None:
-            spec = self.compiled_gain()
-            if spec is None:
-                self._kernel_method = None
-                return None
-            mode, L = spec
-            self._kernel_args = (mode, *(_frozen_c(a) for a in (
-                L, self.A, self.B, self.W.c, self.E, self.C, self.sigma, self.F, self.V.c)))
-        return self._kernel_args
+        kernel, data, args = self._kernel_run or self._prepare_run()
+        try:
+            # y.copy(): a fresh writable C-contiguous vector, one argument type per position
+            c, G, ok = kernel(self._c, self._G, data.B @ u, y.copy(), args)
+        except np.linalg.LinAlgError:
+            return None
+        return self._finish_step(c, G) if ok else None
 
-    def _advance(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
+    def _finish_step(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
         """Keep ``(c, G)`` as the current set, count the step and return the set (the end of
         every step, by the compiled kernel or the numpy path)."""
         self._c, self._G = c, G
         self.k += 1
         return Zonotope._trusted(c, G)
-
-
-def _frozen_c(a: np.ndarray) -> np.ndarray:
-    """A read-only C-contiguous float64 copy of ``a``."""
-    out = np.array(a, dtype=np.float64, order="C", copy=True)
-    out.setflags(write=False)
-    return out
-
-
-def _kernel_vector(v: np.ndarray) -> np.ndarray:
-    """``v`` as a fresh writable C-contiguous float64 vector (the kernels' dynamic vectors)."""
-    return np.array(v, dtype=np.float64, copy=True)
 
 
 class StripBasedObserver(ZonotopeObserver):
@@ -255,30 +256,6 @@ class StripBasedObserver(ZonotopeObserver):
         super().reset()
         self._c: np.ndarray | None = None
         self._G: np.ndarray | None = None
-
-    #: whether the WANG gain mode applies ``A`` once more (FRad-B's ``variant: cora``)
-    _wang_cora = True
-
-    def _compiled_step(self, u: np.ndarray, y: np.ndarray):
-        """The step by :func:`observers.sets._step_jit.strip_step`, or ``None`` (the numpy
-        path runs: no kernel for this observer, or the kernel declined the step)."""
-        args = self._kernel()
-        if args is None:
-            return None
-        mode, L, A, B, cW, E, C, sigma, F, _ = args
-        try:
-            if mode == _kernels.BRAVO:  # L: the null-space bases of the rows of C
-                c, G, ok = _kernels.bravo_step(
-                    self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L,
-                    _kernels.BRAVO_ZERO_PROJECTION, self.order, self._kernel_method,
-                    CLUSTER_RTOL, PIVOT_RTOL)
-                return (c, G) if ok else None
-            c, G, ok = _kernels.strip_step(
-                self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L, F, mode,
-                self._wang_cora, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
-        except np.linalg.LinAlgError:
-            return None
-        return (c, G) if ok else None
 
     @abstractmethod
     def intersect(self, c: np.ndarray, G: np.ndarray, y: np.ndarray):
@@ -292,7 +269,7 @@ class StripBasedObserver(ZonotopeObserver):
             u = self._input(u_prev)
             out = self._compiled_step(u, y)
             if out is not None:
-                return self._advance(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
             r, re = self._G.shape[1], self.E.shape[1]
@@ -303,7 +280,7 @@ class StripBasedObserver(ZonotopeObserver):
             G[:, r + re :] = R
             c, G = self.intersect(c, G, y)
             G = self._reduce(G, self.order)
-        return self._advance(c, G)
+        return self._finish_step(c, G)
 
 
 class PerStripObserver(StripBasedObserver):
@@ -344,30 +321,16 @@ class PropagationObserver(ZonotopeObserver):
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         """Observer gain L (n x m) for the current set ``(c, G)``."""
 
-    def _compiled_step(self, u: np.ndarray):
-        """The step by :func:`observers.sets._step_jit.propagate_step`, or ``None``."""
-        args = self._kernel()
-        if args is None:
-            return None
-        mode, L, A, B, cW, E, C, _, F, cV = args
-        try:
-            c, G, ok = _kernels.propagate_step(
-                self._c, self._G, A, B @ u, C, L, F, _kernel_vector(self._y_prev), cV, cW, E,
-                mode, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
-        except np.linalg.LinAlgError:
-            return None
-        return (c, G) if ok else None
-
     def step(self, u_prev, y) -> Zonotope:
         y = self._measurement(y)
         if self._c is None:  # first set: X0 itself (as CORA)
             c, G = self.X0.c, self.X0.G
         else:
             u = self._input(u_prev)
-            out = self._compiled_step(u)
+            out = self._compiled_step(u, self._y_prev)
             if out is not None:
                 self._y_prev = y
-                return self._advance(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(
@@ -376,19 +339,17 @@ class PropagationObserver(ZonotopeObserver):
             )
             G = self._reduce(G, self.order)
         self._y_prev = y
-        return self._advance(c, G)
+        return self._finish_step(c, G)
 
 
 class ConstantGainPropagationObserver(PropagationObserver):
     """Set propagation with an offline gain ``self.L`` (set by ``design``)."""
 
+    KERNEL = StepKernel.PROPAGATION_GIVEN
     L: np.ndarray
 
     def gain(self, c, G) -> np.ndarray:
         return self.L
-
-    def compiled_gain(self):
-        return _kernels.GIVEN, self.L
 
 
 # -- interval observer ----------------------------------------------------------------------
