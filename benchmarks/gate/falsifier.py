@@ -1,0 +1,937 @@
+"""Nonlinear falsifier: verified consistent trajectories that push each state to its extremes.
+
+For a record ``(u, y)`` of ``x_{j+1} = f(x_j, u_j) + w_j``, ``y_j = h(x_j) + v_j`` with
+``x_0 in X0``, ``w_j in W``, ``v_j in V`` (zonotopes ``c + G xi``, ``|xi|_inf <= 1``), the
+*consistent* states of step ``k`` are the ``x_k`` of the trajectories that reproduce
+``y_0 .. y_k`` exactly (``y_0 .. y_{k-1}`` for the *predicted* floor, the set before ``y_k``).
+For a nonlinear model that set has no exact polytope description, so its interval hull is
+not computable; this module bounds it from *inside*: for chosen steps and every state it
+searches, in both directions, for a consistent trajectory making the state as small or as
+large as possible, and keeps only trajectories that pass :func:`verify` (forward simulation
+in the model with every noise factor checked against its bound).  The extremes found form an
+*inner box* of the exact hull.  Any observer is sound only if its sets contain every
+consistent state, so
+
+* a verified consistent state outside an observer's interval hull (by more than a stated
+  tolerance) is a *certified violation* (:class:`Violation`), and
+* the observer's RMS radius divided by the inner box's is an *upper bound* of its gap to the
+  exact hull (``gap <= ...``), since the inner box lies inside the exact hull.
+
+Method (and why)
+----------------
+The search is a trust-region *sequential linear programming* (SLP) method with an exact
+l1 penalty (Fletcher's Sl1QP with a linear model, e.g. Fletcher, *Practical Methods of
+Optimization*, 2nd ed., 1987, ch. 14; Nocedal & Wright, *Numerical Optimization*, 2nd ed.,
+2006, secs. 17.2 and 18.5) over the **whole** horizon ``0 .. k``:
+
+* variables: the factors of ``x_0`` and of every ``w_j`` (bounded), the state deviations
+  ``d_j = x_j - xbar_j`` from the current trajectory (multiple shooting: the dynamics are
+  linearised rows ``d_{j+1} = J_j d_j + G_W (omega_j - omegabar_j)``, so the LP is sparse and
+  well conditioned over hundreds of steps) and the factors of every ``v_j`` (measurement rows
+  ``H_j d_j + G_V nu_j = y_j - h(xbar_j) - c_V``), each split into an in-bound part and
+  penalised excesses, so that every LP is feasible even from an inconsistent start;
+* objective: ``+-x_k[i]`` (scaled by the radius of ``X0``) minus ``mu`` times the excesses;
+  a step is accepted when the actual merit (evaluated on the forward-simulated trajectory)
+  gains at least a tenth of the LP's predicted gain, otherwise the trust region on the noise
+  factors shrinks; ``mu`` grows tenfold when a converged point is still inconsistent.
+* Why not the suggested anchor (the truth fixed up to ``k - L``, a short window optimised):
+  on the tank records the disturbance is tiny (``|w| <= 1e-3``) while ``X0`` has radius 4 and
+  the tanks forget slowly (eigenvalues ~0.996), so the consistent set of step ``k`` is shaped
+  by the uncertain initial state and every measurement since; with the past fixed a window of
+  tens of steps moves a state by a few hundredths where the exact hull is 0.1 - 3 wide.  The
+  full horizon costs one sparse LP of ``(k + 1)(n + n_W + 3 n_V)`` columns per iteration,
+  which HiGHS solves in milliseconds (warm-started from the previous basis).
+* Why SLP rather than SLSQP or IPOPT: the problem is an LP with mildly curved equality rows
+  (Euler steps of smooth dynamics), so its local optima are vertices or close to them, where
+  SLP converges in a few iterations; on a linear system the first LP *is* the exact problem
+  (global optimum).  SLSQP's dense quasi-Newton matrices over ``(k + 1) n`` variables would be
+  far slower (thousands of variables for the 30-tank record), and IPOPT would add a compiled
+  dependency for no gain on these near-linear problems.  The method is local: the inner box
+  may miss the true extremes of a nonconvex problem, never overstate them.
+* Several starts: the first run of every objective starts from the *anchor* (a consistent
+  trajectory of the whole record: the true one where the record has it, else one found by the
+  same SLP with a zero objective, i.e. a phase-1 feasibility search from the centre of
+  ``X0``); with ``starts > 1``, ``starts - 1`` seeded random directions ``c'x_k`` are
+  maximised too, and every objective is re-run from the ``starts - 1`` best other verified
+  trajectories of the step (ranked by that objective), so a local optimum of one objective is
+  escaped through another's.
+
+Verification and tolerances
+---------------------------
+:func:`verify` re-simulates ``x_0 = c_0 + G_0 xi_0``, ``x_{j+1} = f(x_j, u_j) + c_W + G_W
+omega_j`` in floating point, requires ``|xi_0|_inf <= 1`` and ``|omega_j|_inf <= 1`` exactly,
+and recomputes the measurement factors ``nu_j`` from ``y_j - h(x_j) - c_V`` (``G_V^+`` applied,
+residual checked), requiring ``|nu_j|_inf <= 1``.  The search keeps the factors of ``X0`` and
+``W`` inside ``1 - 1e-9`` and those of ``V`` inside ``1 - 1e-7`` (the LP tolerance and the
+linearisation error of the last step), so that the verification passes despite rounding.  The
+simulated states carry the rounding of ``k`` floating-point steps (~1e-14 relative), so a
+state is called a violation only when it lies outside a hull by more than
+``rel_tol * max(1, |x|)`` (``rel_tol = 1e-9``) plus the hull's own tolerance.
+
+>>> import systems
+>>> sc = systems.scenario("vanderpol-sim", steps=30)
+>>> res = falsify(sc.system, sc, steps=[10, 29], starts=1)
+>>> bool(np.all(res.inner_lo <= res.inner_hi))
+True
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import highspy
+import numpy as np
+from scipy import sparse
+
+from observers.sets.highs import new_highs
+from systems.errors import ModelError
+
+#: factors of X0 and W are kept within 1 - FACTOR_MARGIN during the search
+FACTOR_MARGIN = 1e-9
+#: factors of V are kept within 1 - NOISE_MARGIN (LP tolerance + linearisation error)
+NOISE_MARGIN = 1e-7
+#: relative part of the tolerance of a violation (rounding of the forward simulation)
+REL_TOL = 1e-9
+#: HiGHS primal and dual feasibility tolerance
+LP_TOL = 1e-9
+#: tolerance of the measurement equation residual after G_V^+ (non-square G_V only)
+EQ_TOL = 1e-12
+#: SLP iterations per run; second-order corrections per step
+MAX_ITER = 20
+SOC_STEPS = 8
+#: a run stops when the LP predicts less than PRED_TOL (objective scaled by X0's radius), or
+#: when the accepted step realised its predicted gain to STOP_RTOL of the run's total gain
+PRED_TOL = 1e-9
+STOP_RTOL = 1e-3
+#: initial trust-region radius on the factors (2 = the whole box)
+DELTA0 = 2.0
+#: window="auto": the whole horizon while it has at most this many state variables
+AUTO_STATES = 3000
+FLOORS = ("filtered", "predicted")
+
+
+def _output(system: Any, x: np.ndarray) -> np.ndarray:
+    """``h(x)`` where the system has a nonlinear output, else ``C x``."""
+    if hasattr(system, "h"):
+        return np.asarray(system.h(x), dtype=float).reshape(-1)
+    return system.C @ x
+
+
+def _output_jacobian(system: Any, x: np.ndarray) -> np.ndarray:
+    """``dh/dx`` where the system has a nonlinear output, else ``C``."""
+    if hasattr(system, "h_jacobian"):
+        return np.asarray(system.h_jacobian(x), dtype=float).reshape(system.C.shape)
+    return system.C
+
+
+# -- trajectories and their verification -------------------------------------------------
+@dataclass(frozen=True)
+class Trajectory:
+    """A candidate trajectory given by its noise factors.
+
+    Attributes
+    ----------
+    xi0 : (p0,) array
+        Factors of ``x_0 = c_0 + G_0 xi0``.
+    omega : (k, pW) array
+        Factors of ``w_j = c_W + G_W omega_j``, ``j = 0 .. k-1`` (``k`` is the final step).
+    nu : (m, pV) array
+        Factors of ``v_j`` for the ``m`` measurements reproduced; :func:`verify` recomputes
+        them from the simulated states (they only seed ``G_V^+`` where ``G_V`` is not square).
+    """
+
+    xi0: np.ndarray
+    omega: np.ndarray
+    nu: np.ndarray
+
+    @property
+    def step(self) -> int:
+        """The final step ``k`` of the trajectory."""
+        return int(self.omega.shape[0])
+
+    @property
+    def measured(self) -> int:
+        """Number of measurements ``y_0 .. y_{m-1}`` the trajectory reproduces."""
+        return int(self.nu.shape[0])
+
+    def truncated(self, k: int, m: int) -> Trajectory:
+        """The first ``k`` steps reproducing ``m`` measurements."""
+        return Trajectory(self.xi0, self.omega[:k], self.nu[:m])
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Verdict of :func:`verify`.
+
+    Attributes
+    ----------
+    consistent : bool
+        Every factor within its bound and the simulation finite.
+    x : (k + 1, n) array
+        Simulated states ``x_0 .. x_k``.
+    nu : (m, pV) array
+        Measurement factors recomputed from the simulated states.
+    worst : float
+        Largest ``|factor|`` over ``X0``, ``W`` and ``V`` (``<= 1`` when consistent).
+    reason : str
+        Why the trajectory is inconsistent (``""`` when consistent).
+    """
+
+    consistent: bool
+    x: np.ndarray
+    nu: np.ndarray
+    worst: float
+    reason: str = ""
+
+
+class _Model:
+    """The system, its record and the zonotope data the falsifier needs."""
+
+    def __init__(self, system: Any, u: np.ndarray, y: np.ndarray):
+        for key in ("C", "W", "V", "X0"):
+            if not hasattr(system, key):
+                raise ModelError(f"falsifier: the system has no attribute {key}")
+        if not (hasattr(system, "dynamics") or hasattr(system, "f")):
+            raise ModelError("falsifier: the system has neither dynamics(x, u) nor f(x, u)")
+        self.system = system
+        self.n = int(system.C.shape[1])
+        y = np.asarray(y, dtype=float)
+        if y.ndim == 1:
+            y = y.reshape(-1, 1)
+        N = y.shape[0]
+        u = np.zeros((N, 0)) if u is None else np.asarray(u, dtype=float)
+        if u.ndim == 1:
+            u = u.reshape(-1, 1)
+        if y.shape[1] != system.C.shape[0] or u.shape[0] < N - 1:
+            raise ModelError(f"falsifier: record shapes u {u.shape}, y {y.shape} do not match "
+                             f"the system (ny = {system.C.shape[0]})")
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u[:N - 1]))):
+            raise ModelError("falsifier: the record contains non-finite values")
+        self.u, self.y, self.N = u, y, N
+        self.c0, self.G0 = np.asarray(system.X0.c, float), np.asarray(system.X0.G, float)
+        self.cW, self.GW = np.asarray(system.W.c, float), np.asarray(system.W.G, float)
+        self.cV, self.GV = np.asarray(system.V.c, float), np.asarray(system.V.G, float)
+        self.GV_pinv = np.linalg.pinv(self.GV)
+        self.square_V = self.GV.shape[0] == self.GV.shape[1] and np.linalg.matrix_rank(
+            self.GV) == self.GV.shape[0]
+        self.p0, self.pW, self.pV = self.G0.shape[1], self.GW.shape[1], self.GV.shape[1]
+        self.ny = self.GV.shape[0]
+        self.nonlinear_output = hasattr(system, "h")
+        self.linear = bool(getattr(system, "is_linear", False)) and not self.nonlinear_output
+        self._f = system.dynamics if hasattr(system, "dynamics") else system.f
+
+    def f(self, x: np.ndarray, j: int) -> np.ndarray:
+        return np.asarray(self._f(x, self.u[j]), dtype=float)
+
+    def jacobian(self, x: np.ndarray, j: int) -> np.ndarray:
+        s = self.system
+        if hasattr(s, "jacobian"):
+            return np.asarray(s.jacobian(x, self.u[j])[0], dtype=float)
+        return np.asarray(s.A, dtype=float)
+
+    def H(self, x: np.ndarray) -> np.ndarray:
+        """Output Jacobian at ``x``."""
+        if not self.nonlinear_output:
+            return np.asarray(self.system.C, dtype=float)
+        return _output_jacobian(self.system, x)
+
+    def outputs(self, X: np.ndarray) -> np.ndarray:
+        if not self.nonlinear_output:
+            return X @ self.system.C.T
+        return np.array([_output(self.system, x) for x in X]).reshape(X.shape[0], self.ny)
+
+    def simulate(self, xi0: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """States ``x_0 .. x_k`` (rows after a non-finite state are NaN)."""
+        k = omega.shape[0]
+        X = np.full((k + 1, self.n), np.nan)
+        x = self.c0 + self.G0 @ xi0
+        W = self.cW + omega @ self.GW.T
+        with np.errstate(all="ignore"):
+            for j in range(k + 1):
+                if not np.all(np.isfinite(x)):
+                    break
+                X[j] = x
+                if j < k:
+                    x = self.f(x, j) + W[j]
+        return X
+
+    def noise_factors(self, X: np.ndarray, nu_ref: np.ndarray) -> tuple[np.ndarray, float]:
+        """Measurement factors of the simulated states and the worst equation residual."""
+        m = nu_ref.shape[0]
+        with np.errstate(all="ignore"):
+            R = self.y[:m] - self.outputs(X[:m]) - self.cV
+            nu = nu_ref + (R - nu_ref @ self.GV.T) @ self.GV_pinv.T
+            res = 0.0 if self.square_V else float(np.abs(R - nu @ self.GV.T).max(initial=0.0))
+        return nu, res
+
+    def check(self, traj: Trajectory) -> Verification:
+        """:func:`verify` on this model."""
+        xi0, omega = np.asarray(traj.xi0, float), np.asarray(traj.omega, float)
+        nu_ref = np.asarray(traj.nu, float).reshape(-1, self.pV)
+        k, m = omega.shape[0], nu_ref.shape[0]
+        if xi0.shape != (self.p0,) or omega.shape[1:] != (self.pW,):
+            raise ModelError(f"trajectory factors have shapes {xi0.shape}, {omega.shape}; "
+                             f"expected ({self.p0},), (k, {self.pW})")
+        if not (k + 1 >= m >= k and k < self.N):
+            raise ModelError(f"a trajectory to step {k} must reproduce {k} or {k + 1} "
+                             f"measurements of the {self.N}, got {m}")
+        X = self.simulate(xi0, omega)
+        if not np.all(np.isfinite(X)):
+            return Verification(False, X, nu_ref, math.inf, "the simulation is not finite")
+        nu, res = self.noise_factors(X, nu_ref)
+        worst = {"X0": np.abs(xi0).max(initial=0.0), "W": np.abs(omega).max(initial=0.0),
+                 "V": np.abs(nu).max(initial=0.0)}
+        reasons = [f"|factor of {key}| = {v!r} > 1" for key, v in worst.items() if not v <= 1.0]
+        scale = max(1.0, float(np.abs(self.y[:m]).max(initial=0.0)))
+        if not res <= EQ_TOL * scale:
+            reasons.append(f"measurement residual {res:.3g} after G_V^+")
+        return Verification(not reasons, X, nu, float(max(worst.values())), "; ".join(reasons))
+
+
+def verify(system: Any, u, y, traj: Trajectory) -> Verification:
+    """Whether ``traj`` is a trajectory consistent with the record ``(u, y)``.
+
+    Forward simulation ``x_0 = c_0 + G_0 xi0``, ``x_{j+1} = f(x_j, u_j) + c_W + G_W omega_j``;
+    the factors of ``X0`` and ``W`` must satisfy ``|.|_inf <= 1`` exactly and the measurement
+    factors ``nu_j`` of ``y_j - h(x_j) - c_V`` too, for the ``traj.measured`` measurements.
+
+    Parameters
+    ----------
+    system : LinearSystem or NonlinearSystem
+    u, y : array_like
+        The record (``u[j]`` drives ``x_{j+1}``, ``y[j]`` measures ``x_j``).
+    traj : Trajectory
+    """
+    return _Model(system, u, y).check(traj)
+
+
+# -- the SLP ------------------------------------------------------------------------------
+@dataclass
+class _Stats:
+    lps: int = 0
+    simplex_iterations: int = 0
+    loads: int = 0
+    corrections: int = 0
+    runs: int = 0
+    unconverged: int = 0
+    verified: int = 0
+
+
+@dataclass
+class _Point:
+    """A trajectory with its simulation: states, measurement factors, verdict."""
+
+    z: Trajectory
+    X: np.ndarray
+    nu: np.ndarray
+    excess: float  # sum of max(0, |nu| - (1 - NOISE_MARGIN))
+    consistent: bool
+    _jac: np.ndarray | None = None
+
+    def jacobians(self, M: _Model, upto: int) -> np.ndarray:
+        """``df/dx`` at ``x_0 .. x_{upto-1}`` (computed once per point)."""
+        if self._jac is None or self._jac.shape[0] < upto:
+            self._jac = np.array([M.jacobian(self.X[j], j) for j in range(upto)]
+                                 ).reshape(upto, M.n, M.n)
+        return self._jac[:upto]
+
+
+class _StepLP:
+    """The problem of step ``k`` linearised at a trajectory ``A`` (one HiGHS model).
+
+    Columns: the factors ``xi0`` of X0, the factors ``omega_s .. omega_{k-1}`` of the
+    window's disturbances (``omega_j`` of ``j < s`` stay at ``A``'s values), the state
+    deviations ``d_s .. d_k`` from ``A``, the measurement factors ``nu_0 .. nu_{m-1}`` and, in
+    the elastic (phase-1) model, penalised excesses ``e+, e-`` of ``nu``.  Rows, all
+    equalities: ``d_s - S_s xi0`` (``S_s = dx_s/dxi0`` at ``A``), ``d_{j+1} - J_j d_j -
+    G_W omega_j`` (``s <= j < k``), and ``H_j S_j xi0 + G_V nu_j`` (``j < s``) or
+    ``H_j d_j + G_V nu_j`` (``j >= s``).  The right-hand sides are the rows' values at a point
+    whose forward simulation satisfies the model exactly: ``A`` itself (the linearisation),
+    or, for a second-order correction, the last (inconsistent) candidate ``P`` (Fletcher's
+    SOC: the linear model plus the remainder observed at ``P``).
+    """
+
+    def __init__(self, model: _Model, k: int, m: int, s: int, elastic: bool, stats: _Stats):
+        self.M, self.k, self.m, self.s, self.elastic, self.stats = model, k, m, s, elastic, stats
+        n, p0, pW, pV = model.n, model.p0, model.pW, model.pV
+        L = k - s
+        self.iOM = p0
+        self.iD = p0 + L * pW
+        self.iNU = self.iD + (L + 1) * n
+        self.iE = self.iNU + m * pV
+        self.ncol = self.iE + (2 * m * pV if elastic else 0)
+        self.nf = self.iD  # factor columns (xi0 and the window's omega)
+        self.rD = n
+        self.rM = n + L * n
+        self.nrow = self.rM + m * model.ny
+        self._h = new_highs()
+        for key, val in (("presolve", "off"), ("primal_feasibility_tolerance", LP_TOL),
+                         ("dual_feasibility_tolerance", LP_TOL)):
+            self._h.setOptionValue(key, val)
+        self._basis = None
+        self.A: _Point | None = None
+        self._delta: float | None = None
+        self._all_rows = np.arange(self.nrow, dtype=np.int32)
+        self._all_cols = np.arange(self.ncol, dtype=np.int32)
+
+    def factors(self, P: _Point) -> np.ndarray:
+        """The factor columns of ``P`` (``xi0`` and the window's ``omega``)."""
+        return np.concatenate([P.z.xi0, P.z.omega[self.s:].ravel()])
+
+    def load(self, A: _Point, delta: float) -> None:
+        """Linearise at ``A`` with trust region ``delta`` on the factors."""
+        M, k, m, s, n = self.M, self.k, self.m, self.s, self.M.n
+        self.stats.loads += 1
+        J = A.jacobians(M, k)
+        rows: list = []
+        cols: list = []
+        vals: list = []
+
+        def block(r0: int, c0: int, B: np.ndarray) -> None:
+            r, c = np.nonzero(B)
+            rows.append(r0 + r)
+            cols.append(c0 + c)
+            vals.append(B[r, c])
+
+        S = M.G0  # dx_j/dxi0 along A with the early disturbances fixed
+        Sj = []
+        for j in range(s + 1):
+            Sj.append(S)
+            if j < s:
+                S = J[j] @ S
+        block(0, self.iD, np.eye(n))
+        block(0, 0, -Sj[s])
+        for j in range(s, k):
+            r0 = self.rD + (j - s) * n
+            block(r0, self.iD + (j + 1 - s) * n, np.eye(n))
+            block(r0, self.iD + (j - s) * n, -J[j])
+            block(r0, self.iOM + (j - s) * M.pW, -M.GW)
+        for j in range(m):
+            r0 = self.rM + j * M.ny
+            H = M.H(A.X[j])
+            if j < s:
+                block(r0, 0, H @ Sj[j])
+            else:
+                block(r0, self.iD + (j - s) * n, H)
+            block(r0, self.iNU + j * M.pV, M.GV)
+            if self.elastic:
+                block(r0, self.iE + j * M.pV, M.GV)
+                block(r0, self.iE + (m + j) * M.pV, -M.GV)
+        self.mat = sparse.csc_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                             np.concatenate(cols))),
+                                     shape=(self.nrow, self.ncol))
+        self.A = A
+        inf = highspy.kHighsInf
+        bv = 1.0 - NOISE_MARGIN
+        nuA = A.nu[:m].ravel()
+        if self.elastic:
+            nlo, nhi = np.full(m * M.pV, -bv), np.full(m * M.pV, bv)
+        else:  # the linearisation point stays feasible
+            nlo, nhi = np.minimum(-bv, nuA), np.maximum(bv, nuA)
+        self.col_lo = np.concatenate([np.zeros(self.nf), np.full((k - s + 1) * n, -inf), nlo,
+                                      np.zeros(self.ncol - self.iE)])
+        self.col_hi = np.concatenate([np.zeros(self.nf), np.full((k - s + 1) * n, inf), nhi,
+                                      np.full(self.ncol - self.iE, inf)])
+        rhs = self.activity(A)
+        lp = highspy.HighsLp()
+        lp.num_col_, lp.num_row_ = self.ncol, self.nrow
+        lp.col_cost_ = np.zeros(self.ncol)
+        lp.col_lower_, lp.col_upper_ = self.col_lo, self.col_hi
+        lp.row_lower_, lp.row_upper_ = rhs, rhs
+        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+        lp.a_matrix_.start_ = self.mat.indptr.astype(np.int32)
+        lp.a_matrix_.index_ = self.mat.indices.astype(np.int32)
+        lp.a_matrix_.value_ = self.mat.data
+        self._h.passModel(lp)
+        self._rhs = rhs
+        self._delta = None
+        self.trust(delta)
+        if self._basis is not None:
+            self._h.setBasis(self._basis)
+
+    def trust(self, delta: float) -> None:
+        """Bound the factor columns to ``delta`` around ``A`` (and inside the margin)."""
+        if delta == self._delta:
+            return
+        b = 1.0 - FACTOR_MARGIN
+        zA = self.factors(self.A)
+        self.col_lo[:self.nf] = np.maximum(-b, zA - delta)
+        self.col_hi[:self.nf] = np.minimum(b, zA + delta)
+        idx = np.arange(self.nf, dtype=np.int32)
+        self._h.changeColsBounds(self.nf, idx, self.col_lo[:self.nf], self.col_hi[:self.nf])
+        self._delta = delta
+
+    def activity(self, P: _Point) -> np.ndarray:
+        """Row values at the columns of ``P`` (deviations from ``A``), which satisfies the
+        model exactly: the right-hand sides of the linear model plus ``P``'s remainder."""
+        s, k = self.s, self.k
+        col = np.zeros(self.ncol)
+        col[:self.nf] = self.factors(P)
+        col[self.iD:self.iNU] = (P.X[s:k + 1] - self.A.X[s:k + 1]).ravel()
+        col[self.iNU:self.iE] = P.nu[:self.m].ravel()
+        return self.mat @ col
+
+    def set_rhs(self, rhs: np.ndarray) -> None:
+        self._h.changeRowsBounds(self.nrow, self._all_rows, rhs, rhs)
+        self._rhs = rhs
+
+    def solve(self, cost: np.ndarray) -> np.ndarray | None:
+        """Column values of ``min cost'col`` (None if HiGHS found no optimum)."""
+        h = self._h
+        h.changeColsCost(self.ncol, self._all_cols, cost)
+        h.run()
+        self.stats.lps += 1
+        self.stats.simplex_iterations += int(h.getInfo().simplex_iteration_count)
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            self._basis = None
+            return None
+        self._basis = h.getBasis()
+        return np.asarray(h.getSolution().col_value, dtype=float)
+
+
+class _Search:
+    """SLP runs for one step ``k`` (``m`` measurements, window from ``s``), collecting the
+    verified extremes."""
+
+    def __init__(self, model: _Model, k: int, m: int, s: int, stats: _Stats,
+                 max_iter: int, elastic: bool = False):
+        self.M, self.k, self.m, self.s, self.stats = model, k, m, s, stats
+        self.lp = _StepLP(model, k, m, s, elastic, stats)
+        self.max_iter = max_iter
+        n = model.n
+        self.lo = np.full(n, np.inf)
+        self.hi = np.full(n, -np.inf)
+        self.lo_traj: list[Trajectory | None] = [None] * n
+        self.hi_traj: list[Trajectory | None] = [None] * n
+        self.pool: list[_Point] = []
+
+    def evaluate(self, z: Trajectory) -> _Point:
+        """Simulate and verify ``z``; a consistent point widens the inner box."""
+        M = self.M
+        X = M.simulate(z.xi0, z.omega)
+        if not np.all(np.isfinite(X)):
+            return _Point(z, X, z.nu, math.inf, False)
+        nu, res = M.noise_factors(X, z.nu)
+        excess = float(np.maximum(np.abs(nu) - (1.0 - NOISE_MARGIN), 0.0).sum())
+        ok = bool(np.abs(nu).max(initial=0.0) <= 1.0) and (
+            M.square_V or res <= EQ_TOL * max(1.0, float(np.abs(M.y).max())))
+        # xi0 and omega lie inside their bounds by construction (clipped)
+        p = _Point(Trajectory(z.xi0, z.omega, nu), X, nu, excess, ok)
+        if ok:
+            self.offer(p)
+        return p
+
+    def offer(self, p: _Point) -> None:
+        """Record a verified point: its ``x_k`` widens the inner box."""
+        self.stats.verified += 1
+        xk = p.X[self.k]
+        for i in np.flatnonzero(xk < self.lo):
+            self.lo[i], self.lo_traj[i] = xk[i], p.z
+        for i in np.flatnonzero(xk > self.hi):
+            self.hi[i], self.hi_traj[i] = xk[i], p.z
+
+    def candidate(self, col: np.ndarray) -> _Point:
+        """The trajectory of the LP's factors (clipped into the margin), simulated."""
+        M, lp, s = self.M, self.lp, self.s
+        b = 1.0 - FACTOR_MARGIN
+        zc = np.clip(col[:lp.nf], -b, b)
+        omega = lp.A.z.omega.copy()
+        omega[s:] = zc[M.p0:].reshape(self.k - s, M.pW)
+        nu = col[lp.iNU:lp.iE].reshape(self.m, M.pV)
+        return self.evaluate(Trajectory(zc[:M.p0], omega, nu))
+
+    def corrected(self, P: _Point, cost: np.ndarray) -> _Point:
+        """Second-order corrections of an inconsistent candidate (same model and basis,
+        right-hand sides moved by the remainder at the last candidate)."""
+        lp = self.lp
+        for _ in range(SOC_STEPS):
+            if P.consistent or not np.all(np.isfinite(P.X)):
+                break
+            self.stats.corrections += 1
+            lp.set_rhs(lp.activity(P))
+            col = lp.solve(cost)
+            if col is None:
+                break
+            Q = self.candidate(col)
+            if not Q.excess < P.excess:
+                P = Q if Q.consistent else P
+                break
+            P = Q
+        return P
+
+    def run(self, start: _Point, c: np.ndarray) -> _Point:
+        """Maximise ``c'x_k`` from the consistent ``start``; returns the last accepted point.
+
+        Trust-region SLP: each LP step is made consistent by second-order corrections, and
+        accepted when it realises at least a tenth of the predicted gain; the model is
+        re-linearised at the accepted point unless it predicted the gain to ``STOP_RTOL``.
+        """
+        M, lp, k = self.M, self.lp, self.k
+        self.stats.runs += 1
+        cost = np.zeros(lp.ncol)
+        cost[lp.iD + (k - self.s) * M.n: lp.iNU] = -c
+        cur, delta, gained = start, DELTA0, 0.0
+        if lp.A is not cur:
+            lp.load(cur, delta)
+        for _ in range(self.max_iter):
+            lp.trust(delta)
+            lp.set_rhs(lp.activity(cur))
+            col = lp.solve(cost)
+            if col is None:
+                delta *= 0.25
+                if delta < 1e-9:
+                    break
+                continue
+            pred = float(c @ col[lp.iD + (k - self.s) * M.n: lp.iNU])
+            if pred <= PRED_TOL:
+                break
+            P = self.corrected(self.candidate(col), cost)
+            actual = float(c @ (P.X[k] - cur.X[k])) if P.consistent else -math.inf
+            if actual < 0.1 * pred:
+                step = float(np.abs(np.clip(col[:lp.nf], -1, 1) - lp.factors(cur)).max())
+                delta = 0.25 * min(delta, step)
+                if delta < 1e-9:
+                    break
+                continue
+            gained += actual
+            cur = P
+            if pred - actual <= STOP_RTOL * gained:
+                break
+            if actual >= 0.75 * pred:
+                delta = min(DELTA0, 2.0 * delta)
+            lp.load(cur, delta)
+        else:
+            self.stats.unconverged += 1
+        if cur.consistent and all(p is not cur for p in self.pool):
+            self.pool.append(cur)
+        return cur
+
+    def feasible(self, start: _Point) -> _Point:
+        """Phase 1 (elastic model, zero objective): a consistent trajectory near ``start``."""
+        lp, cur, delta = self.lp, start, DELTA0
+        cost = np.zeros(lp.ncol)
+        cost[lp.iE:] = 1.0
+        lp.load(cur, delta)
+        for _ in range(self.max_iter):
+            if cur.consistent:
+                return cur
+            lp.trust(delta)
+            lp.set_rhs(lp.activity(cur))
+            col = lp.solve(cost)
+            P = None if col is None else self.corrected(self.candidate(col), cost)
+            if P is None or not P.excess < cur.excess:
+                delta *= 0.25
+                if delta < 1e-9:
+                    break
+                continue
+            cur = P
+            lp.load(cur, delta)
+        return cur
+
+
+# -- results ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Violation:
+    """A verified consistent state outside an observer's interval hull.
+
+    Attributes
+    ----------
+    observer : str
+    step, state : int
+        Time step ``k`` and state index ``i`` (0-based).
+    side : {"lo", "hi"}
+        Which bound of the hull the consistent value passes.
+    value : float
+        The consistent value of ``x_k[i]`` (of a verified trajectory).
+    bound : float
+        The hull's bound it passes.
+    excess : float
+        How far outside (``value - bound`` or ``bound - value``), larger than ``tol``.
+    tol : float
+        The tolerance applied.
+    """
+
+    observer: str
+    step: int
+    state: int
+    side: str
+    value: float
+    bound: float
+    excess: float
+    tol: float
+
+
+@dataclass
+class FalsifierResult:
+    """Inner box of the consistent set at chosen steps, the verified extremes, and the
+    verdicts on observers' hulls.
+
+    Attributes
+    ----------
+    steps : (S,) int array
+        The steps searched.
+    inner_lo, inner_hi : (S, n) arrays
+        Smallest and largest verified consistent value of each state (NaN where nothing was
+        verified): an inner box of the exact hull.
+    lo_trajectories, hi_trajectories : list of list of Trajectory or None
+        ``[s][i]``: the verified trajectory attaining ``inner_lo[s, i]`` / ``inner_hi[s, i]``
+        (re-check with :func:`verify`; empty lists with ``keep_trajectories=False``).
+    floor : {"filtered", "predicted"}
+        Whether ``y_k`` is part of the record reproduced at step ``k``.
+    anchor : Trajectory
+        The consistent trajectory of the whole record the searches start from.
+    violations : list of Violation
+        Certified violations of the hulls passed (see :meth:`check`).
+    gap_upper : dict
+        Observer -> (n,) upper bounds of its gap (RMS radius of the hull over the RMS radius
+        of the inner box at the chosen steps).
+    stats : dict
+        Work and time: ``seconds``, ``lps``, ``simplex_iterations``, ``runs``,
+        ``slp_iterations``, ``unconverged`` (runs that hit the iteration limit), ``verified``.
+    """
+
+    steps: np.ndarray
+    inner_lo: np.ndarray
+    inner_hi: np.ndarray
+    lo_trajectories: list
+    hi_trajectories: list
+    floor: str
+    anchor: Trajectory
+    violations: list = field(default_factory=list)
+    gap_upper: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def inner_radius(self) -> np.ndarray:
+        """Radii of the inner box (S x n)."""
+        return 0.5 * (self.inner_hi - self.inner_lo)
+
+    def check(self, observer: str, lo, hi, hull_tol: float = 0.0,
+              rel_tol: float = REL_TOL) -> tuple[list[Violation], np.ndarray]:
+        """Violations and gap upper bounds of one observer's interval hulls.
+
+        Parameters
+        ----------
+        observer : str
+            Name used in the :class:`Violation` records.
+        lo, hi : (N, n) array_like
+            The observer's hulls over the whole record (rows of the searched steps are
+            used; NaN rows, e.g. after divergence, are skipped).
+        hull_tol : float
+            The hull's own (absolute) tolerance, added to ``rel_tol * max(1, |value|)``.
+
+        Returns
+        -------
+        violations : list of Violation
+        gap_upper : (n,) array
+            ``rms(hull radius) / rms(inner radius)`` over the searched steps with both
+            finite (inf where the inner box is a point, NaN without such steps).
+        """
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        if lo.ndim != 2 or lo.shape != hi.shape or lo.shape[0] <= self.steps.max(initial=0):
+            raise ModelError(f"hulls of {observer} have shape {lo.shape}/{hi.shape}; expected "
+                             f"(N, {self.inner_lo.shape[1]}) covering step "
+                             f"{int(self.steps.max(initial=0))}")
+        out: list[Violation] = []
+        L, H = lo[self.steps], hi[self.steps]
+        for s, k in enumerate(self.steps):
+            for i in range(L.shape[1]):
+                for side, value, bound in (("lo", self.inner_lo[s, i], L[s, i]),
+                                           ("hi", self.inner_hi[s, i], H[s, i])):
+                    if not (np.isfinite(value) and np.isfinite(bound)):
+                        continue
+                    tol = hull_tol + rel_tol * max(1.0, abs(value))
+                    excess = bound - value if side == "lo" else value - bound
+                    if excess > tol:
+                        out.append(Violation(observer, int(k), i, side, float(value),
+                                             float(bound), float(excess), float(tol)))
+        ok = np.all(np.isfinite(L) & np.isfinite(H), axis=1) & np.all(
+            np.isfinite(self.inner_lo) & np.isfinite(self.inner_hi), axis=1)
+        if not ok.any():
+            return out, np.full(L.shape[1], np.nan)
+        r_obs = np.sqrt(np.mean((0.5 * (H - L))[ok] ** 2, axis=0))
+        r_in = np.sqrt(np.mean(self.inner_radius[ok] ** 2, axis=0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(r_in > 0, r_obs / np.where(r_in > 0, r_in, 1.0), np.inf)
+        return out, gap
+
+    def add_hulls(self, hulls: Mapping[str, Any],
+                  hull_tol: float | Mapping[str, float] = 0.0) -> None:
+        """:meth:`check` every observer of ``hulls`` (name -> object with ``lo``/``hi``,
+        e.g. a :class:`~observers.RunResult`, or a pair ``(lo, hi)``); fills
+        :attr:`violations` and :attr:`gap_upper`."""
+        for name, hull in hulls.items():
+            lo, hi = (hull.lo, hull.hi) if hasattr(hull, "lo") else hull
+            tol = hull_tol.get(name, 0.0) if isinstance(hull_tol, Mapping) else hull_tol
+            found, gap = self.check(name, lo, hi, float(tol))
+            self.violations.extend(found)
+            self.gap_upper[name] = gap
+
+
+# -- driver -------------------------------------------------------------------------------
+def spread_steps(N: int, count: int, first: int = 0) -> np.ndarray:
+    """``count`` steps spread evenly over ``first .. N-1`` (always including ``N - 1``)."""
+    if N < 1 or count < 1:
+        raise ModelError(f"spread_steps: need N >= 1 and count >= 1, got {N}, {count}")
+    first = min(max(int(first), 0), N - 1)
+    return np.unique(np.round(np.linspace(first, N - 1, count)).astype(int))
+
+
+def _record(record: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    if hasattr(record, "y"):
+        return record.u, record.y, getattr(record, "x_true", None)
+    if isinstance(record, (tuple, list)) and len(record) in (2, 3):
+        return record[0], record[1], (record[2] if len(record) == 3 else None)
+    raise ModelError("falsifier: the record must have u and y (a Scenario, a Simulation) or "
+                     "be a tuple (u, y[, x_true])")
+
+
+def _factors(G: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Least-norm factors of ``G xi = v`` clipped to the search box."""
+    xi = np.linalg.lstsq(G, v, rcond=None)[0]
+    return np.clip(xi, -(1.0 - FACTOR_MARGIN), 1.0 - FACTOR_MARGIN)
+
+
+def _anchor(M: _Model, x_true: np.ndarray | None, stats: _Stats, max_iter: int) -> _Point:
+    """A verified consistent trajectory of the whole record: the truth where given (its
+    factors recovered by least squares, clipped into the margin), repaired or found by the
+    phase-1 SLP (elastic model, from the centre of X0 without disturbances) otherwise."""
+    k = M.N - 1
+    search = _Search(M, k, M.N, 0, stats, max_iter, elastic=True)
+    if x_true is not None:
+        X = np.asarray(x_true, dtype=float)
+        if X.shape != (M.N, M.n) or not np.all(np.isfinite(X)):
+            raise ModelError(f"falsifier: x_true has shape {X.shape}, expected ({M.N}, {M.n})")
+        xi0 = _factors(M.G0, X[0] - M.c0)
+        with np.errstate(all="ignore"):
+            D = np.array([X[j + 1] - M.f(X[j], j) - M.cW for j in range(k)]).reshape(k, M.n)
+        omega = np.linalg.lstsq(M.GW, D.T, rcond=None)[0].T.reshape(k, M.pW)
+        omega = np.clip(np.nan_to_num(omega), -(1 - FACTOR_MARGIN), 1 - FACTOR_MARGIN)
+    else:
+        xi0, omega = np.zeros(M.p0), np.zeros((k, M.pW))
+    start = search.evaluate(Trajectory(xi0, omega, np.zeros((M.N, M.pV))))
+    if start.consistent:
+        return start
+    p = search.feasible(start)
+    if not p.consistent:
+        raise ModelError("falsifier: no consistent trajectory of the record was found (the "
+                         f"measurement factors exceed their bound by {p.excess:.3g} in sum)")
+    return p
+
+
+def _window_start(k: int, n: int, window: int | str | None) -> int:
+    if window is None:
+        return 0
+    if window == "auto":
+        window = max(1, AUTO_STATES // max(n, 1) - 1)
+    return max(0, k - int(window))
+
+
+def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
+            hulls: Mapping[str, Any] | None = None, *, starts: int = 1, seed: int = 0,
+            floor: str = "filtered", window: int | str | None = "auto",
+            hull_tol: float | Mapping[str, float] = 0.0, max_iter: int = MAX_ITER,
+            keep_trajectories: bool = True) -> FalsifierResult:
+    """Search verified consistent extremes of every state at the chosen steps.
+
+    Parameters
+    ----------
+    system : NonlinearSystem or LinearSystem
+        ``f`` (or ``A, B``), ``C`` (or ``h``), ``W``, ``V``, ``X0``.
+    record : Scenario, Simulation or tuple
+        ``u``, ``y`` and, where known, ``x_true`` (the anchor of the search).
+    steps : int or sequence of int
+        The steps ``k`` (0-based) searched, or a count spread over the record
+        (:func:`spread_steps`).
+    hulls : mapping, optional
+        Observer name -> its hulls (an object with ``lo``, ``hi``, e.g. a ``RunResult``, or
+        a pair ``(lo, hi)``, N x n) to check (:meth:`FalsifierResult.check`).
+    starts : int
+        SLP runs per objective (>= 1), see the module docstring.
+    seed : int
+        Seed of the random directions of the extra starts.
+    floor : {"filtered", "predicted"}
+        Reproduce ``y_0 .. y_k`` (the set after ``y_k``, against which every observer is
+        held) or ``y_0 .. y_{k-1}`` (before ``y_k``: only for observers whose estimate of
+        step ``k`` does not use ``y_k``; a larger set, so a larger inner box).
+    window : int, "auto" or None
+        Disturbances free over the last ``window`` steps before ``k`` (earlier ones stay at
+        the anchor's; ``x_0`` is always free); None: the whole horizon; "auto": the whole
+        horizon while ``(k + 1) n <= AUTO_STATES``.
+    hull_tol : float or mapping
+        The hulls' own absolute tolerance (per observer in a mapping).
+    max_iter : int
+        SLP iterations per run.
+    keep_trajectories : bool
+        Keep the verified extreme trajectories in the result.
+
+    Returns
+    -------
+    FalsifierResult
+    """
+    if floor not in FLOORS:
+        raise ModelError(f"falsifier: floor must be one of {', '.join(FLOORS)}, got {floor!r}")
+    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or starts < 1:
+        raise ModelError(f"falsifier: starts must be an integer >= 1, got {starts!r}")
+    if not (window is None or window == "auto" or (
+            isinstance(window, (int, np.integer)) and not isinstance(window, bool)
+            and window >= 1)):
+        raise ModelError(f"falsifier: window must be an integer >= 1, 'auto' or None, "
+                         f"got {window!r}")
+    t0 = time.perf_counter()
+    u, y, x_true = _record(record)
+    M = _Model(system, u, y)
+    if isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
+        steps = spread_steps(M.N, int(steps))
+    steps = np.unique(np.asarray(steps, dtype=int).reshape(-1))
+    if steps.size == 0 or steps.min() < 0 or steps.max() >= M.N:
+        raise ModelError(f"falsifier: steps must lie in 0 .. {M.N - 1}, got {steps.tolist()}")
+    n = M.n
+    scale = np.maximum(np.abs(M.G0).sum(axis=1), 1e-12)  # radii of X0's hull
+    stats = _Stats()
+    anchor = _anchor(M, x_true, stats, 5 * max_iter)
+    rng = np.random.default_rng(seed)
+    S = steps.size
+    lo, hi = np.full((S, n), np.nan), np.full((S, n), np.nan)
+    lo_tr: list = [[None] * n for _ in range(S)]
+    hi_tr: list = [[None] * n for _ in range(S)]
+    for s, k in enumerate(steps.tolist()):
+        m = k + 1 if floor == "filtered" else k
+        search = _Search(M, k, m, _window_start(k, n, window), stats, max_iter)
+        start = search.evaluate(anchor.z.truncated(k, m))
+        if not start.consistent:  # the prefix of a verified anchor: cannot happen
+            raise ModelError(f"falsifier: the anchor is not consistent at step {k}")
+        objectives = [(i, sgn) for sgn in (1.0, -1.0) for i in range(n)]
+        finals = {}
+        for i, sgn in objectives:
+            c = np.zeros(n)
+            c[i] = sgn / scale[i]
+            finals[i, sgn] = search.run(start, c)
+        if starts > 1:
+            for _ in range(starts - 1):
+                d = rng.standard_normal(n)
+                search.run(start, d / np.linalg.norm(d) / scale)
+            for i, sgn in objectives:
+                tried = {id(start), id(finals[i, sgn])}
+                ranked = sorted(search.pool, key=lambda p, i=i, sgn=sgn: -sgn * p.X[k][i])
+                c = np.zeros(n)
+                c[i] = sgn / scale[i]
+                for p in [p for p in ranked if id(p) not in tried][:starts - 1]:
+                    search.run(p, c)
+        verified = np.isfinite(search.lo)
+        lo[s, verified], hi[s, verified] = search.lo[verified], search.hi[verified]
+        if keep_trajectories:
+            lo_tr[s], hi_tr[s] = search.lo_traj, search.hi_traj
+    result = FalsifierResult(
+        steps=steps, inner_lo=lo, inner_hi=hi,
+        lo_trajectories=lo_tr if keep_trajectories else [],
+        hi_trajectories=hi_tr if keep_trajectories else [],
+        floor=floor, anchor=anchor.z,
+        stats={"seconds": time.perf_counter() - t0, **vars(stats)})
+    if hulls:
+        result.add_hulls(hulls, hull_tol)
+    return result
