@@ -197,11 +197,17 @@ def _exact_hull(system, u, y, k: int, m: int) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-@pytest.mark.parametrize("name, floor", [("tank6-linear", "filtered"),
-                                         ("tank6-linear", "predicted"),
-                                         ("vehicle2d-sim", "filtered")])
-def test_inner_box_reaches_the_exact_hull_of_a_linear_record(name, floor):
-    sc = systems.scenario(name, steps=60)
+@pytest.mark.parametrize("name, floor, noise", [("tank6-linear", "filtered", "uniform"),
+                                                ("tank6-linear", "predicted", "uniform"),
+                                                ("vehicle2d-sim", "filtered", "uniform"),
+                                                ("tank6-linear", "filtered", "vertex")])
+def test_inner_box_reaches_the_exact_hull_of_a_linear_record(name, floor, noise):
+    """Also on noise at the vertices of W, V and X0 (the audit's adversarial records): their
+    consistent set has no interior and only polished LP solutions verify; there the extremes
+    are ill-conditioned (the reference LP's optimum itself exceeds V by ~7e-9 when simulated,
+    which moves x3 of step 10 by 1 % of its radius), hence the looser shortfall bound."""
+    sc = systems.scenario(name, steps=60, noise=noise)
+    short = 2e-2 if noise == "vertex" else 1e-3
     steps = [10, 35, 59]
     res = falsify(sc.system, sc, steps=steps, floor=floor)
     for s, k in enumerate(steps):
@@ -209,8 +215,8 @@ def test_inner_box_reaches_the_exact_hull_of_a_linear_record(name, floor):
         r = 0.5 * (hi - lo)
         slack = 1e-7 * r + 1e-9 * np.maximum(1.0, np.abs(hi))  # the reference LP's tolerance
         assert np.all(res.inner_lo[s] >= lo - slack) and np.all(res.inner_hi[s] <= hi + slack)
-        assert np.all(res.inner_lo[s] - lo <= 1e-3 * r), (k, (res.inner_lo[s] - lo) / r)
-        assert np.all(hi - res.inner_hi[s] <= 1e-3 * r), (k, (hi - res.inner_hi[s]) / r)
+        assert np.all(res.inner_lo[s] - lo <= short * r), (k, (res.inner_lo[s] - lo) / r)
+        assert np.all(hi - res.inner_hi[s] <= short * r), (k, (hi - res.inner_hi[s]) / r)
 
 
 # -- further properties ---------------------------------------------------------------------

@@ -98,6 +98,7 @@ from typing import Any
 import highspy
 import numpy as np
 from scipy import sparse
+from scipy.optimize import linprog
 
 from observers.sets.highs import new_highs
 from systems.errors import ModelError
@@ -106,10 +107,20 @@ from systems.errors import ModelError
 FACTOR_MARGIN = 1e-9
 #: factors of V are kept within 1 - NOISE_MARGIN (LP tolerance + linearisation error)
 NOISE_MARGIN = 1e-7
+#: rounding allowance of the verification on the factors of V (those of X0 and W are the
+#: trajectory's own numbers and are checked exactly): the measurements and the simulated
+#: outputs carry the rounding of the simulation (a record with noise on the vertices of V,
+#: e.g. the audit's, has |v| = r_V exactly and no consistent trajectory strictly inside)
+VERIFY_TOL = 1e-9
 #: relative part of the tolerance of a violation (rounding of the forward simulation)
 REL_TOL = 1e-9
+#: measurement factors this close to 1 are held by :meth:`_Search.polish`, which runs on
+#: candidates beyond 1 by at most POLISH_EXCESS, with at most POLISH_SIZE gradient entries
+ACTIVE = 1e-6
+POLISH_EXCESS = 1e-6
+POLISH_SIZE = 4_000_000
 #: HiGHS primal and dual feasibility tolerance
-LP_TOL = 1e-9
+LP_TOL = 1e-10
 #: tolerance of the measurement equation residual after G_V^+ (non-square G_V only)
 EQ_TOL = 1e-12
 #: SLP iterations per run; second-order corrections per step
@@ -306,7 +317,9 @@ class _Model:
         nu, res = self.noise_factors(X, nu_ref)
         worst = {"X0": np.abs(xi0).max(initial=0.0), "W": np.abs(omega).max(initial=0.0),
                  "V": np.abs(nu).max(initial=0.0)}
-        reasons = [f"|factor of {key}| = {v!r} > 1" for key, v in worst.items() if not v <= 1.0]
+        bound = {"X0": 1.0, "W": 1.0, "V": 1.0 + VERIFY_TOL}
+        reasons = [f"|factor of {key}| = {v!r} > {bound[key]!r}" for key, v in worst.items()
+                   if not v <= bound[key]]
         scale = max(1.0, float(np.abs(self.y[:m]).max(initial=0.0)))
         if not res <= EQ_TOL * scale:
             reasons.append(f"measurement residual {res:.3g} after G_V^+")
@@ -349,7 +362,7 @@ class _Point:
     z: Trajectory
     X: np.ndarray
     nu: np.ndarray
-    excess: float  # sum of max(0, |nu| - (1 - NOISE_MARGIN))
+    excess: float  # sum of max(0, |nu| - (1 - margin of V in the search))
     consistent: bool
     _jac: np.ndarray | None = None
 
@@ -394,6 +407,8 @@ class _StepLP:
                          ("dual_feasibility_tolerance", LP_TOL)):
             self._h.setOptionValue(key, val)
         self._basis = None
+        self.margin = NOISE_MARGIN  # of the factors of V
+        self.factor_margin = FACTOR_MARGIN  # of those of X0 and W
         self.A: _Point | None = None
         self._delta: float | None = None
         self._all_rows = np.arange(self.nrow, dtype=np.int32)
@@ -447,7 +462,7 @@ class _StepLP:
                                      shape=(self.nrow, self.ncol))
         self.A = A
         inf = highspy.kHighsInf
-        bv = 1.0 - NOISE_MARGIN
+        bv = 1.0 - self.margin
         nuA = A.nu[:m].ravel()
         if self.elastic:
             nlo, nhi = np.full(m * M.pV, -bv), np.full(m * M.pV, bv)
@@ -475,13 +490,14 @@ class _StepLP:
             self._h.setBasis(self._basis)
 
     def trust(self, delta: float) -> None:
-        """Bound the factor columns to ``delta`` around ``A`` (and inside the margin)."""
+        """Bound the factor columns to ``delta`` around ``A`` and inside the margin (but
+        never so as to exclude ``A``)."""
         if delta == self._delta:
             return
-        b = 1.0 - FACTOR_MARGIN
+        b = 1.0 - self.factor_margin
         zA = self.factors(self.A)
-        self.col_lo[:self.nf] = np.maximum(-b, zA - delta)
-        self.col_hi[:self.nf] = np.minimum(b, zA + delta)
+        self.col_lo[:self.nf] = np.minimum(zA, np.maximum(-b, zA - delta))
+        self.col_hi[:self.nf] = np.maximum(zA, np.minimum(b, zA + delta))
         idx = np.arange(self.nf, dtype=np.int32)
         self._h.changeColsBounds(self.nf, idx, self.col_lo[:self.nf], self.col_hi[:self.nf])
         self._delta = delta
@@ -537,8 +553,8 @@ class _Search:
         if not np.all(np.isfinite(X)):
             return _Point(z, X, z.nu, math.inf, False)
         nu, res = M.noise_factors(X, z.nu)
-        excess = float(np.maximum(np.abs(nu) - (1.0 - NOISE_MARGIN), 0.0).sum())
-        ok = bool(np.abs(nu).max(initial=0.0) <= 1.0) and (
+        excess = float(np.maximum(np.abs(nu) - (1.0 - self.lp.margin), 0.0).sum())
+        ok = bool(np.abs(nu).max(initial=0.0) <= 1.0 + VERIFY_TOL) and (
             M.square_V or res <= EQ_TOL * max(1.0, float(np.abs(M.y).max())))
         # xi0 and omega lie inside their bounds by construction (clipped)
         p = _Point(Trajectory(z.xi0, z.omega, nu), X, nu, excess, ok)
@@ -556,22 +572,64 @@ class _Search:
             self.hi[i], self.hi_traj[i] = xk[i], p.z
 
     def candidate(self, col: np.ndarray) -> _Point:
-        """The trajectory of the LP's factors (clipped into the margin), simulated."""
+        """The trajectory of the LP's factors (clipped into their bounds), simulated."""
         M, lp, s = self.M, self.lp, self.s
-        b = 1.0 - FACTOR_MARGIN
-        zc = np.clip(col[:lp.nf], -b, b)
+        zc = np.clip(col[:lp.nf], -1.0, 1.0)  # within the LP's tolerance of its bounds
         omega = lp.A.z.omega.copy()
         omega[s:] = zc[M.p0:].reshape(self.k - s, M.pW)
         nu = col[lp.iNU:lp.iE].reshape(self.m, M.pV)
         return self.evaluate(Trajectory(zc[:M.p0], omega, nu))
 
+    def polish(self, P: _Point) -> _Point:
+        """Least-norm (Gauss-Newton) change of the free factors of X0 and W that brings the
+        measurement factors beyond 1 back to 1 and keeps those within ``ACTIVE`` of it: the
+        last ~1e-9 of an LP solution on a record whose consistent set has no interior (where
+        the rows' tolerance, accumulated along the dynamics, is all the room there is).
+        Gradients by an adjoint sweep through the Jacobians; skipped above POLISH_SIZE."""
+        M, k = self.M, self.k
+        for _ in range(3):
+            jj, ll = np.nonzero(np.abs(P.nu) > 1.0 - ACTIVE)
+            z = np.concatenate([P.z.xi0, P.z.omega.ravel()])
+            free = np.abs(z) < 1.0 - FACTOR_MARGIN / 2  # factors at a bound stay there
+            if jj.size == 0 or jj.size * free.sum() > POLISH_SIZE:
+                return P
+            target = 1.0 - 1e-12
+            e = P.nu[jj, ll] - np.clip(P.nu[jj, ll], -target, target)
+            A = np.array([-(M.GV_pinv[l] @ M.H(P.X[j])) for j, l in zip(jj, ll, strict=True)])
+            Gz = np.zeros((jj.size, z.size))
+            Lam = np.zeros((M.n, jj.size))
+            for t in range(int(jj.max()), -1, -1):
+                sel = jj == t
+                Lam[:, sel] = A[sel].T
+                if t > 0:
+                    Gz[:, M.p0 + (t - 1) * M.pW: M.p0 + t * M.pW] = (M.GW.T @ Lam).T
+                    Lam = M.jacobian(P.X[t - 1], t - 1).T @ Lam
+                else:
+                    Gz[:, :M.p0] = (M.G0.T @ Lam).T
+            Gf = Gz[:, free]
+            try:
+                dz = -Gf.T @ np.linalg.lstsq(Gf @ Gf.T, e, rcond=1e-13)[0]
+            except np.linalg.LinAlgError:
+                return P
+            z[free] = np.clip(z[free] + dz, -1.0, 1.0)
+            Q = self.evaluate(Trajectory(z[:M.p0], z[M.p0:].reshape(k, M.pW), P.nu))
+            if Q.consistent or not Q.excess < P.excess:
+                return Q if Q.consistent else P
+            P = Q
+        return P
+
     def corrected(self, P: _Point, cost: np.ndarray) -> _Point:
         """Second-order corrections of an inconsistent candidate (same model and basis,
-        right-hand sides moved by the remainder at the last candidate)."""
+        right-hand sides moved by the remainder at the last candidate), and a final
+        :meth:`polish` when it misses by a hair."""
         lp = self.lp
         for _ in range(SOC_STEPS):
             if P.consistent or not np.all(np.isfinite(P.X)):
                 break
+            if np.abs(P.nu).max() <= 1.0 + POLISH_EXCESS:
+                Q = self.polish(P)
+                if Q.consistent:
+                    return Q
             self.stats.corrections += 1
             lp.set_rhs(lp.activity(P))
             col = lp.solve(cost)
@@ -632,25 +690,30 @@ class _Search:
         return cur
 
     def feasible(self, start: _Point) -> _Point:
-        """Phase 1 (elastic model, zero objective): a consistent trajectory near ``start``."""
-        lp, cur, delta = self.lp, start, DELTA0
+        """Phase 1 (elastic model, zero objective): a consistent trajectory near ``start``;
+        with the margins first, then without them (a record whose consistent set has no
+        point strictly inside them, e.g. with noise and x_0 on the vertices of their sets)."""
+        lp, cur = self.lp, start
         cost = np.zeros(lp.ncol)
         cost[lp.iE:] = 1.0
-        lp.load(cur, delta)
-        for _ in range(self.max_iter):
-            if cur.consistent:
-                return cur
-            lp.trust(delta)
-            lp.set_rhs(lp.activity(cur))
-            col = lp.solve(cost)
-            P = None if col is None else self.corrected(self.candidate(col), cost)
-            if P is None or not P.excess < cur.excess:
-                delta *= 0.25
-                if delta < 1e-9:
-                    break
-                continue
-            cur = P
+        for margin, factor_margin in ((NOISE_MARGIN, FACTOR_MARGIN), (0.0, 0.0)):
+            lp.margin, lp.factor_margin, delta = margin, factor_margin, DELTA0
+            cur = self.evaluate(cur.z)  # its excess over the new margin
             lp.load(cur, delta)
+            for _ in range(self.max_iter):
+                if cur.consistent:
+                    return cur
+                lp.trust(delta)
+                lp.set_rhs(lp.activity(cur))
+                col = lp.solve(cost)
+                P = None if col is None else self.corrected(self.candidate(col), cost)
+                if P is None or not (P.consistent or P.excess < cur.excess):
+                    delta *= 0.25
+                    if delta < 1e-9:
+                        break
+                    continue
+                cur = P
+                lp.load(cur, delta)
         return cur
 
 
@@ -812,14 +875,33 @@ def _record(record: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 
 
 def _factors(G: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Least-norm factors of ``G xi = v`` clipped to the search box."""
+    """Least-norm factors of ``G xi = v`` clipped to the unit box."""
     xi = np.linalg.lstsq(G, v, rcond=None)[0]
-    return np.clip(xi, -(1.0 - FACTOR_MARGIN), 1.0 - FACTOR_MARGIN)
+    return np.clip(np.nan_to_num(xi), -1.0, 1.0)
+
+
+def _noise_reference(M: _Model, X: np.ndarray) -> np.ndarray:
+    """Factors of the measurement noise of the states ``X``: for a non-square ``G_V`` the
+    least-norm ones may leave the unit box where a solution inside exists, so each is the
+    smallest in the infinity norm (an LP per measurement)."""
+    R = M.y - M.outputs(X) - M.cV
+    if M.square_V:
+        return R @ M.GV_pinv.T
+    p = M.pV
+    cost = np.r_[np.zeros(p), 1.0]
+    A_ub = np.block([[np.eye(p), -np.ones((p, 1))], [-np.eye(p), -np.ones((p, 1))]])
+    out = np.empty((M.N, p))
+    for j, r in enumerate(R):
+        sol = linprog(cost, A_ub=A_ub, b_ub=np.zeros(2 * p),
+                      A_eq=np.hstack([M.GV, np.zeros((M.ny, 1))]), b_eq=r,
+                      bounds=[(None, None)] * p + [(0, None)], method="highs")
+        out[j] = sol.x[:p] if sol.status == 0 else M.GV_pinv @ r
+    return out
 
 
 def _anchor(M: _Model, x_true: np.ndarray | None, stats: _Stats, max_iter: int) -> _Point:
     """A verified consistent trajectory of the whole record: the truth where given (its
-    factors recovered by least squares, clipped into the margin), repaired or found by the
+    factors recovered by least squares, clipped into their bounds), repaired or found by the
     phase-1 SLP (elastic model, from the centre of X0 without disturbances) otherwise."""
     k = M.N - 1
     search = _Search(M, k, M.N, 0, stats, max_iter, elastic=True)
@@ -831,10 +913,11 @@ def _anchor(M: _Model, x_true: np.ndarray | None, stats: _Stats, max_iter: int) 
         with np.errstate(all="ignore"):
             D = np.array([X[j + 1] - M.f(X[j], j) - M.cW for j in range(k)]).reshape(k, M.n)
         omega = np.linalg.lstsq(M.GW, D.T, rcond=None)[0].T.reshape(k, M.pW)
-        omega = np.clip(np.nan_to_num(omega), -(1 - FACTOR_MARGIN), 1 - FACTOR_MARGIN)
+        omega = np.clip(np.nan_to_num(omega), -1.0, 1.0)
+        nu = _noise_reference(M, X)
     else:
-        xi0, omega = np.zeros(M.p0), np.zeros((k, M.pW))
-    start = search.evaluate(Trajectory(xi0, omega, np.zeros((M.N, M.pV))))
+        xi0, omega, nu = np.zeros(M.p0), np.zeros((k, M.pW)), np.zeros((M.N, M.pV))
+    start = search.evaluate(Trajectory(xi0, omega, nu))
     if start.consistent:
         return start
     p = search.feasible(start)
@@ -926,6 +1009,11 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
         start = search.evaluate(anchor.z.truncated(k, m))
         if not start.consistent:  # the prefix of a verified anchor: cannot happen
             raise ModelError(f"falsifier: the anchor is not consistent at step {k}")
+        if (np.abs(start.nu).max(initial=0.0) > 1.0 - NOISE_MARGIN / 10
+                or np.abs(search.lp.factors(start)).max(initial=0.0) > 1.0 - FACTOR_MARGIN / 10):
+            # an anchor inside the margins (noise on the vertices of its sets): its consistent
+            # set may have no interior, where margins would cut it; the polish does the rest
+            search.lp.margin = search.lp.factor_margin = 0.0
         objectives = [(i, sgn) for sgn in (1.0, -1.0) for i in range(n)]
         finals = {}
         for i, sgn in objectives:
@@ -956,3 +1044,66 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     if hulls:
         result.add_hulls(hulls, hull_tol)
     return result
+
+
+# -- command line: measurements -------------------------------------------------------------
+def _main(argv: Sequence[str] | None = None) -> int:
+    """``python -m benchmarks.gate.falsifier SCENARIO``: run observers on a scenario, falsify
+    their hulls at steps spread over the record, print the inner box's RMS radii, the
+    violations, the gap upper bounds and the cost (a measurement tool; the harness calls
+    :func:`falsify`)."""
+    import argparse
+
+    import observers
+    import systems
+
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.gate.falsifier",
+                                 description=_main.__doc__.split(":", 1)[1].strip())
+    ap.add_argument("scenario")
+    ap.add_argument("--observers", default="all",
+                    help="comma-separated names, or 'all' (the guaranteed observers that "
+                         "accept the system)")
+    ap.add_argument("--steps", type=int, default=10, help="steps searched (default 10)")
+    ap.add_argument("--first", type=float, default=0.2,
+                    help="first searched step as a fraction of the record (default 0.2)")
+    ap.add_argument("--floor", choices=FLOORS, default="filtered")
+    ap.add_argument("--window", default="auto", help="an integer, 'auto' or 'none'")
+    ap.add_argument("--starts", type=int, default=1)
+    args = ap.parse_args(argv)
+    window = None if args.window == "none" else (
+        "auto" if args.window == "auto" else int(args.window))
+    sc = systems.scenario(args.scenario)
+    names = ([i.name for i in observers.available() if i.guaranteed]
+             if args.observers == "all" else args.observers.split(","))
+    hulls = {}
+    for name in names:
+        info = observers.get(name)
+        allowed = info.option_defaults() if info.scenario_options is None else (
+            info.scenario_options)
+        try:
+            obs = observers.create(name, sc.system,
+                                   **{k: v for k, v in sc.options.items() if k in allowed})
+        except (observers.Unsupported, observers.DesignFailed, observers.OptionError):
+            continue
+        hulls[name] = observers.run(obs, sc.u, sc.y, keep_sets=False, on_error="status")
+    steps = spread_steps(sc.N, args.steps, int(args.first * sc.N))
+    res = falsify(sc.system, sc, steps=steps, hulls=hulls, starts=args.starts,
+                  floor=args.floor, window=window)
+    st = res.stats
+    print(f"{sc.name}: steps {steps.tolist()}, floor {res.floor}, window {args.window}, "
+          f"starts {args.starts}: {st['seconds']:.2f} s, {st['lps']} LPs, {st['loads']} "
+          f"models, {st['corrections']} corrections, {st['runs']} runs")
+    rms = np.sqrt(np.mean(res.inner_radius ** 2, axis=0))
+    print("inner box RMS radii: " + " ".join(f"{r:.4g}" for r in rms))
+    for name, gap in res.gap_upper.items():
+        bad = sum(v.observer == name for v in res.violations)
+        print(f"{name:>12}: gap <= {np.mean(gap):.3g} (states: "
+              + " ".join(f"{g:.3g}" for g in gap) + f"); violations: {bad}")
+    for v in res.violations[:20]:
+        print(f"  {v.observer} step {v.step} x{v.state + 1} {v.side}: consistent {v.value:.9g} "
+              f"outside {v.bound:.9g} by {v.excess:.3g}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())
