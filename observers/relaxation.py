@@ -3,7 +3,7 @@
 After Rego, Raffo, Terra, Scott, "Set-based state estimation of nonlinear discrete-time
 systems using constrained zonotopes and polyhedral relaxations" (arXiv 2504.00130, 2025):
 a function written with sums, products, quotients, integer powers and ``sqrt, exp, log, sin,
-cos`` is split into a sequence of elementary operations (its *factorable representation*,
+cos`` (and ``atan``) is split into a sequence of elementary operations (its *factorable representation*,
 :class:`Factorable`, built once from the sympy expressions of :mod:`systems.derivatives`).
 Over a constrained zonotope ``Z = {c + G xi : A xi = b, |xi| <= 1}`` and a box ``B``
 containing it, every intermediate value of a nonlinear operation gets a variable ``z`` in its
@@ -12,10 +12,10 @@ inequalities that hold on its graph (:func:`relax_unary`, :func:`relax_product`)
 
 * products ``z = a b``: the four McCormick inequalities over the argument boxes;
 * convex (concave) univariate operations on their interval (``exp``; ``log`` and ``sqrt``
-  concave; ``1/a`` and ``a^k`` by sign and parity; ``sin`` and ``cos`` where the interval
-  contains no inflection point): the secant above (below) and tangents at both ends and the
+  concave; ``1/a``, ``a^k`` and ``atan`` by sign and parity; ``sin`` and ``cos`` where the
+  interval contains no inflection point): the secant above (below) and tangents at both ends and the
   midpoint below (above);
-* otherwise (``sin``, ``cos`` or an odd power across an inflection point): the tangent at the
+* otherwise (``sin``, ``cos``, ``atan`` or an odd power across an inflection point): the tangent at the
   midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over the interval
   (Taylor's and the interpolation remainder: ``M rho^2 / 2`` and ``M (u - l)^2 / 8``).
 
@@ -32,7 +32,7 @@ Soundness in floating point: each inequality's offset is moved outward by a rela
 are rounded up, and the intervals come from the outward-rounded arithmetic of
 :mod:`observers.sets.interval_arith`; a box leaving a function's domain raises
 :class:`~observers.errors.Diverged`.  Supported: ``+ - *``, ``/``, integer and half-integer
-powers, ``sqrt, exp, log, sin, cos``; anything else is refused when the estimator is built.
+powers, ``sqrt, exp, log, sin, cos, atan``; anything else is refused when the estimator is built.
 """
 
 from __future__ import annotations
@@ -57,9 +57,12 @@ _UNARY = {
     "sin": (np.sin, np.cos, lambda a: -np.sin(a)),
     "cos": (np.cos, lambda a: -np.sin(a), lambda a: -np.cos(a)),
     "recip": (lambda a: 1.0 / a, lambda a: -1.0 / a ** 2, lambda a: 2.0 / a ** 3),
+    "atan": (np.arctan, lambda a: 1.0 / (1.0 + a * a), lambda a: -2.0 * a / (1.0 + a * a) ** 2),
 }
+#: bound of |atan''| on the real line: 3 sqrt(3) / 8 at a = +-1/sqrt(3) (rounded up)
+_ATAN_M2 = 0.6496
 _IVAL = {"exp": ia.exp, "log": ia.log, "sqrt": ia.sqrt, "sin": ia.sin, "cos": ia.cos,
-         "recip": lambda a: a.reciprocal()}
+         "atan": ia.arctan, "recip": lambda a: a.reciprocal()}
 
 
 @dataclass(frozen=True)
@@ -145,11 +148,11 @@ class Factorable:
                     a = self._add(Node("pow", (a,), float(abs(q))))
                 return a if q > 0 else self._add(Node("recip", (a,)))
             raise Unsupported(f"{self.what}: no polyhedral relaxation of the power {p}")
-        for name in ("exp", "log", "sin", "cos"):
+        for name in ("exp", "log", "sin", "cos", "atan"):
             if isinstance(e, getattr(sp, name)):
                 return self._add(Node(name, (self._node(e.args[0]),)))
         raise Unsupported(f"{self.what}: no polyhedral relaxation of {type(e).__name__} "
-                          "(supported: + - * /, powers, sqrt, exp, log, sin, cos)")
+                          "(supported: + - * /, powers, sqrt, exp, log, sin, cos, atan)")
 
     @property
     def nonlinear_count(self) -> int:
@@ -214,6 +217,9 @@ def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, 
             shape = "concave"
         elif kind == "recip":
             shape = "convex" if lo > 0 else "concave"
+        elif kind == "atan":  # convex on a <= 0, concave on a >= 0
+            shape = "convex" if hi <= 0 else "concave" if lo >= 0 else "generic"
+            m2 = _ATAN_M2
         else:  # sin, cos: phi'' = -phi
             s = ia.sin(Ival(lo, hi)) if kind == "sin" else ia.cos(Ival(lo, hi))
             shape = "convex" if s.hi <= 0 else "concave" if s.lo >= 0 else "generic"

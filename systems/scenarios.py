@@ -319,15 +319,15 @@ def rego2d_linear_sim(seed: int = 0, noise: str = "uniform", steps: int = 30) ->
 
 
 def robot_range_sim(seed: int = 0, noise: str = "uniform", steps: int = 150) -> Scenario:
-    """Unicycle localised by ranges to four beacons (:mod:`systems.robot`), driven round a
-    loop from ``(3, 2, 0)``."""
+    """Unicycle localised by ranges to four beacons and one bearing (:mod:`systems.robot`),
+    driven round a loop from ``(2.5, 2.5, 0)``."""
     system = robot()
     sim = simulate(system, loop_input(steps), seed=seed, noise=noise, x0=X0_CENTRE)
     return _make(
         name="robot-range", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
         options={"order": 10, "reduction": "girard", "max_generators": 30,
                  "max_constraints": 8},
-        description=f"unicycle with range measurements to 4 beacons, simulated ({noise} "
+        description=f"unicycle with 4 beacon ranges and 1 bearing, simulated ({noise} "
                     f"noise, seed {seed})",
         source="systems/robot.py (parameters chosen here); record simulated here",
         state_names=("px", "py", "theta"),
