@@ -114,7 +114,6 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         "enclosure_box": Choice("zonotope", ENCLOSURE_BOXES),
         "max_constraints": Integer("auto", low=0, allow_none=True, special=("auto",)),
         "max_generators": Integer(None, low=1, allow_none=True),
-        "_mid": True,
         "hull_solver": Choice("auto", HullLP.SOLVERS),
         "margin": Number(1e-7, low=0, high=1e-3, high_open=True),
     }
@@ -221,50 +220,69 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         L = ops._regress(G, A)
         return c + L @ b, G - L @ A, A, b
 
+    def lp_rescale(self, c, G, A, b):
+        """The same set with the generator box shrunk to the bounds of each ``xi_j`` over the
+        feasible set, from 2r LPs (Scott et al. 2016, Sec. 4.2; each bound is the sound
+        weak-duality bound of a dual point, so the substitution keeps the set)."""
+        nc, r = A.shape
+        if nc == 0:
+            return c, G, A, b
+        t0 = perf_counter()
+        eye = np.eye(r)
+        ub = self._lp.maximize_many(np.vstack([eye, -eye]), A, b)
+        self.phase_times["hull"] += perf_counter() - t0
+        hi, lo = np.minimum(ub[:r], 1.0), np.maximum(-ub[r:], -1.0)
+        if np.any(lo > hi):
+            return c, G, A, b  # empty (or numerically so): the hull LPs will report it
+        mid, rad = 0.5 * (hi + lo), np.nextafter(0.5 * (hi - lo), np.inf)
+        rad = np.minimum(np.maximum(rad, np.maximum(hi - mid, mid - lo)), 1.0)
+        return c + G @ mid, G * rad, A * rad, b - A @ mid
+
     def limit(self, c, G, A, b):
-        """Bound the constraints (:func:`~observers.sets.conzono_ops.fold_constraints`) and,
-        with ``max_generators``, the generators (lifted reduction)."""
+        """Bound the constraints (:func:`~observers.sets.conzono_ops.fold_constraints`, after
+        :meth:`lp_rescale` with ``enclosure_box="hull"``) and, with ``max_generators``, the
+        generators (lifted reduction)."""
+        if self._hull_box and A.shape[0] > self.max_constraints:
+            c, G, A, b = self.lp_rescale(c, G, A, b)
         c, G, A, b = ops.fold_constraints(c, G, A, b, self.max_constraints)
         if self.max_generators is not None and G.shape[1] > self.max_generators:
             order = self.max_generators / (G.shape[0] + A.shape[0])
             c, G, A, b = ops.lifted_reduce(c, G, A, b, order, self._reduce, per="lifted")
         return c, G, A, b
 
+    def _timed(self, phase: str, fn, *args):
+        """``fn(*args)``, its time added to ``phase_times[phase]`` less the hulls inside."""
+        times = self.phase_times
+        h0, t0 = times["hull"], perf_counter()
+        out = fn(*args)
+        times[phase] += perf_counter() - t0 - (times["hull"] - h0)
+        return out
+
+    def _update(self, c, G, A, b, y):
+        return self.reparametrise(*self.update(c, G, A, b, y))
+
     def step(self, u_prev, y) -> ConZonotope:
         y = self._measurement(y)
-        times = self.phase_times
-        hull0 = times["hull"]
+        timed = self._timed
         if self._state is None:  # X0 intersected with y[0], not reduced (as CORA)
-            t0 = perf_counter()
             G0 = self.X0.G
-            c, G, A, b = self.reparametrise(*self.update(
-                self.X0.c, G0, np.zeros((0, G0.shape[1])), np.zeros(0), y))
-            times["update"] += perf_counter() - t0 - (times["hull"] - hull0)
+            c, G, A, b = timed("update", self._update, self.X0.c, G0,
+                               np.zeros((0, G0.shape[1])), np.zeros(0), y)
         else:
             u = self._input(u_prev)
-            c, G, A, b = self._state
-            t0 = perf_counter()
-            c, G, A, b = self.predict(c, G, A, b, u)
-            t1, h1 = perf_counter(), times["hull"]
+            c, G, A, b = timed("prediction", self.predict, *self._state, u)
             if self.max_constraints is None:  # CORA: intersect, then reduce
-                c, G, A, b = self.reparametrise(*self.update(c, G, A, b, y))
-                t2, h2 = perf_counter(), times["hull"]
-                c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
-                t3 = perf_counter()
-                times["update"] += t2 - t1 - (h2 - h1)
-                times["reduction"] += t3 - t2
+                c, G, A, b = timed("update", self._update, c, G, A, b, y)
+                c, G, A, b = timed("reduction", ops.lifted_reduce, c, G, A, b, self.order,
+                                   self._reduce)
             else:  # reduce the prediction, intersect exactly, fold the oldest constraints
                 if self.max_generators is None:
-                    c, G, A, b = ops.lifted_reduce(c, G, A, b, self.order, self._reduce)
-                elif self.options.get("_mid", True):
-                    c, G, A, b = self.limit(c, G, A, b)
-                t2 = perf_counter()
-                c, G, A, b = self.reparametrise(*self.update(c, G, A, b, y))
-                t3, h3 = perf_counter(), times["hull"]
-                c, G, A, b = self.limit(c, G, A, b)
-                times["update"] += t3 - t2 - (h3 - h1)
-                times["reduction"] += (t2 - t1) + (perf_counter() - t3)
-            times["prediction"] += t1 - t0 - (h1 - hull0)
+                    c, G, A, b = timed("reduction", ops.lifted_reduce, c, G, A, b,
+                                       self.order, self._reduce)
+                else:
+                    c, G, A, b = timed("reduction", self.limit, c, G, A, b)
+                c, G, A, b = timed("update", self._update, c, G, A, b, y)
+                c, G, A, b = timed("reduction", self.limit, c, G, A, b)
         self._state = (c, G, A, b)
         self.k += 1
         self._set = ConZonotope._trusted(c, G, A, b, self._lp)
