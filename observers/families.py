@@ -154,7 +154,9 @@ class LinearModelObserver(Observer):
         if not linear and not self.NONLINEAR:
             raise Unsupported(f"{who} needs a linear system (its gain is designed offline for "
                               "fixed A, B)")
-        self.output_linear = bool(getattr(s, "output_is_linear", True))
+        C_out = getattr(s, "output_matrix", None) if not getattr(
+            s, "output_is_linear", True) else None
+        self.output_linear = bool(getattr(s, "output_is_linear", True)) or C_out is not None
         if not self.output_linear and not self.NONLINEAR_OUTPUT:
             raise Unsupported(f"{who} needs a linear output y = C x + v")
         need = ("A", "B") if linear else ("f", "jacobian", "hessian")
@@ -172,8 +174,8 @@ class LinearModelObserver(Observer):
             self.A = np.asarray(s.jacobian(as_zonotope(s.X0, "X0").c, np.zeros(s.nu))[0])
             self.B = np.zeros((s.n, s.nu))
         self.X0 = as_zonotope(s.X0, "X0")
-        if self.output_linear:
-            self.C = np.asarray(s.C, dtype=float)
+        if self.output_linear:  # C, or the matrix of an h that is linear
+            self.C = np.asarray(s.C if C_out is None else C_out, dtype=float)
         else:  # until the first enclosure: the Jacobian of h at the centre of X0
             self.C = np.asarray(s.h_jacobian(self.X0.c), dtype=float)
             self._output = Smooth(s, "h")

@@ -284,6 +284,32 @@ class NonlinearSystem:
         return self._h is None
 
     @property
+    def output_matrix(self) -> np.ndarray | None:
+        """``C`` if the output is linear: the matrix ``C``, or, for an output function ``h``
+        without hand-given derivatives whose symbolic derivation shows ``h(x) = C x`` (no
+        second derivative, a constant Jacobian, ``h(0) = 0``), that Jacobian; else ``None``.
+        Observers use it to treat such an ``h`` exactly as the ``C`` path."""
+        if self._h is None:
+            return self._C
+        if self._h_jacobian is not None or self._h_hessian is not None:
+            return None
+        if not hasattr(self, "_h_linear"):
+            try:
+                d = self.derived_h
+            except ModelError:  # h cannot be traced symbolically: treat it as nonlinear
+                self._h_linear = None
+                return None
+            Jx = d.jacobian_expressions[0]
+            linear = not d.hessian_entries and not Jx.free_symbols
+            C = np.array(Jx.tolist(), dtype=float) if linear else None
+            if C is not None and np.any(self.h(np.zeros(self._n)) != 0.0):
+                C = None
+            if C is not None:
+                C.setflags(write=False)
+            self._h_linear = C
+        return self._h_linear
+
+    @property
     def C(self) -> np.ndarray:
         """Output matrix of a linear output; a nonlinear output raises
         :class:`~systems.errors.OutputNotLinear` (so ``hasattr(system, "C")`` is false)."""

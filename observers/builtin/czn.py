@@ -264,10 +264,13 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
     def step(self, u_prev, y) -> ConZonotope:
         y = self._measurement(y)
         timed = self._timed
-        if self._state is None:  # X0 intersected with y[0], not reduced (as CORA)
+        if self._state is None:  # X0 intersected with y[0], not reduced (as CORA) unless
+            # there is a generator limit
             G0 = self.X0.G
             c, G, A, b = timed("update", self._update, self.X0.c, G0,
                                np.zeros((0, G0.shape[1])), np.zeros(0), y)
+            if self.max_generators is not None:  # the limits hold at every step
+                c, G, A, b = timed("reduction", self.limit, c, G, A, b)
         else:
             u = self._input(u_prev)
             c, G, A, b = timed("prediction", self.predict, *self._state, u)
