@@ -13,8 +13,8 @@ inequalities that hold on its graph (:func:`relax_unary`, :func:`relax_product`)
 * products ``z = a b``: the four McCormick inequalities over the argument boxes;
 * convex (concave) univariate operations on their interval (``exp``; ``log`` and ``sqrt``
   concave; ``1/a``, ``a^k`` and ``atan`` by sign and parity; ``sin`` and ``cos`` where the
-  interval contains no inflection point): the secant above (below) and tangents at both ends and the
-  midpoint below (above);
+  interval contains no inflection point): the secant above (below) and the tangent at the
+  midpoint (optionally also at both ends) below (above);
 * otherwise (``sin``, ``cos``, ``atan`` or an odd power across an inflection point): the tangent at the
   midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over the interval
   (Taylor's and the interpolation remainder: ``M rho^2 / 2`` and ``M (u - l)^2 / 8``).
@@ -192,11 +192,13 @@ def _mag(*xs) -> float:
 
 
 def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, hi: float,
-                Z: tuple[float, np.ndarray], zlo: float, zhi: float, k: float = 0.0) -> str:
+                Z: tuple[float, np.ndarray], zlo: float, zhi: float, k: float = 0.0,
+                tangents: int = 1) -> str:
     """Inequalities linking ``z = phi(a)`` for the affine forms ``A`` (argument, in
     ``[lo, hi]``) and ``Z`` (result, in ``[zlo, zhi]``); returns the case used
     (``"convex"``, ``"concave"``, ``"generic"`` or ``"point"``).  ``kind`` is a name of
-    :data:`_UNARY` or ``"pow"`` (exponent ``k``)."""
+    :data:`_UNARY` or ``"pow"`` (exponent ``k``); a convex or concave operation gets its
+    secant and ``tangents`` tangents (1: at the midpoint; 3: also at both ends)."""
     m2 = 0.0  # bound of |phi''| (generic case only)
     if kind == "pow":
         ki = int(k)
@@ -238,7 +240,7 @@ def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, 
         # secant: sgn z <= sgn (fl + slope (a - lo))
         lift.le(sgn * (z0 - fl - slope * (a0 - lo)), sgn * (z - slope * a),
                 scale_base + abs(slope) * _mag(lo, hi))
-        for t in (lo, mid, hi):
+        for t in ((mid,) if tangents == 1 else (lo, mid, hi)):
             if kind in ("log", "sqrt", "recip") and t == 0.0:
                 continue
             ft, dt = f(t), df(t)
@@ -288,9 +290,10 @@ class Relaxation:
 
 
 def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-          u: np.ndarray) -> Relaxation:
+          u: np.ndarray, tangents: int = 1) -> Relaxation:
     """Lifted polyhedral relaxation of ``graph`` over ``{c + G xi : |xi| <= 1}`` (with its
-    constraints kept by the caller) and the box ``[lo, hi]`` containing the set."""
+    constraints kept by the caller) and the box ``[lo, hi]`` containing the set;
+    ``tangents`` as for :func:`relax_unary`."""
     n, r = G.shape
     nvar = r + graph.nonlinear_count
     lift = _Lift(nvar, r)
@@ -354,7 +357,7 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
             continue
         Z = lift.var(float(iv.lo), float(iv.hi))
         relax_unary(kind, lift, fa, float(ia_.lo), float(ia_.hi), Z, float(iv.lo),
-                    float(iv.hi), node.param)
+                    float(iv.hi), node.param, tangents)
         forms.append((None, Z, iv))
     m = len(graph.outputs)
     const, coef = np.zeros(m), np.zeros((m, nvar))
@@ -368,12 +371,12 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
     return Relaxation(const, coef, rows, np.array(lift.consts), lift.used)
 
 
-def relax_checked(graph, c, G, lo, hi, u, k=None) -> Relaxation:
+def relax_checked(graph, c, G, lo, hi, u, k=None, tangents: int = 1) -> Relaxation:
     """:func:`relax`, a domain violation (``1/0``, ``log`` or ``sqrt`` of a non-positive
     interval) reported as :class:`Diverged` at step ``k``."""
     try:
         with np.errstate(divide="raise", invalid="raise"):
-            return relax(graph, c, G, lo, hi, u)
+            return relax(graph, c, G, lo, hi, u, tangents)
     except (SetError, FloatingPointError) as exc:
         raise Diverged(f"polyhedral relaxation of {graph.what} left its domain over the "
                        f"estimate's box ({exc})", step=k) from None
