@@ -3,8 +3,9 @@
 After Rego, Raffo, Terra, Scott, "Set-based state estimation of nonlinear discrete-time
 systems using constrained zonotopes and polyhedral relaxations" (arXiv 2504.00130, 2025):
 a function written with sums, products, quotients, integer powers and ``sqrt, exp, log, sin,
-cos`` (and ``atan``) is split into a sequence of elementary operations (its *factorable representation*,
-:class:`Factorable`, built once from the sympy expressions of :mod:`systems.derivatives`).
+cos`` (and ``atan``) is split into a sequence of elementary operations (its *factorable
+representation*, :class:`Factorable`, built once from the sympy expressions of
+:mod:`systems.derivatives`).
 Over a constrained zonotope ``Z = {c + G xi : A xi = b, |xi| <= 1}`` and a box ``B``
 containing it, every intermediate value of a nonlinear operation gets a variable ``z`` in its
 interval (from interval arithmetic over ``B``) and the operation is replaced by linear
@@ -15,8 +16,8 @@ inequalities that hold on its graph (:func:`relax_unary`, :func:`relax_product`)
   concave; ``1/a``, ``a^k`` and ``atan`` by sign and parity; ``sin`` and ``cos`` where the
   interval contains no inflection point): the secant above (below) and the tangent at the
   midpoint (optionally also at both ends) below (above);
-* otherwise (``sin``, ``cos``, ``atan`` or an odd power across an inflection point): the tangent at the
-  midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over the interval
+* otherwise (``sin``, ``cos``, ``atan`` or an odd power across an inflection point): the
+  tangent at the midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over the interval
   (Taylor's and the interpolation remainder: ``M rho^2 / 2`` and ``M (u - l)^2 / 8``).
 
 Linear operations stay exact (affine forms of the variables).  Each inequality ``l(v) <= 0``
@@ -352,8 +353,8 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
         else:
             iv = _IVAL[kind](ia_)
         if ka is not None:
-            fn = (lambda a: a ** int(node.param)) if kind == "pow" else _UNARY[kind][0]
-            forms.append((float(fn(ka)), None, iv))
+            value = ka ** int(node.param) if kind == "pow" else _UNARY[kind][0](ka)
+            forms.append((float(value), None, iv))
             continue
         Z = lift.var(float(iv.lo), float(iv.hi))
         relax_unary(kind, lift, fa, float(ia_.lo), float(ia_.hi), Z, float(iv.lo),

@@ -11,17 +11,18 @@ Euler with step ``T``::
 
 the sensor model of most mobile-robot localisation (ultra-wideband or acoustic ranging to
 beacons at known positions), plus the bearing of one beacon relative to the heading (a camera
-or an antenna array; unwrapped, and valid while the beacon stays at larger ``x``, as it does on
-this loop).  Ranges alone leave the heading to be inferred from the motion; the F-radius
-observers then let its width grow without bound, which the bearing prevents.  Parameters' origin: they are chosen here, not taken from a
-paper: four beacons at the corners of a 10 m x 10 m room, ``T = 0.1`` s, a range error of at
-most 0.1 m (the order of the accuracy usually quoted for ultra-wideband ranging), a bearing
-error of at most 0.02 rad, odometry
-disturbances of 1 cm and 0.005 rad per step, and a 0.5 m x 0.5 m x 0.1 rad initial
+or an antenna array; unwrapped, and valid while the beacon stays at larger ``x``, as it does
+on this loop).  With ranges alone the heading is known only through the motion, and the
+F-radius observers then let its width grow without bound (measured: FRad-A and FRad-B end
+``diverged``); the bearing prevents that.
+
+Parameters' origin: they are chosen here, not taken from a paper: four beacons at the
+corners of a 10 m x 10 m room, ``T = 0.1`` s, a range error of at most 0.1 m (the order of
+the accuracy usually quoted for ultra-wideband ranging), a bearing error of at most 0.02 rad,
+odometry disturbances of 1 cm and 0.005 rad per step and a 0.5 m x 0.5 m x 0.1 rad initial
 uncertainty; the input drives the robot round a loop in the middle of the room at 1 m/s,
-so that the heading, which no sensor measures, becomes observable through the motion.  The derivatives
-are derived from the equations (:mod:`systems.derivatives`); a range is smooth away from its
-beacon.
+at least 2 m from every beacon.  The derivatives are derived from the equations
+(:mod:`systems.derivatives`); a range is smooth away from its beacon.
 """
 
 from __future__ import annotations

@@ -76,8 +76,8 @@ def test_derivatives_of_f_and_h_agree_with_finite_differences(name):
     for k in rng.choice(sc.N, 5, replace=False):
         x, u = sc.x_true[k], sc.u[k]
         for value, jac, hess in (
-                (lambda z: s.f(z, u), lambda z: s.jacobian(z, u)[0],
-                 lambda lo, hi: s.hessian(lo, hi, u)),
+                (lambda z, u=u: s.f(z, u), lambda z, u=u: s.jacobian(z, u)[0],
+                 lambda lo, hi, u=u: s.hessian(lo, hi, u)),
                 (s.h, s.h_jacobian, s.h_hessian)):
             J = jac(x)
             fd = np.column_stack([(value(x + eps * e) - value(x - eps * e)) / (2 * eps)

@@ -32,7 +32,6 @@ bound of a dual point, hence sound whatever the solver does.
 from __future__ import annotations
 
 from abc import abstractmethod
-
 from time import perf_counter
 
 import numpy as np
