@@ -17,8 +17,9 @@ inequalities that hold on its graph (:func:`relax_unary`, :func:`relax_product`)
   interval contains no inflection point): the secant above (below) and the tangent at the
   midpoint (optionally also at both ends) below (above);
 * otherwise (``sin``, ``cos``, ``atan`` or an odd power across an inflection point): the
-  tangent at the midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over the interval
-  (Taylor's and the interpolation remainder: ``M rho^2 / 2`` and ``M (u - l)^2 / 8``).
+  tangent at the midpoint and the secant, each widened by the bound ``M`` of ``|phi''|`` over
+  the interval (Taylor's and the interpolation remainder: ``M rho^2 / 2`` and
+  ``M (u - l)^2 / 8``).
 
 Linear operations stay exact (affine forms of the variables).  Each inequality ``l(v) <= 0``
 becomes the equality ``l(v) + s = 0`` with a slack ``s`` in ``[0, s_max]``, one generator
