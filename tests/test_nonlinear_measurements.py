@@ -301,3 +301,17 @@ def test_relaxation_domain_error_ends_the_run_as_diverged():
     sim = systems.simulate(s, np.zeros((2, 0)), seed=0, x0=[-3.8, 0.5])
     res = observers.run(observers.create("CZN-PR", s), sim.u, sim.y)
     assert res.status == "diverged" and "left its domain" in res.message
+
+
+# -- the README example ------------------------------------------------------------------------
+def test_readme_nonlinear_measurement_example_runs(capsys):
+    from pathlib import Path
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Nonlinear measurements", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    assert len(code.strip().splitlines()) <= 20
+    exec(compile(code, "README.md", "exec"), {"__name__": "readme"})
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [ln.split()[0] for ln in lines] == CZ_ESTIMATORS
+    assert all(" ok contained: True " in ln for ln in lines)
