@@ -40,6 +40,11 @@ from .sets.interval_arith import Ival
 
 _EPS = np.finfo(float).eps
 
+
+class NotDerivable(ValueError):
+    """The function cannot be traced symbolically (:mod:`systems` raises its ``ModelError``,
+    a ``ValueError``); the enclosures then use floating-point margins instead of intervals."""
+
 #: largest state dimension of the DC enclosure (2^n vertices per step)
 DC_MAX_STATES = 12
 
@@ -65,7 +70,13 @@ class Smooth:
 
     def jacobian_bounds(self, lo, hi, u):
         s = self.system
-        return s.jacobian_bounds(lo, hi, u) if self.what == "f" else s.h_jacobian_bounds(lo, hi)
+        try:
+            return (s.jacobian_bounds(lo, hi, u) if self.what == "f"
+                    else s.h_jacobian_bounds(lo, hi))
+        except Diverged:
+            raise
+        except ValueError as exc:  # the model cannot be derived (a ModelError)
+            raise NotDerivable(str(exc)) from None
 
     @property
     def derived(self):
@@ -76,7 +87,11 @@ class Smooth:
         """Interval enclosure (m x K) of the values over the K boxes ``[lo, hi]`` (n x K;
         points where ``lo == hi``), after the domain check."""
         self.system.check_domain(lo.min(axis=1), hi.max(axis=1))
-        return self.derived.value_bounds(lo, hi, u if self.what == "f" else np.zeros(0))
+        try:
+            derived = self.derived
+        except ValueError as exc:  # systems.ModelError: the model cannot be derived
+            raise NotDerivable(str(exc)) from None
+        return derived.value_bounds(lo, hi, u if self.what == "f" else np.zeros(0))
 
 
 def _box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,10 +114,28 @@ def _checked(J, d, rad, k):
 
 
 def _centre_terms(fn: Smooth, p, u, J):
-    """``phi(p) - J p`` and its rounding margin."""
-    fp = fn.value(p, u)
+    """``phi(p) - J p`` and a radius enclosing its rounding: ``phi(p)`` from the interval
+    evaluation of the function at the point (rigorous whatever cancellation it involves;
+    the floating-point value with a relative margin where ``phi`` cannot be derived)."""
+    try:
+        v = fn.value_bounds(p[:, None], p[:, None], u)
+        fp, fr = _hull(Ival(v.lo[:, 0], v.hi[:, 0]))
+    except NotDerivable:  # a hand-written function sympy cannot trace
+        fp = fn.value(p, u)
+        fr = 4 * _EPS * np.abs(fp)
     d = fp - J @ p
-    return d, 4 * _EPS * (np.abs(fp) + np.abs(J) @ np.abs(p) + np.abs(d))
+    return d, fr + 4 * _EPS * (np.abs(fp) + np.abs(J) @ np.abs(p) + np.abs(d))
+
+
+def _slope_error(fn: Smooth, p, u, J, r):
+    """Bound of ``|J' - J| r`` for the exact derivative ``J'`` at ``p``: the interval Jacobian
+    at the point (rigorous), else a relative margin."""
+    try:
+        Jlo, Jhi = fn.jacobian_bounds(p, p, u)
+        dev = np.maximum(np.abs(Jhi - J), np.abs(J - Jlo))
+    except NotDerivable:
+        dev = 16 * _EPS * np.abs(J)
+    return np.nextafter(dev @ r * (1 + 4 * _EPS * r.size), np.inf)
 
 
 def _restep(exc: Diverged, k):
@@ -119,6 +152,7 @@ def first_order(fn: Smooth, lo, hi, u, k=None):
         raise _restep(exc, k) from None
     J = np.asarray(fn.jacobian(p, u), dtype=float)
     d, rad = _centre_terms(fn, p, u, J)
+    rad = rad + _slope_error(fn, p, u, J, r)
     m = J.shape[0]
     lo_rem, hi_rem = np.zeros(m), np.zeros(m)
     if len(idx):
@@ -202,7 +236,7 @@ def dc(fn: Smooth, lo, hi, u, k=None):
         quad = quad + Ival(0.5 * a[:, j:j + 1]) * dj ** 2
     e_g = fv - fp - tangent + quad  # g - tangent of g at p, at each vertex (>= 0 exactly)
     # J is the derivative at p up to rounding: a margin for the tangent's slope error
-    slope = 16 * _EPS * (np.abs(J) @ r + np.abs(J) @ np.abs(p))
+    slope = _slope_error(fn, p, u, J, r)
     upper = np.nextafter(e_g.hi.max(axis=1) + slope, np.inf)
     q_max = np.nextafter((0.5 * a) @ (r * r) * (1 + 4 * _EPS * (n + 2)), np.inf)
     lower = -(q_max + slope)
