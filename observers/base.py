@@ -182,7 +182,7 @@ class Observer(ABC):
     # -- input checks used by subclasses -------------------------------------------------------
     def _measurement(self, y) -> np.ndarray:
         y = _numeric(y, f"{self.name}: measurement at step {self.k}").reshape(-1)
-        ny = self.system.C.shape[0]
+        ny = _output_dim(self.system)
         if y.shape[0] != ny:
             raise MeasurementError(
                 f"{self.name}: measurement has {y.shape[0]} entries, expected {ny}")
@@ -204,6 +204,12 @@ class Observer(ABC):
         if not np.isfinite(u).all():
             raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
         return u
+
+
+def _output_dim(system: Any) -> int:
+    """Number of outputs of ``system`` (``ny``, or the rows of ``C``)."""
+    ny = getattr(system, "ny", None)
+    return int(ny) if ny is not None else system.C.shape[0]
 
 
 def zero_width_note(system: Any) -> str:
@@ -323,10 +329,11 @@ def run(
     if on_error not in ("raise", "status"):
         raise ValueError(f"on_error must be 'raise' or 'status', got {on_error!r}")
     system = getattr(obs, "system", None)
-    C = getattr(system, "C", None)
-    u, y = as_record(u, y, getattr(system, "nu", None), None if C is None else C.shape[0])
+    C = getattr(system, "C", None)  # None also for a nonlinear output (no C)
+    ny = getattr(system, "ny", None) if C is None else C.shape[0]
+    u, y = as_record(u, y, getattr(system, "nu", None), ny)
     N = y.shape[0]
-    n = None if C is None else C.shape[1]
+    n = getattr(system, "n", None) if C is None else C.shape[1]
     lo = np.full((N, n or 0), np.nan)
     hi = np.full((N, n or 0), np.nan)
     step_times = np.full(N, np.nan)

@@ -43,11 +43,13 @@ Deviation from CORA in both conventions: the error set starts from ``X0 - c0`` (
 from __future__ import annotations
 
 from abc import abstractmethod
+from time import perf_counter
 from typing import Any, ClassVar
 
 import numpy as np
 
 from .base import Observer
+from .enclosures import ENCLOSURES, Smooth
 from .errors import ObserverError, Unsupported
 from .kernels import KernelByOption, StepKernel
 from .options import Choice, reduction_method, zonotope_order
@@ -123,12 +125,23 @@ class LinearModelObserver(Observer):
     (:mod:`observers.prediction`, conservative linearisation at every step) and ``self.A`` is
     then the Jacobian of the latest linearisation (what online gains such as FRad-B's and
     FRad-C's use).
+
+    Those that also set ``NONLINEAR_OUTPUT = True`` accept a nonlinear output
+    ``y = h(x) + v``: before each update the output is enclosed over the box of the predicted
+    set as ``h(x) in H x + d + [-rad, rad]`` (:mod:`observers.enclosures`, strategy
+    ``OUTPUT_ENCLOSURE``), and the update uses ``C = H``, the measurement ``y - d`` and the
+    noise widened by ``rad`` (:meth:`ZonotopeObserver.linearise_output`), so the strips stay
+    sound.  ``self.C`` is then the latest ``H``.
     """
 
     #: whether the online loop works with a per-step linearisation (nonlinear systems)
     NONLINEAR: bool = False
+    #: whether the update works with a per-step enclosure of a nonlinear output h(x)
+    NONLINEAR_OUTPUT: bool = False
     #: prediction strategy for nonlinear systems (:func:`observers.prediction.prediction_for`)
     LINEARISATION: str = "lagrange"
+    #: enclosure of a nonlinear output (:data:`observers.enclosures.ENCLOSURES`)
+    OUTPUT_ENCLOSURE: str = "first-order"
 
     def design(self) -> None:
         s = self.system
@@ -137,6 +150,11 @@ class LinearModelObserver(Observer):
         if not linear and not self.NONLINEAR:
             raise Unsupported(f"{who} needs a linear system (its gain is designed offline for "
                               "fixed A, B)")
+        C_out = getattr(s, "output_matrix", None) if not getattr(
+            s, "output_is_linear", True) else None
+        self.output_linear = bool(getattr(s, "output_is_linear", True)) or C_out is not None
+        if not self.output_linear and not self.NONLINEAR_OUTPUT:
+            raise Unsupported(f"{who} needs a linear output y = C x + v")
         need = ("A", "B") if linear else ("f", "jacobian", "hessian")
         missing = [a for a in need if not hasattr(s, a)]
         if missing:
@@ -151,8 +169,12 @@ class LinearModelObserver(Observer):
         else:  # until the first linearisation: the Jacobian at the centre of X0
             self.A = np.asarray(s.jacobian(as_zonotope(s.X0, "X0").c, np.zeros(s.nu))[0])
             self.B = np.zeros((s.n, s.nu))
-        self.C = np.asarray(s.C, dtype=float)
         self.X0 = as_zonotope(s.X0, "X0")
+        if self.output_linear:  # C, or the matrix of an h that is linear
+            self.C = np.asarray(s.C if C_out is None else C_out, dtype=float)
+        else:  # until the first enclosure: the Jacobian of h at the centre of X0
+            self.C = np.asarray(s.h_jacobian(self.X0.c), dtype=float)
+            self._output = Smooth(s, "h")
         self.W = as_zonotope(s.W, "W")
         self.V = as_zonotope(s.V, "V")
 
@@ -172,7 +194,7 @@ class Linearised:
     """
 
     NONLINEAR = True
-    REQUIRES = ("C", "W", "V", "X0")
+    REQUIRES = ("W", "V", "X0")
     OPTIONS = {"remainder": Choice("box", ("box", "zonotope"))}
 
 
@@ -196,14 +218,39 @@ class ZonotopeObserver(LinearModelObserver):
         self.F = self.V.G
         Vi = self.V.interval()
         self.sigma = np.maximum(np.abs(Vi.lo), np.abs(Vi.hi))  # strip half-widths
+        self._sigma0, self._F0 = self.sigma, self.F
         self.order = float(self.options["order"])  # >= 1: checked by its option spec
         strategy = get_reduction(self.options["reduction"])
         self._reduce = strategy.reduce
-        # the compiled kernel serves linear systems with a built-in reduction
+        # the compiled kernel serves linear systems (linear output too) with a built-in
+        # reduction; None: always the numpy path
         self._reduction_name = compiled_name(strategy)
         kernel = None if self.KERNEL is None else self.KERNEL.select(self.options)
-        self._step_kernel = (kernel if self._reduction_name is not None
+        self._step_kernel = (kernel if self._reduction_name is not None and self.output_linear
                              and isinstance(self.prediction, LinearPrediction) else None)
+
+    def output_enclosure(self, lo: np.ndarray, hi: np.ndarray):
+        """``(H, d, rad)`` with ``h(x) in H x + d + [-rad, rad]`` over the box ``[lo, hi]``
+        (strategy ``OUTPUT_ENCLOSURE``; nonlinear outputs only)."""
+        return ENCLOSURES[self.OUTPUT_ENCLOSURE](self._output, lo, hi, np.zeros(0), self.k)
+
+    def linearise_output(self, c: np.ndarray, G: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The measurement to use with ``self.C`` and ``self.sigma`` / ``self.F`` for the
+        predicted zonotope ``(c, G)``: ``y`` itself for a linear output; for ``y = h(x) + v``
+        the enclosure of ``h`` over the box of ``(c, G)`` sets ``C = H``, widens the strips and
+        the noise generators by ``rad`` and returns ``y - d`` (then :meth:`output_changed`)."""
+        if self.output_linear:
+            return y
+        r = np.abs(G).sum(axis=1)
+        H, d, rad = self.output_enclosure(c - r, c + r)
+        self.C = H
+        self.sigma = np.nextafter(self._sigma0 + rad, np.inf)
+        self.F = np.hstack([self._F0, np.diag(rad)])
+        self.output_changed()
+        return y - d
+
+    def output_changed(self) -> None:  # noqa: B027 - optional hook
+        """Hook: ``self.C`` changed (a nonlinear output); refresh what depends on it."""
 
     def kernel_inputs(self) -> dict[str, Any]:
         """The observer's own static inputs of its compiled kernel (keywords of
@@ -213,6 +260,9 @@ class ZonotopeObserver(LinearModelObserver):
 
     def reset(self) -> None:
         super().reset()
+        #: accumulated seconds per phase of the numpy path of :meth:`step` since the last
+        #: reset (a compiled step is not split into phases, nor timed here)
+        self.phase_times = {"prediction": 0.0, "update": 0.0, "reduction": 0.0}
         #: the compiled kernel with the static data of this run (at its first compiled step)
         self._kernel_run: _step_jit.StepRun | None = None
 
@@ -250,7 +300,12 @@ class ZonotopeObserver(LinearModelObserver):
 
 
 class StripBasedObserver(ZonotopeObserver):
-    """Predict, intersect with the measurement strips of ``y[k]``, reduce."""
+    """Predict, intersect with the measurement strips of ``y[k]``, reduce.
+
+    A nonlinear output is used through the strips of its enclosure over the box of the
+    predicted zonotope (:meth:`ZonotopeObserver.linearise_output`)."""
+
+    NONLINEAR_OUTPUT = True
 
     def reset(self) -> None:
         super().reset()
@@ -263,10 +318,15 @@ class StripBasedObserver(ZonotopeObserver):
 
     def step(self, u_prev, y) -> Zonotope:
         y = self._measurement(y)
+        times = self.phase_times
         if self._c is None:  # first set: X0 intersected with y[0], not reduced (as CORA)
-            c, G = self.intersect(self.X0.c, self.X0.G, y)
+            t0 = perf_counter()
+            c, G = self.intersect(self.X0.c, self.X0.G,
+                                  self.linearise_output(self.X0.c, self.X0.G, y))
+            times["update"] += perf_counter() - t0
         else:
             u = self._input(u_prev)
+            t0 = perf_counter()
             out = self._compiled_step(u, y)
             if out is not None:
                 return out
@@ -278,8 +338,13 @@ class StripBasedObserver(ZonotopeObserver):
             np.matmul(self.A, self._G, out=G[:, :r])
             G[:, r : r + re] = self.E
             G[:, r + re :] = R
-            c, G = self.intersect(c, G, y)
+            t1 = perf_counter()
+            c, G = self.intersect(c, G, self.linearise_output(c, G, y))
+            t2 = perf_counter()
             G = self._reduce(G, self.order)
+            times["prediction"] += t1 - t0
+            times["update"] += t2 - t1
+            times["reduction"] += perf_counter() - t2
         return self._finish_step(c, G)
 
 

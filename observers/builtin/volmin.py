@@ -91,6 +91,10 @@ class VolMinB(Linearised, StripBasedObserver):
 
     def design(self) -> None:
         super().design()
+        self.output_changed()
+
+    def output_changed(self) -> None:
+        """Null-space bases of the rows of ``C`` (per step for a nonlinear output)."""
         self._bases = [null_basis(row) for row in self.C]
 
     def kernel_inputs(self):
