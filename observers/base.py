@@ -13,7 +13,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from time import perf_counter
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -21,8 +21,42 @@ from .errors import DesignFailed, Diverged, MeasurementError, OptionError, Unsup
 from .options import OptionSpec, as_spec
 from .sets.errors import EmptySet
 
-if TYPE_CHECKING:  # pragma: no cover - annotation only (the registry sets ``info``)
-    from .registry import ObserverInfo
+
+@dataclass(frozen=True)
+class ObserverInfo:
+    """What the registry knows about an observer class (:func:`observers.registry.register`
+    sets it as the class attribute ``info``)."""
+
+    name: str
+    cls: type
+    family: str
+    set_type: str
+    ready_for_control: bool
+    guaranteed: bool = True
+    reference: str = ""
+
+    @property
+    def timing(self) -> str:
+        """``"ready for control"`` (estimate available before y_k) or ``"in time"``."""
+        return "ready for control" if self.ready_for_control else "in time"
+
+    def option_defaults(self) -> dict[str, Any]:
+        """Accepted options with their defaults (``{}`` for a plain class without
+        ``option_defaults``, which then takes no options)."""
+        defaults = getattr(self.cls, "option_defaults", None)
+        return dict(defaults()) if callable(defaults) else {}
+
+    @property
+    def scenario_options(self) -> tuple[str, ...] | None:
+        """Options a scenario may set by default (``SCENARIO_OPTIONS``; None = all)."""
+        return getattr(self.cls, "SCENARIO_OPTIONS", None)
+
+    @property
+    def summary(self) -> str:
+        """First line of the class docstring."""
+        doc = (self.cls.__doc__ or "").strip()
+        return doc.splitlines()[0] if doc else ""
+
 
 
 class Observer(ABC):
@@ -58,8 +92,9 @@ class Observer(ABC):
                 f"{', '.join(self.REQUIRES)}; missing: {', '.join(missing)}"
             )
         self.system = system
-        self.options = self._resolve_options(options)
-        self._check_options()
+        specs = self.option_specs()  # merged along the MRO once per construction
+        self.options = self._resolve_options(options, specs)
+        self._check_options(specs)
         self.validate_options()
         t0 = perf_counter()
         try:
@@ -102,21 +137,23 @@ class Observer(ABC):
         """
         return {key: spec.default for key, spec in cls.option_specs().items()}
 
-    def _resolve_options(self, options: dict[str, Any]) -> dict[str, Any]:
-        defaults = self.option_defaults()
-        unknown = sorted(set(options) - set(defaults))
+    def _resolve_options(self, options: dict[str, Any], specs: dict[str, OptionSpec]
+                         ) -> dict[str, Any]:
+        """The given options over the defaults of ``specs`` (:meth:`option_specs`)."""
+        unknown = sorted(set(options) - set(specs))
         if unknown:
-            accepted = ", ".join(sorted(defaults)) or "none"
+            accepted = ", ".join(sorted(specs)) or "none"
             raise OptionError(
                 f"{self.name}: unknown option(s) {', '.join(unknown)} (accepted: {accepted})"
             )
-        return {**defaults, **options}
+        return {**{key: spec.default for key, spec in specs.items()}, **options}
 
-    def _check_options(self) -> None:
+    def _check_options(self, specs: dict[str, OptionSpec]) -> None:
         """Check every option against its spec (one :class:`OptionError` for the first bad
-        one); values are kept as given."""
+        one); values are kept as given.  The only check of a single option: the online code
+        trusts them."""
         who = self.name or type(self).__name__
-        for key, spec in self.option_specs().items():
+        for key, spec in specs.items():
             spec.check(who, key, self.options[key])
 
     def validate_options(self) -> None:  # noqa: B027 - optional hook
@@ -145,7 +182,7 @@ class Observer(ABC):
     # -- input checks used by subclasses -------------------------------------------------------
     def _measurement(self, y) -> np.ndarray:
         y = _numeric(y, f"{self.name}: measurement at step {self.k}").reshape(-1)
-        ny = self.system.C.shape[0]
+        ny = _output_dim(self.system)
         if y.shape[0] != ny:
             raise MeasurementError(
                 f"{self.name}: measurement has {y.shape[0]} entries, expected {ny}")
@@ -167,6 +204,12 @@ class Observer(ABC):
         if not np.isfinite(u).all():
             raise MeasurementError(f"{self.name}: non-finite input at step {self.k}")
         return u
+
+
+def _output_dim(system: Any) -> int:
+    """Number of outputs of ``system`` (``ny``, or the rows of ``C``)."""
+    ny = getattr(system, "ny", None)
+    return int(ny) if ny is not None else system.C.shape[0]
 
 
 def zero_width_note(system: Any) -> str:
@@ -286,10 +329,11 @@ def run(
     if on_error not in ("raise", "status"):
         raise ValueError(f"on_error must be 'raise' or 'status', got {on_error!r}")
     system = getattr(obs, "system", None)
-    C = getattr(system, "C", None)
-    u, y = as_record(u, y, getattr(system, "nu", None), None if C is None else C.shape[0])
+    C = getattr(system, "C", None)  # None also for a nonlinear output (no C)
+    ny = getattr(system, "ny", None) if C is None else C.shape[0]
+    u, y = as_record(u, y, getattr(system, "nu", None), ny)
     N = y.shape[0]
-    n = None if C is None else C.shape[1]
+    n = getattr(system, "n", None) if C is None else C.shape[1]
     lo = np.full((N, n or 0), np.nan)
     hi = np.full((N, n or 0), np.nan)
     step_times = np.full(N, np.nan)

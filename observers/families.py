@@ -43,21 +43,19 @@ Deviation from CORA in both conventions: the error set starts from ``X0 - c0`` (
 from __future__ import annotations
 
 from abc import abstractmethod
+from time import perf_counter
+from typing import Any, ClassVar
 
 import numpy as np
 
 from .base import Observer
+from .enclosures import ENCLOSURES, Smooth
 from .errors import ObserverError, Unsupported
+from .kernels import KernelByOption, StepKernel
 from .options import Choice, reduction_method, zonotope_order
 from .prediction import LinearPrediction, prediction_for
-from .sets import Interval, Zonotope, get_reduction
-from .sets import _jit as _switch
-from .sets import _step_jit as _kernels
-from .sets.reduction import CLUSTER_RTOL, PIVOT_RTOL, kernel_method
-
-#: the gain argument of the compiled kernels' online-gain modes (which compute their own)
-NO_GAIN = np.zeros((0, 0))
-NO_GAIN.setflags(write=False)
+from .sets import Interval, Zonotope, _jit, _step_jit, get_reduction
+from .sets.reduction import compiled_name
 
 
 # -- one-step formulas (pure functions on centre/generator arrays) --------------------
@@ -127,12 +125,23 @@ class LinearModelObserver(Observer):
     (:mod:`observers.prediction`, conservative linearisation at every step) and ``self.A`` is
     then the Jacobian of the latest linearisation (what online gains such as FRad-B's and
     FRad-C's use).
+
+    Those that also set ``NONLINEAR_OUTPUT = True`` accept a nonlinear output
+    ``y = h(x) + v``: before each update the output is enclosed over the box of the predicted
+    set as ``h(x) in H x + d + [-rad, rad]`` (:mod:`observers.enclosures`, strategy
+    ``OUTPUT_ENCLOSURE``), and the update uses ``C = H``, the measurement ``y - d`` and the
+    noise widened by ``rad`` (:meth:`ZonotopeObserver.linearise_output`), so the strips stay
+    sound.  ``self.C`` is then the latest ``H``.
     """
 
     #: whether the online loop works with a per-step linearisation (nonlinear systems)
     NONLINEAR: bool = False
+    #: whether the update works with a per-step enclosure of a nonlinear output h(x)
+    NONLINEAR_OUTPUT: bool = False
     #: prediction strategy for nonlinear systems (:func:`observers.prediction.prediction_for`)
     LINEARISATION: str = "lagrange"
+    #: enclosure of a nonlinear output (:data:`observers.enclosures.ENCLOSURES`)
+    OUTPUT_ENCLOSURE: str = "first-order"
 
     def design(self) -> None:
         s = self.system
@@ -141,6 +150,11 @@ class LinearModelObserver(Observer):
         if not linear and not self.NONLINEAR:
             raise Unsupported(f"{who} needs a linear system (its gain is designed offline for "
                               "fixed A, B)")
+        C_out = getattr(s, "output_matrix", None) if not getattr(
+            s, "output_is_linear", True) else None
+        self.output_linear = bool(getattr(s, "output_is_linear", True)) or C_out is not None
+        if not self.output_linear and not self.NONLINEAR_OUTPUT:
+            raise Unsupported(f"{who} needs a linear output y = C x + v")
         need = ("A", "B") if linear else ("f", "jacobian", "hessian")
         missing = [a for a in need if not hasattr(s, a)]
         if missing:
@@ -155,8 +169,12 @@ class LinearModelObserver(Observer):
         else:  # until the first linearisation: the Jacobian at the centre of X0
             self.A = np.asarray(s.jacobian(as_zonotope(s.X0, "X0").c, np.zeros(s.nu))[0])
             self.B = np.zeros((s.n, s.nu))
-        self.C = np.asarray(s.C, dtype=float)
         self.X0 = as_zonotope(s.X0, "X0")
+        if self.output_linear:  # C, or the matrix of an h that is linear
+            self.C = np.asarray(s.C if C_out is None else C_out, dtype=float)
+        else:  # until the first enclosure: the Jacobian of h at the centre of X0
+            self.C = np.asarray(s.h_jacobian(self.X0.c), dtype=float)
+            self._output = Smooth(s, "h")
         self.W = as_zonotope(s.W, "W")
         self.V = as_zonotope(s.V, "V")
 
@@ -176,14 +194,22 @@ class Linearised:
     """
 
     NONLINEAR = True
-    REQUIRES = ("C", "W", "V", "X0")
+    REQUIRES = ("W", "V", "X0")
     OPTIONS = {"remainder": Choice("box", ("box", "zonotope"))}
 
 
 class ZonotopeObserver(LinearModelObserver):
-    """Common options and system data of the zonotopic observers."""
+    """Common options and system data of the zonotopic observers.
+
+    A subclass whose step a compiled kernel computes exactly declares it in ``KERNEL``
+    (:mod:`observers.kernels`); on a linear system with a built-in reduction the family then
+    runs each step but the first as one compiled call (:mod:`observers.sets._step_jit`), with
+    the numpy path as fallback for a step the kernel cannot vouch for.
+    """
 
     OPTIONS = {"order": zonotope_order(100), "reduction": reduction_method("girard")}
+    #: the compiled one-step kernel of this observer (``None``: the numpy path only)
+    KERNEL: ClassVar[StepKernel | KernelByOption | None] = None
 
     def design(self) -> None:
         """Collect the system data used online (subclasses extend with ``super().design()``)."""
@@ -192,43 +218,80 @@ class ZonotopeObserver(LinearModelObserver):
         self.F = self.V.G
         Vi = self.V.interval()
         self.sigma = np.maximum(np.abs(Vi.lo), np.abs(Vi.hi))  # strip half-widths
-        self.order = float(self.options["order"])
+        self._sigma0, self._F0 = self.sigma, self.F
+        self.order = float(self.options["order"])  # >= 1: checked by its option spec
         strategy = get_reduction(self.options["reduction"])
         self._reduce = strategy.reduce
-        # the compiled one-step kernels (:mod:`observers.sets._step_jit`) serve linear systems
-        # with a built-in reduction; None: always the numpy path
-        method = kernel_method(strategy)
-        self._kernel_method = (method if isinstance(self.prediction, LinearPrediction)
-                               and self.order >= 1 else None)
+        # the compiled kernel serves linear systems (linear output too) with a built-in
+        # reduction; None: always the numpy path
+        self._reduction_name = compiled_name(strategy)
+        kernel = None if self.KERNEL is None else self.KERNEL.select(self.options)
+        self._step_kernel = (kernel if self._reduction_name is not None and self.output_linear
+                             and isinstance(self.prediction, LinearPrediction) else None)
 
-    def compiled_gain(self) -> tuple[int, np.ndarray] | None:
-        """The gain mode of the compiled kernel (:mod:`observers.sets._step_jit`) and its gain
-        matrix (ignored by the online-gain modes), or ``None`` (default): the numpy path.
-        A subclass returns a mode only where the kernel computes exactly its formula."""
-        return None
+    def output_enclosure(self, lo: np.ndarray, hi: np.ndarray):
+        """``(H, d, rad)`` with ``h(x) in H x + d + [-rad, rad]`` over the box ``[lo, hi]``
+        (strategy ``OUTPUT_ENCLOSURE``; nonlinear outputs only)."""
+        return ENCLOSURES[self.OUTPUT_ENCLOSURE](self._output, lo, hi, np.zeros(0), self.k)
+
+    def linearise_output(self, c: np.ndarray, G: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The measurement to use with ``self.C`` and ``self.sigma`` / ``self.F`` for the
+        predicted zonotope ``(c, G)``: ``y`` itself for a linear output; for ``y = h(x) + v``
+        the enclosure of ``h`` over the box of ``(c, G)`` sets ``C = H``, widens the strips and
+        the noise generators by ``rad`` and returns ``y - d`` (then :meth:`output_changed`)."""
+        if self.output_linear:
+            return y
+        r = np.abs(G).sum(axis=1)
+        H, d, rad = self.output_enclosure(c - r, c + r)
+        self.C = H
+        self.sigma = np.nextafter(self._sigma0 + rad, np.inf)
+        self.F = np.hstack([self._F0, np.diag(rad)])
+        self.output_changed()
+        return y - d
+
+    def output_changed(self) -> None:  # noqa: B027 - optional hook
+        """Hook: ``self.C`` changed (a nonlinear output); refresh what depends on it."""
+
+    def kernel_inputs(self) -> dict[str, Any]:
+        """The observer's own static inputs of its compiled kernel (keywords of
+        :func:`observers.sets._step_jit.prepare`): the constant gain ``L`` for the kernels
+        that take one (default), nothing for the others."""
+        return {"gain": self.L} if self._step_kernel.given_gain else {}
 
     def reset(self) -> None:
         super().reset()
-        self._kernel_args: tuple | None = None  # built at the first compiled step of a run
+        #: accumulated seconds per phase of the numpy path of :meth:`step` since the last
+        #: reset (a compiled step is not split into phases, nor timed here)
+        self.phase_times = {"prediction": 0.0, "update": 0.0, "reduction": 0.0}
+        #: the compiled kernel with the static data of this run (at its first compiled step)
+        self._kernel_run: _step_jit.StepRun | None = None
 
-    def _kernel(self) -> tuple | None:
-        """The static arguments of the compiled kernels if they may run this step, else
-        ``None``: ``(mode, L, A, B, c_W, E, C, sigma, F, c_V)``, read-only C-contiguous float
-        copies made once per run, so that the kernels see one argument type per position and
-        numba compiles them once (a read-only array is a different type from a writable one)."""
-        if self._kernel_method is None or not _switch.use_compiled():
+    def _prepare_run(self) -> _step_jit.StepRun:
+        """The compiled kernel and the static data of this run (at its first compiled step).
+        The data are read-only C-contiguous float copies made once per run, so that every
+        step passes arguments of the same types and numba compiles each kernel once (a
+        read-only array is a different type from a writable one)."""
+        self._kernel_run = _step_jit.prepare(
+            self._step_kernel.value, self._reduction_name, self.order, A=self.A, B=self.B,
+            W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F, V_c=self.V.c,
+            **self.kernel_inputs())
+        return self._kernel_run
+
+    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> Zonotope | None:
+        """The set of this step by the compiled kernel from the current set, the input ``u``
+        and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
+        path runs (no kernel for this observer, or the kernel declined the step)."""
+        if self._step_kernel is None or not _jit.use_compiled():
             return None
-        if self._kernel_args is None:
-            spec = self.compiled_gain()
-            if spec is None:
-                self._kernel_method = None
-                return None
-            mode, L = spec
-            self._kernel_args = (mode, *(_frozen_c(a) for a in (
-                L, self.A, self.B, self.W.c, self.E, self.C, self.sigma, self.F, self.V.c)))
-        return self._kernel_args
+        kernel, data, args = self._kernel_run or self._prepare_run()
+        try:
+            # y.copy(): a fresh writable C-contiguous vector, one argument type per position
+            c, G, ok = kernel(self._c, self._G, data.B @ u, y.copy(), args)
+        except np.linalg.LinAlgError:
+            return None
+        return self._finish_step(c, G) if ok else None
 
-    def _advance(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
+    def _finish_step(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
         """Keep ``(c, G)`` as the current set, count the step and return the set (the end of
         every step, by the compiled kernel or the numpy path)."""
         self._c, self._G = c, G
@@ -236,49 +299,18 @@ class ZonotopeObserver(LinearModelObserver):
         return Zonotope._trusted(c, G)
 
 
-def _frozen_c(a: np.ndarray) -> np.ndarray:
-    """A read-only C-contiguous float64 copy of ``a``."""
-    out = np.array(a, dtype=np.float64, order="C", copy=True)
-    out.setflags(write=False)
-    return out
-
-
-def _kernel_vector(v: np.ndarray) -> np.ndarray:
-    """``v`` as a fresh writable C-contiguous float64 vector (the kernels' dynamic vectors)."""
-    return np.array(v, dtype=np.float64, copy=True)
-
-
 class StripBasedObserver(ZonotopeObserver):
-    """Predict, intersect with the measurement strips of ``y[k]``, reduce."""
+    """Predict, intersect with the measurement strips of ``y[k]``, reduce.
+
+    A nonlinear output is used through the strips of its enclosure over the box of the
+    predicted zonotope (:meth:`ZonotopeObserver.linearise_output`)."""
+
+    NONLINEAR_OUTPUT = True
 
     def reset(self) -> None:
         super().reset()
         self._c: np.ndarray | None = None
         self._G: np.ndarray | None = None
-
-    #: whether the WANG gain mode applies ``A`` once more (FRad-B's ``variant: cora``)
-    _wang_cora = True
-
-    def _compiled_step(self, u: np.ndarray, y: np.ndarray):
-        """The step by :func:`observers.sets._step_jit.strip_step`, or ``None`` (the numpy
-        path runs: no kernel for this observer, or the kernel declined the step)."""
-        args = self._kernel()
-        if args is None:
-            return None
-        mode, L, A, B, cW, E, C, sigma, F, _ = args
-        try:
-            if mode == _kernels.BRAVO:  # L: the null-space bases of the rows of C
-                c, G, ok = _kernels.bravo_step(
-                    self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L,
-                    _kernels.BRAVO_ZERO_PROJECTION, self.order, self._kernel_method,
-                    CLUSTER_RTOL, PIVOT_RTOL)
-                return (c, G) if ok else None
-            c, G, ok = _kernels.strip_step(
-                self._c, self._G, A, B @ u, cW, E, C, _kernel_vector(y), sigma, L, F, mode,
-                self._wang_cora, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
-        except np.linalg.LinAlgError:
-            return None
-        return (c, G) if ok else None
 
     @abstractmethod
     def intersect(self, c: np.ndarray, G: np.ndarray, y: np.ndarray):
@@ -286,13 +318,18 @@ class StripBasedObserver(ZonotopeObserver):
 
     def step(self, u_prev, y) -> Zonotope:
         y = self._measurement(y)
+        times = self.phase_times
         if self._c is None:  # first set: X0 intersected with y[0], not reduced (as CORA)
-            c, G = self.intersect(self.X0.c, self.X0.G, y)
+            t0 = perf_counter()
+            c, G = self.intersect(self.X0.c, self.X0.G,
+                                  self.linearise_output(self.X0.c, self.X0.G, y))
+            times["update"] += perf_counter() - t0
         else:
             u = self._input(u_prev)
+            t0 = perf_counter()
             out = self._compiled_step(u, y)
             if out is not None:
-                return self._advance(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             c = self.A @ self._c + d + self.W.c
             r, re = self._G.shape[1], self.E.shape[1]
@@ -301,9 +338,14 @@ class StripBasedObserver(ZonotopeObserver):
             np.matmul(self.A, self._G, out=G[:, :r])
             G[:, r : r + re] = self.E
             G[:, r + re :] = R
-            c, G = self.intersect(c, G, y)
+            t1 = perf_counter()
+            c, G = self.intersect(c, G, self.linearise_output(c, G, y))
+            t2 = perf_counter()
             G = self._reduce(G, self.order)
-        return self._advance(c, G)
+            times["prediction"] += t1 - t0
+            times["update"] += t2 - t1
+            times["reduction"] += perf_counter() - t2
+        return self._finish_step(c, G)
 
 
 class PerStripObserver(StripBasedObserver):
@@ -344,30 +386,16 @@ class PropagationObserver(ZonotopeObserver):
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         """Observer gain L (n x m) for the current set ``(c, G)``."""
 
-    def _compiled_step(self, u: np.ndarray):
-        """The step by :func:`observers.sets._step_jit.propagate_step`, or ``None``."""
-        args = self._kernel()
-        if args is None:
-            return None
-        mode, L, A, B, cW, E, C, _, F, cV = args
-        try:
-            c, G, ok = _kernels.propagate_step(
-                self._c, self._G, A, B @ u, C, L, F, _kernel_vector(self._y_prev), cV, cW, E,
-                mode, self.order, self._kernel_method, CLUSTER_RTOL, PIVOT_RTOL)
-        except np.linalg.LinAlgError:
-            return None
-        return (c, G) if ok else None
-
     def step(self, u_prev, y) -> Zonotope:
         y = self._measurement(y)
         if self._c is None:  # first set: X0 itself (as CORA)
             c, G = self.X0.c, self.X0.G
         else:
             u = self._input(u_prev)
-            out = self._compiled_step(u)
+            out = self._compiled_step(u, self._y_prev)
             if out is not None:
                 self._y_prev = y
-                return self._advance(*out)
+                return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
             c, G = propagate(
@@ -376,19 +404,17 @@ class PropagationObserver(ZonotopeObserver):
             )
             G = self._reduce(G, self.order)
         self._y_prev = y
-        return self._advance(c, G)
+        return self._finish_step(c, G)
 
 
 class ConstantGainPropagationObserver(PropagationObserver):
     """Set propagation with an offline gain ``self.L`` (set by ``design``)."""
 
+    KERNEL = StepKernel.PROPAGATION_GIVEN
     L: np.ndarray
 
     def gain(self, c, G) -> np.ndarray:
         return self.L
-
-    def compiled_gain(self):
-        return _kernels.GIVEN, self.L
 
 
 # -- interval observer ----------------------------------------------------------------------

@@ -12,14 +12,12 @@ import difflib
 import importlib
 import pkgutil
 import warnings
-from dataclasses import dataclass
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any
+from time import perf_counter
+from typing import Any
 
-from .errors import ObserverError, UnknownObserver
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .base import Observer
+from .base import Observer, ObserverInfo
+from .errors import ObserverError, OptionError, UnknownObserver
 
 ENTRY_POINT_GROUP = "observers"
 
@@ -31,41 +29,6 @@ CANONICAL_ORDER = (
 )
 
 FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic")
-
-
-@dataclass(frozen=True)
-class ObserverInfo:
-    """What the registry knows about an observer class."""
-
-    name: str
-    cls: type
-    family: str
-    set_type: str
-    ready_for_control: bool
-    guaranteed: bool = True
-    reference: str = ""
-
-    @property
-    def timing(self) -> str:
-        """``"ready for control"`` (estimate available before y_k) or ``"in time"``."""
-        return "ready for control" if self.ready_for_control else "in time"
-
-    def option_defaults(self) -> dict[str, Any]:
-        """Accepted options with their defaults (``{}`` for a plain class without
-        ``option_defaults``, which then takes no options)."""
-        defaults = getattr(self.cls, "option_defaults", None)
-        return dict(defaults()) if callable(defaults) else {}
-
-    @property
-    def scenario_options(self) -> tuple[str, ...] | None:
-        """Options a scenario may set by default (``SCENARIO_OPTIONS``; None = all)."""
-        return getattr(self.cls, "SCENARIO_OPTIONS", None)
-
-    @property
-    def summary(self) -> str:
-        """First line of the class docstring."""
-        doc = (self.cls.__doc__ or "").strip()
-        return doc.splitlines()[0] if doc else ""
 
 
 _REGISTRY: dict[str, ObserverInfo] = {}
@@ -193,11 +156,6 @@ def create(name: str, system: Any, **options: Any) -> Observer:
     ``option_defaults`` it takes no options, and without a ``design_time`` attribute the
     construction is timed as its design.
     """
-    from time import perf_counter
-
-    from .base import Observer
-    from .errors import OptionError
-
     info = get(name)
     if issubclass(info.cls, Observer):
         return info.cls(system, **options)

@@ -5,7 +5,7 @@ This package depends only on :mod:`observers.sets` (never on the observer plugin
 
 from .alamo import alamo2d
 from .derivatives import SYMBOLIC
-from .errors import DomainError, ModelError
+from .errors import DomainError, ModelError, OutputNotLinear
 from .memory import available_memory
 from .model import LinearSystem, NonlinearSystem, observability_matrix
 from .rotating import rotating_target
@@ -23,6 +23,7 @@ __all__ = [
     "LinearSystem",
     "ModelError",
     "NonlinearSystem",
+    "OutputNotLinear",
     "Scenario",
     "Simulation",
     "Training",

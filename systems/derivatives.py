@@ -68,9 +68,15 @@ class SymbolicDerivatives:
         ``m = SYMBOLIC`` to derive the expressions.
     n, nu : int
         State and input dimensions.
+    outputs : int, optional
+        Number of values ``f`` returns (default ``n``: dynamics; an output function
+        ``h(x)`` of ``ny`` values is derived as ``f(x, u, m) = h(x, m)`` with ``nu = 0``).
+    what : str
+        Name of the function in error messages (``"f"`` or ``"h"``).
     """
 
-    def __init__(self, f: Callable, n: int, nu: int):
+    def __init__(self, f: Callable, n: int, nu: int, outputs: int | None = None,
+                 what: str = "f"):
         import sympy
 
         xs = sympy.symbols(f"x0:{n}", real=True)
@@ -79,18 +85,21 @@ class SymbolicDerivatives:
             out = f(np.array(xs, dtype=object), np.array(us, dtype=object), SYMBOLIC)
             exprs = [sympy.sympify(e) for e in np.asarray(out, dtype=object).ravel()]
         except Exception as exc:  # a user's f that sympy cannot trace
-            raise ModelError(f"cannot derive f symbolically ({type(exc).__name__}: {exc}); "
-                             "write f(x, u, m) with m.sqrt, m.sin, ... or pass jacobian= "
-                             "and remainder= by hand") from None
-        if len(exprs) != n:
-            raise ModelError(f"f returns {len(exprs)} values, expected n = {n}")
-        self.n, self.nu = n, nu
+            raise ModelError(f"cannot derive {what} symbolically ({type(exc).__name__}: {exc}); "
+                             f"write {what} with m.sqrt, m.sin, ... or pass its derivatives "
+                             "by hand") from None
+        m = n if outputs is None else int(outputs)
+        if len(exprs) != m:
+            raise ModelError(f"{what} returns {len(exprs)} values, expected {m}")
+        self.n, self.nu, self.m = n, nu, m
+        self.symbols = (xs, us)
         self.expressions = exprs
+        self._value_interval = sympy.lambdify((xs, us), exprs, modules=[FUNCTIONS])
         Jx = sympy.Matrix(exprs).jacobian(xs)
-        Ju = sympy.Matrix(exprs).jacobian(us) if nu else sympy.zeros(n, 0)
+        Ju = sympy.Matrix(exprs).jacobian(us) if nu else sympy.zeros(m, 0)
         self.jacobian_expressions = (Jx, Ju)
         self._jx = sympy.lambdify((xs, us), Jx, modules="numpy")
-        self._jx_entries = [(i, j) for i in range(n) for j in range(n) if Jx[i, j] != 0]
+        self._jx_entries = [(i, j) for i in range(m) for j in range(n) if Jx[i, j] != 0]
         self._jx_interval = sympy.lambdify(
             (xs, us), [Jx[i, j] for i, j in self._jx_entries], modules=[FUNCTIONS])
         self._ju = sympy.lambdify((xs, us), Ju, modules="numpy")
@@ -113,9 +122,19 @@ class SymbolicDerivatives:
 
     def jacobian(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(df/dx, df/du)`` at ``(x, u)``."""
-        Jx = np.array(self._jx(tuple(x), tuple(u)), dtype=float).reshape(self.n, self.n)
-        Ju = np.array(self._ju(tuple(x), tuple(u)), dtype=float).reshape(self.n, self.nu)
+        Jx = np.array(self._jx(tuple(x), tuple(u)), dtype=float).reshape(self.m, self.n)
+        Ju = np.array(self._ju(tuple(x), tuple(u)), dtype=float).reshape(self.m, self.nu)
         return Jx, Ju
+
+    def value_bounds(self, lo: np.ndarray, hi: np.ndarray, u: np.ndarray) -> Ival:
+        """Enclosure of the values over the box ``[lo, hi]`` (outward-rounded interval
+        arithmetic); ``lo`` and ``hi`` may carry a trailing axis of boxes (or points, with
+        ``lo == hi``), evaluated all at once."""
+        xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
+        vals = [Ival._of(v) for v in self._value_interval(xs, tuple(float(v) for v in u))]
+        shape = np.broadcast(np.asarray(lo[0]), np.asarray(hi[0])).shape
+        return Ival(np.array([np.broadcast_to(v.lo, shape) for v in vals], dtype=float),
+                    np.array([np.broadcast_to(v.hi, shape) for v in vals], dtype=float))
 
     def hessian_bounds(self, lo: np.ndarray, hi: np.ndarray, u: np.ndarray) -> Ival:
         """Enclosures of the non-zero ``d^2 f_i / dx_j dx_k`` (j <= k) over the box."""
@@ -129,7 +148,7 @@ class SymbolicDerivatives:
     def jacobian_bounds(self, lo: np.ndarray, hi: np.ndarray,
                         u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bounds ``(Jlo, Jhi)`` of ``df/dx`` over the box ``[lo, hi]`` (interval arithmetic)."""
-        Jlo, Jhi = np.zeros((self.n, self.n)), np.zeros((self.n, self.n))
+        Jlo, Jhi = np.zeros((self.m, self.n)), np.zeros((self.m, self.n))
         xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
         vals = self._jx_interval(xs, tuple(float(v) for v in u))
         for (i, j), v in zip(self._jx_entries, vals, strict=True):

@@ -1,9 +1,14 @@
 """Validated discrete-time system models.
 
 ``x_{k+1} = A x_k + B u_k + w_k``, ``y_k = C x_k + v_k`` with ``w_k in W``, ``v_k in V``,
-``x_0 in X0`` (:class:`LinearSystem`), and ``x_{k+1} = f(x_k, u_k) + w_k`` with the same linear
-output (:class:`NonlinearSystem`).  ``W`` and ``V`` are added directly in state and output
-space (no E/F matrices, as in CORA's observers).
+``x_0 in X0`` (:class:`LinearSystem`), and ``x_{k+1} = f(x_k, u_k) + w_k`` with the linear
+output ``y_k = C x_k + v_k`` or a nonlinear one ``y_k = h(x_k) + v_k``
+(:class:`NonlinearSystem`).  ``W`` and ``V`` are added directly in state and output space (no
+E/F matrices, as in CORA's observers).
+
+Every system answers the same output questions: ``h(x)`` (the output without noise),
+``h_jacobian(x)`` (``C`` for a linear output), ``outputs(X)`` (one row per state of ``X``) and
+``output_is_linear``.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import numpy as np
 
 from observers.sets import Interval, SetError, Zonotope
 
-from .errors import DomainError, ModelError
+from .errors import DomainError, ModelError, OutputNotLinear
 
 
 def _matrix(M, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -118,9 +123,23 @@ class LinearSystem:
     ny = property(lambda self: self.C.shape[0], doc="Output dimension.")
     is_linear = True
 
+    output_is_linear = True
+
     def dynamics(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Noise-free successor ``A x + B u``."""
         return self.A @ x + self.B @ u
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Output without noise, ``C x``."""
+        return self.C @ np.asarray(x, dtype=float)
+
+    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """Jacobian of the output, ``C``."""
+        return self.C
+
+    def outputs(self, X: np.ndarray) -> np.ndarray:
+        """Noise-free outputs of the states in the rows of ``X`` (N x n): ``X C'``."""
+        return np.asarray(X, dtype=float) @ self.C.T
 
     def observability_rank(self) -> int:
         """Rank of the observability matrix of (A, C)."""
@@ -172,7 +191,7 @@ class LinearSystem:
 
 
 class NonlinearSystem:
-    """Nonlinear discrete-time system ``x+ = f(x, u) + w``, ``y = C x + v``.
+    """Nonlinear discrete-time system ``x+ = f(x, u) + w``, ``y = C x + v`` or ``y = h(x) + v``.
 
     Parameters
     ----------
@@ -183,7 +202,17 @@ class NonlinearSystem:
     n, nu : int
         State and input dimensions.
     C, W, V, X0
-        Linear output matrix and the sets, as for :class:`LinearSystem`.
+        Linear output matrix and the sets, as for :class:`LinearSystem`; ``C`` is ``None``
+        when ``h`` is given (the number of outputs is then the dimension of ``V``).
+    h : callable, optional
+        Nonlinear output ``h(x, m) -> (ny,) array`` written with the math namespace ``m`` as
+        ``f``; its Jacobian and second derivatives are derived symbolically as those of ``f``
+        unless given.  Without ``h`` the output is linear (``C``), the fast special case.
+    h_jacobian : callable, optional
+        ``h_jacobian(x) -> (ny, n) array``.
+    h_hessian : callable, optional
+        ``h_hessian(lo, hi) -> (idx, Hlo, Hhi)``: sound bounds of the non-zero second
+        derivatives ``d^2 h_i / dx_j dx_k`` (``j <= k``) over the box, as ``hessian``.
     jacobian : callable, optional
         ``jacobian(x, u) -> (df/dx, df/du)``; derived symbolically from ``f`` if omitted.
     hessian : callable, optional
@@ -201,14 +230,31 @@ class NonlinearSystem:
     is_linear = False
 
     def __init__(self, f: Callable, n: int, nu: int, C, W, V, X0, *,
+                 h: Callable | None = None, h_jacobian: Callable | None = None,
+                 h_hessian: Callable | None = None,
                  jacobian: Callable | None = None, hessian: Callable | None = None,
                  domain=None, dt: float = 1.0, name: str = ""):
         if not callable(f):
             raise ModelError("f must be a callable f(x, u, m)")
         self._f = f
         self._n, self._nu = int(n), int(nu)
-        self.C = _matrix(C, "C", cols=self._n)
-        self.W, self.V, self.X0 = _system_sets(W, V, X0, self._n, self.C.shape[0])
+        if h is None:
+            if C is None:
+                raise ModelError("give the output as a matrix C or as a function h(x, m)")
+            self._C = _matrix(C, "C", cols=self._n)
+            ny = self._C.shape[0]
+        else:
+            if C is not None:
+                raise ModelError("give the output either as C or as h, not both")
+            if not callable(h):
+                raise ModelError("h must be a callable h(x, m)")
+            self._C = None
+            ny = V.dim if isinstance(V, (Zonotope, Interval)) else None
+            if ny is None:
+                raise ModelError(f"V must be a Zonotope or an Interval, got {type(V).__name__}")
+        self._h, self._h_jacobian, self._h_hessian = h, h_jacobian, h_hessian
+        self._ny = ny
+        self.W, self.V, self.X0 = _system_sets(W, V, X0, self._n, ny)
         self.dt = _sampling_time(dt)
         self.name = name
         if domain is None:
@@ -216,12 +262,124 @@ class NonlinearSystem:
         self.domain = tuple(np.broadcast_to(np.asarray(d, dtype=float), (self._n,)).copy()
                             for d in domain)
         self._derived = None
+        self._derived_h = None
         self._jacobian = jacobian
         self._hessian = hessian
+        if h is not None:
+            try:
+                y0 = self.h(self.X0.c)
+            except (ArithmeticError, TypeError, ValueError) as exc:
+                raise ModelError(f"h cannot be evaluated at the centre of X0 "
+                                 f"({type(exc).__name__}: {exc})") from None
+            if y0.shape != (ny,):
+                raise ModelError(f"h returns {y0.size} values, but V has dimension {ny}")
 
     n = property(lambda self: self._n, doc="State dimension.")
     nu = property(lambda self: self._nu, doc="Input dimension.")
-    ny = property(lambda self: self.C.shape[0], doc="Output dimension.")
+    ny = property(lambda self: self._ny, doc="Output dimension.")
+
+    @property
+    def output_is_linear(self) -> bool:
+        """Whether the output is ``C x`` (else ``h(x)``)."""
+        return self._h is None
+
+    @property
+    def output_matrix(self) -> np.ndarray | None:
+        """``C`` if the output is linear: the matrix ``C``, or, for an output function ``h``
+        without hand-given derivatives whose symbolic derivation shows ``h(x) = C x`` (no
+        second derivative, a constant Jacobian, ``h(0) = 0``), that Jacobian; else ``None``.
+        Observers use it to treat such an ``h`` exactly as the ``C`` path."""
+        if self._h is None:
+            return self._C
+        if self._h_jacobian is not None or self._h_hessian is not None:
+            return None
+        if not hasattr(self, "_h_linear"):
+            try:
+                d = self.derived_h
+            except ModelError:  # h cannot be traced symbolically: treat it as nonlinear
+                self._h_linear = None
+                return None
+            Jx = d.jacobian_expressions[0]
+            linear = not d.hessian_entries and not Jx.free_symbols
+            C = np.array(Jx.tolist(), dtype=float) if linear else None
+            if C is not None and np.any(self.h(np.zeros(self._n)) != 0.0):
+                C = None
+            if C is not None:
+                C.setflags(write=False)
+            self._h_linear = C
+        return self._h_linear
+
+    @property
+    def C(self) -> np.ndarray:
+        """Output matrix of a linear output; a nonlinear output raises
+        :class:`~systems.errors.OutputNotLinear` (so ``hasattr(system, "C")`` is false)."""
+        if self._C is None:
+            raise OutputNotLinear(f"{self.name or 'this system'} has a nonlinear output "
+                                  "y = h(x) + v and no matrix C (use h, h_jacobian, outputs)")
+        return self._C
+
+    @property
+    def derived_h(self):
+        """:class:`~systems.derivatives.SymbolicDerivatives` of ``h`` (nonlinear output
+        only; built on first use)."""
+        if self._h is None:
+            raise OutputNotLinear("the output is linear (C): nothing to derive")
+        if self._derived_h is None:
+            from .derivatives import SymbolicDerivatives
+
+            h = self._h
+            self._derived_h = SymbolicDerivatives(lambda x, u, m: h(x, m), self._n, 0,
+                                                  outputs=self._ny, what="h")
+        return self._derived_h
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Output without noise, ``h(x)`` (or ``C x``)."""
+        x = np.asarray(x, dtype=float)
+        if self._h is None:
+            return self._C @ x
+        return np.asarray(self._h(x, np), dtype=float).reshape(-1)
+
+    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """Jacobian ``dh/dx`` at ``x`` (``C`` for a linear output; given by hand or derived)."""
+        if self._h is None:
+            return self._C
+        if self._h_jacobian is not None:
+            return np.asarray(self._h_jacobian(np.asarray(x, dtype=float)), dtype=float
+                              ).reshape(self._ny, self._n)
+        return self.derived_h.jacobian(np.asarray(x, dtype=float), np.zeros(0))[0]
+
+    def outputs(self, X: np.ndarray) -> np.ndarray:
+        """Noise-free outputs of the states in the rows of ``X`` (N x n)."""
+        X = np.asarray(X, dtype=float)
+        if self._h is None:
+            return X @ self._C.T
+        return np.array([self.h(x) for x in X]).reshape(X.shape[0], self._ny)
+
+    def h_jacobian_bounds(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Interval Jacobian ``(Jlo, Jhi)`` of ``dh/dx`` over ``[lo, hi]`` (derived, after
+        :meth:`check_domain`; exact ``C`` for a linear output)."""
+        if self._h is None:
+            return self._C, self._C
+        self.check_domain(lo, hi)
+        try:
+            return self.derived_h.jacobian_bounds(lo, hi, np.zeros(0))
+        except SetError as exc:
+            raise DomainError(f"{self.name or 'h'}: {exc} over the estimate's box") from None
+
+    def h_hessian(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                  np.ndarray]:
+        """Bounds of the non-zero second derivatives of ``h`` over ``[lo, hi]`` (after
+        :meth:`check_domain`): ``(idx, Hlo, Hhi)`` as :meth:`hessian` (none for ``C``)."""
+        if self._h is None:
+            return np.zeros((0, 3), dtype=int), np.zeros(0), np.zeros(0)
+        self.check_domain(lo, hi)
+        if self._h_hessian is not None:
+            return self._h_hessian(lo, hi)
+        try:
+            H = self.derived_h.hessian_bounds(lo, hi, np.zeros(0))
+        except SetError as exc:
+            raise DomainError(f"{self.name or 'h'}: {exc} over the estimate's box") from None
+        return self.derived_h.hessian_index, H.lo, H.hi
 
     @property
     def derived(self):
@@ -280,4 +438,6 @@ class NonlinearSystem:
         return self.derived.hessian_index, H.lo, H.hi
 
     def __repr__(self) -> str:
-        return f"NonlinearSystem({self.name or 'unnamed'}, n={self.n}, nu={self.nu}, ny={self.ny})"
+        out = "" if self.output_is_linear else ", h(x)"
+        return (f"NonlinearSystem({self.name or 'unnamed'}, n={self.n}, nu={self.nu}, "
+                f"ny={self.ny}{out})")

@@ -24,6 +24,8 @@ from .alamo import alamo2d
 from .errors import ModelError
 from .memory import available_memory
 from .model import LinearSystem
+from .rego import X0_LINEAR, X0_NONLINEAR, rego2d_linear, rego2d_nonlinear
+from .robot import X0_CENTRE, loop_input, robot
 from .rotating import SENSOR_SIZES, rotating_target_record
 from .simulate import simulate
 from .tank import tank, tank_input
@@ -284,6 +286,57 @@ def rotating_target_scenario(seed: int = 0, noise: str = "uniform", steps: int =
     )
 
 
+def rego2d_nonlinear_sim(seed: int = 0, noise: str = "uniform", steps: int = 100) -> Scenario:
+    """The nonlinear example of Rego et al. (nonlinear dynamics and measurements) from
+    ``x0 = (5.2, 0.65)``, with the papers' generator and constraint limits (20 and 8) and
+    their enclosures over the interval hull of the constrained zonotope (option
+    ``enclosure_box``; over the box of the zonotope part CZN-A and CZN-MV diverge within three
+    steps here)."""
+    system = rego2d_nonlinear()
+    sim = simulate(system, np.zeros((steps, 0)), seed=seed, noise=noise, x0=X0_NONLINEAR)
+    return _make(
+        name="rego2d-nonlinear", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 10, "reduction": "girard", "max_generators": 20,
+                 "max_constraints": 8, "enclosure_box": "hull"},
+        description=f"2-state example of Rego et al. with nonlinear measurements, simulated "
+                    f"({noise} noise, seed {seed})",
+        source="Rego, Raffo, Scott, Raimondo, Automatica 2020; Rego, Raffo, Terra, Scott, "
+               "arXiv 2504.00130; record simulated here", state_names=("x1", "x2"),
+    )
+
+
+def rego2d_linear_sim(seed: int = 0, noise: str = "uniform", steps: int = 30) -> Scenario:
+    """The linear sanity example of Rego et al.'s toolbox from ``x0 = (1, -1)``, generator
+    and constraint limits 20 and 5."""
+    system = rego2d_linear()
+    sim = simulate(system, np.zeros((steps, 0)), seed=seed, noise=noise, x0=X0_LINEAR)
+    return _make(
+        name="rego2d-linear", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 10, "reduction": "girard", "max_generators": 20,
+                 "max_constraints": 5},
+        description=f"linear 2-state example of Rego et al.'s toolbox, simulated ({noise} "
+                    f"noise, seed {seed})",
+        source="linear example of the ZETA toolbox (Rego et al., arXiv 2504.06467); record "
+               "simulated here", state_names=("x1", "x2"),
+    )
+
+
+def robot_range_sim(seed: int = 0, noise: str = "uniform", steps: int = 150) -> Scenario:
+    """Unicycle localised by ranges to four beacons and one bearing (:mod:`systems.robot`),
+    driven round a loop from ``(2.5, 2.5, 0)``."""
+    system = robot()
+    sim = simulate(system, loop_input(steps), seed=seed, noise=noise, x0=X0_CENTRE)
+    return _make(
+        name="robot-range", system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 10, "reduction": "girard", "max_generators": 30,
+                 "max_constraints": 8, "enclosure_box": "hull"},
+        description=f"unicycle with 4 beacon ranges and 1 bearing, simulated ({noise} "
+                    f"noise, seed {seed})",
+        source="systems/robot.py (parameters chosen here); record simulated here",
+        state_names=("px", "py", "theta"),
+    )
+
+
 _FIXED: dict[str, Callable[..., Scenario]] = {
     "vehicle2d-cora": vehicle2d_cora,
     "vehicle6d-cora": vehicle6d_cora,
@@ -293,6 +346,9 @@ _FIXED: dict[str, Callable[..., Scenario]] = {
     "alamo2d": alamo2d_published,
     "alamo2d-sim": alamo2d_sim,
     "rotating-target": rotating_target_scenario,
+    "rego2d-nonlinear": rego2d_nonlinear_sim,
+    "rego2d-linear": rego2d_linear_sim,
+    "robot-range": robot_range_sim,
 }
 _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
     (re.compile(r"vehicle([246])d-sim"), lambda m, **kw: vehicle_sim(int(m.group(1)), **kw)),
@@ -304,6 +360,7 @@ _LISTED = [
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
     "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "tank12-nonlinear",
     "tank30-nonlinear", "tank6-nonlinear-cora", "vanderpol-sim", "rotating-target",
+    "rego2d-nonlinear", "rego2d-linear", "robot-range",
 ]
 
 

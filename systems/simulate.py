@@ -55,7 +55,8 @@ def simulate(
     noise: str = "uniform",
     x0=None,
 ) -> Simulation:
-    """Simulate ``x_{k+1} = f(x_k, u_k) + w_k``, ``y_k = C x_k + v_k`` for ``steps`` steps.
+    """Simulate ``x_{k+1} = f(x_k, u_k) + w_k``, ``y_k = h(x_k) + v_k`` (``h(x) = C x`` for a
+    linear output) for ``steps`` steps.
 
     Parameters
     ----------
@@ -85,7 +86,7 @@ def simulate(
         raise ModelError(f"u has {u.shape[0]} rows, but {N} steps were requested")
     if not np.all(np.isfinite(u[:N])):
         raise ModelError("u contains non-finite values")
-    need = 8 * N * (2 * n + system.C.shape[0] + system.W.num_generators
+    need = 8 * N * (2 * n + system.ny + system.W.num_generators
                     + system.V.num_generators)
     have = available_memory()
     if have is not None and need > have:
@@ -105,5 +106,5 @@ def simulate(
     for k in range(N):
         X[k] = x
         x = system.dynamics(x, u[k]) + _draw(system.W, xi_w[k])
-    Y = X @ system.C.T + system.V.c + xi_v @ system.V.G.T
+    Y = system.outputs(X) + system.V.c + xi_v @ system.V.G.T
     return Simulation(u[:N].copy(), Y, X)

@@ -15,12 +15,12 @@ from scipy.optimize import linprog
 
 import observers
 import systems
-from observers.sets import ConZonotope, HullLP, SetError
+from observers.sets import ConZonotope, HullLP, SetError, _dual_simplex_jit
 from observers.sets import _dual_simplex as ds
-from observers.sets import _dual_simplex_jit as jit
 from observers.sets._lp import dual_bounds
 
-needs_numba = pytest.mark.skipif(not jit.AVAILABLE, reason="numba not installed or disabled")
+needs_numba = pytest.mark.skipif(not _dual_simplex_jit.AVAILABLE,
+                                 reason="numba not installed or disabled")
 
 
 def _feasible(A: np.ndarray, xi0: np.ndarray, k: int, g: np.random.Generator) -> np.ndarray:

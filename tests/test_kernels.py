@@ -4,7 +4,8 @@
 strip and propagation families in one compiled call; ``SETOBS_NUMBA=0`` (or
 :func:`observers.sets._jit.set_compiled`) selects the numpy path.  Girard's reduction is
 bit-equal (same selection, the box summed in numpy's pairwise order); PCA and the step kernels
-agree to rounding (numba's LAPACK/BLAS is SciPy's, numpy's its own).
+agree to rounding (numba's LAPACK/BLAS is SciPy's, numpy's its own).  Each compiled formula
+carries the name of its numpy twin, and the twins are compared one to one.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ import pytest
 
 import observers
 import systems
-from observers.sets import _jit, get_reduction
-from observers.sets import _step_jit as kernels
+from observers import families
+from observers.kernels import KernelByOption, StepKernel
+from observers.numerics import frad, volmin
+from observers.sets import _jit, _step_jit, get_reduction
 
 needs_numba = pytest.mark.skipif(not _jit.AVAILABLE, reason="numba not installed or disabled")
 pytestmark = needs_numba
@@ -67,15 +70,15 @@ def test_jacobi_principal_axes_equal_lapacks(seed):
     G, _ = random_generators(seed)
     if G.shape[1] == 0 or not np.abs(G).max() > 0:
         return
-    lapack = kernels._principal_axes(G, 1e-9, 1e-6, 0)
-    jacobi = kernels._principal_axes(G, 1e-9, 1e-6, 12)
+    lapack = _step_jit._principal_axes(G, 1e-9, 1e-6, 0)
+    jacobi = _step_jit._principal_axes(G, 1e-9, 1e-6, 12)
     np.testing.assert_allclose(jacobi, lapack, rtol=0, atol=1e-9)
     np.testing.assert_allclose(jacobi.T @ jacobi, np.eye(G.shape[0]), atol=1e-13)
 
 
 def test_reduction_kernel_leaves_non_finite_matrices_to_numpy():
     G = np.array([[1.0, np.nan, 2.0, 0.5], [0.0, 1.0, 1.0, 3.0]])
-    out, ok = kernels.reduce(G, 1.0, kernels.GIRARD, 1e-9, 1e-6, 0)
+    out, ok = _step_jit.reduce(G, 1.0, _step_jit.REDUCTIONS["girard"], 1e-9, 1e-6, 0)
     assert not ok and out.shape == (2, 0)
     compiled, plain = both_paths(lambda: get_reduction("girard").reduce(G, 1.0))
     np.testing.assert_array_equal(compiled, plain)  # the numpy path decided both
@@ -85,11 +88,110 @@ def test_pairwise_sum_is_numpys():
     rng = np.random.default_rng(3)
     for m in [*range(0, 140), 255, 256, 1000, 4099]:
         a = rng.random(m) * 10.0 ** rng.uniform(-8, 8, size=m)
-        assert kernels._pairwise_sum(a, m) == a.sum()
+        assert _step_jit._pairwise_sum(a, m) == a.sum()
 
 
-# observer, options: every gain mode of the two kernels (GIVEN, PER_STRIP, ALAMO, WANG with
-# and without the extra A, COMBASTEL, GIVEN propagation, BRAVO), both reductions
+# -- the compiled formulas against their numpy twins, one to one ------------------------------
+def _problem(seed: int, m: int = 2):
+    """A random zonotope ``(c, G)``, strips ``(C, y, sigma)``, ``A``, ``E``, ``F``, a gain."""
+    rng = np.random.default_rng(seed)
+    n, r = 4, 9
+    c, G = rng.standard_normal(n), rng.standard_normal((n, r))
+    C = rng.standard_normal((m, n))
+    y = C @ c + 0.3 * rng.standard_normal(m)
+    sigma = 0.1 + rng.random(m)
+    A = np.eye(n) + 0.2 * rng.standard_normal((n, n))
+    E, F = 0.1 * rng.standard_normal((n, 3)), np.diag(sigma)
+    L = 0.3 * rng.standard_normal((n, m))
+    return c, G, C, y, sigma, A, E, F, L
+
+
+def _close(compiled, plain):
+    scale = max(1.0, float(np.abs(plain).max(initial=0.0)))
+    np.testing.assert_allclose(compiled, plain, rtol=0, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_strip_update_twin(seed):
+    c, G, C, y, sigma, _, _, _, L = _problem(seed)
+    for got, want in zip(_step_jit.strip_update(c, G, L, C, y, sigma),
+                         families.strip_update(c, G, L, C, y, sigma), strict=True):
+        _close(got, want)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_propagate_twin(seed):
+    c, G, C, y, sigma, A, E, F, L = _problem(seed)
+    d, V, W = np.arange(4.0), (0.1 * np.ones(2), F), (0.2 * np.ones(4), E)
+    for got, want in zip(_step_jit.propagate(c, G, A, d, C, L, y, V, W),
+                         families.propagate(c, G, A, d, C, L, y, V, W), strict=True):
+        _close(got, want)
+
+
+@pytest.mark.parametrize(("seed", "m"), [(0, 1), (1, 2), (2, 3), (3, 2)])
+def test_alamo_frad_strips_twin(seed, m):
+    c, G, C, y, sigma, *_ = _problem(seed, m)
+    for got, want in zip(_step_jit.alamo_frad_strips(c, G, C, y, sigma),
+                         frad.alamo_frad_strips(c, G, C, y, sigma), strict=True):
+        _close(got, want)
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("cora", [True, False], ids=["A", "A=None"])
+def test_wang_frad_gain_twin(seed, cora):
+    _, G, C, _, _, A, E, F, _ = _problem(seed)
+    P = G @ G.T
+    got, ok = _step_jit.wang_frad_gain(P, A if cora else None, C, E, F)
+    assert ok
+    _close(got, frad.wang_frad_gain(P, A if cora else None, C, E, F))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_combastel_gain_twin(seed):
+    _, G, C, _, _, A, _, F, _ = _problem(seed)
+    P = G @ G.T
+    got, ok = _step_jit.combastel_gain(P, A, C, F)
+    assert ok
+    _close(got, frad.combastel_gain(P, A, C, F))
+
+
+def test_compiled_gains_decline_what_the_numpy_path_must_decide():
+    _, G, C, _, _, A, E, F, _ = _problem(0)
+    P = G @ G.T
+    P[0, 0] = np.nan
+    assert not _step_jit.wang_frad_gain(P, A, C, E, F)[1]
+    assert not _step_jit.combastel_gain(P, A, C, F)[1]
+    zero = np.zeros((4, 4))  # S = C 0 C' + 0: singular, numpy takes the pseudo-inverse
+    assert not _step_jit.combastel_gain(zero, A, C, np.zeros((2, 2)))[1]
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_bravo_choice_and_update_twins(seed):
+    c, G, C, y, sigma, *_ = _problem(seed, 1)
+    row = C[0]
+    basis = volmin.null_basis(row)
+    j = _step_jit.bravo_choice(G, row.copy(), sigma[0], basis, volmin.ZERO_PROJECTION)
+    assert j == volmin.bravo_choice(G, row, sigma[0], basis)
+    for jj in {0, j, 1 + seed % G.shape[1]}:
+        for got, want in zip(_step_jit.bravo_update(c, G, row, y[0], sigma[0], jj),
+                             volmin.bravo_update(c, G, row, y[0], sigma[0], jj), strict=True):
+            _close(got, want)
+
+
+def test_every_kernel_is_compiled_and_declared_by_an_observer():
+    assert set(_step_jit.KERNEL_NAMES) == {k.value for k in StepKernel}
+    declared = set()
+    for name in observers.names():
+        kernel = getattr(observers.get(name).cls, "KERNEL", None)
+        if isinstance(kernel, KernelByOption):
+            declared.update(k for _, k in kernel.choices)
+        elif kernel is not None:
+            declared.add(kernel)
+    assert declared == set(StepKernel)
+
+
+# observer, options: every kernel (strip with a given gain, per strip, Alamo, Wang with and
+# without the extra A, Combastel, propagation with a given gain, Bravo), both reductions
 CASES = [
     ("FRad-A", {"reduction": "pca", "order": 5}),
     ("FRad-A", {"reduction": "girard", "order": 3}),
@@ -114,12 +216,15 @@ def test_step_kernels_give_the_sets_of_the_numpy_path(scenario, name, options):
     except observers.DesignFailed:
         pytest.skip(f"{name} has no gain on {scenario}")
     u, y = sc.u[:25], sc.y[:26]
-    compiled, plain = both_paths(lambda: observers.run(obs, u, y, on_error="status"))
-    old = _jit.set_compiled(True)
-    try:
-        assert obs._kernel() is not None  # the compiled path really ran
-    finally:
-        _jit.set_compiled(old)
+    runs = []
+
+    def run():
+        res = observers.run(obs, u, y, on_error="status")
+        runs.append(obs._kernel_run)
+        return res
+
+    compiled, plain = both_paths(run)
+    assert runs[0] is not None and runs[1] is None  # the compiled path really ran, then not
     assert compiled.status == plain.status
     assert len(compiled.sets) == len(plain.sets) > 1
     for Sc, Sp in zip(compiled.sets, plain.sets, strict=True):
@@ -129,8 +234,33 @@ def test_step_kernels_give_the_sets_of_the_numpy_path(scenario, name, options):
         np.testing.assert_allclose(Sc.G, Sp.G, rtol=0, atol=1e-10 * scale)
 
 
+def test_each_kernel_is_compiled_once():
+    """Every observer passes arguments of the same types (one signature per kernel)."""
+    sc = systems.scenario("vehicle2d-cora")
+    for name, options in CASES:
+        observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
+    for kernel in (_step_jit.strip_step, _step_jit.propagate_step, _step_jit.bravo_step):
+        assert len(kernel.signatures) == 1, kernel.signatures
+
+
+def test_the_kernel_follows_the_option_it_depends_on():
+    sc = systems.scenario("vehicle2d-cora")
+    cora = observers.create("FRad-B", sc.system)
+    textbook = observers.create("FRad-B", sc.system, variant="textbook")
+    assert (cora._step_kernel, textbook._step_kernel) == (StepKernel.WANG_CORA, StepKernel.WANG)
+
+
 def test_nonlinear_systems_and_other_reductions_keep_the_numpy_path():
     sc = systems.scenario("tank6-nonlinear")
     obs = observers.create("FRad-A", sc.system)
-    obs.reset()
-    assert obs._kernel() is None
+    assert obs._step_kernel is None
+
+    class Halve:
+        name = "halve"
+
+        def reduce(self, G, order):
+            return get_reduction("girard").reduce(G, order)
+
+    sc = systems.scenario("vehicle2d-cora")
+    assert observers.create("FRad-A", sc.system, reduction=Halve())._step_kernel is None
+    assert observers.create("FRad-A", sc.system)._step_kernel is StepKernel.ALAMO

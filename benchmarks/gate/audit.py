@@ -129,14 +129,14 @@ def worst_case_input(system, u_nominal: np.ndarray, rng: np.random.Generator) ->
 def simulate_factors(system, u: np.ndarray, xi0: np.ndarray, xi_w: np.ndarray,
                      xi_v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """True states and measurements for given generator factors of ``x0``, ``w_k``, ``v_k``
-    (``x_{k+1} = f(x_k, u_k) + w_k``, ``y_k = C x_k + v_k``); returns ``(x_true, y)``."""
+    (``x_{k+1} = f(x_k, u_k) + w_k``, ``y_k = h(x_k) + v_k``); returns ``(x_true, y)``."""
     N = xi_v.shape[0]
     X = np.empty((N, system.n))
     x = system.X0.c + system.X0.G @ xi0
     for k in range(N):
         X[k] = x
         x = system.dynamics(x, u[k]) + system.W.c + system.W.G @ xi_w[k]
-    Y = X @ system.C.T + system.V.c + xi_v @ system.V.G.T
+    Y = system.outputs(X) + system.V.c + xi_v @ system.V.G.T
     return X, Y
 
 

@@ -46,7 +46,7 @@ def design_tasks(paths: list[str | Path]) -> list[Task]:
                        json.dumps(options, sort_keys=True, default=repr))
                 if key not in seen:
                     seen.add(key)
-                    tasks.append((sc.system.C.shape[1], (str(path), i, name)))
+                    tasks.append((sc.system.n, (str(path), i, name)))
     tasks.sort(key=lambda t: -t[0])  # stable: config order among equal sizes
     return [t for _, t in tasks]
 

@@ -21,9 +21,10 @@ import systems
 from observers.sets import ConZonotope
 
 #: one observer per compiled step kernel (``strip_step``: FRad-A; ``propagate_step``: FRad-C;
-#: ``bravo_step``: VolMin-B), run for two steps by :func:`warm`.  One call compiles a kernel
-#: for every mode of it (the modes are run-time arguments), and none of these three has an
-#: offline SDP design, so a server with a cold design cache solves no SDP before forking.
+#: ``bravo_step``: VolMin-B), run for two steps by :func:`warm`.  Every observer passes its
+#: kernel the same argument types (one ``StepData`` per run), so one call loads a kernel for
+#: all of them, and none of these three has an offline SDP design, so a server with a cold
+#: design cache solves no SDP before forking.
 KERNEL_OBSERVERS = ("FRad-A", "FRad-C", "VolMin-B")
 
 

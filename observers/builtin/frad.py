@@ -4,17 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..families import (
-    NO_GAIN,
-    AllStripsObserver,
-    Linearised,
-    PerStripObserver,
-    PropagationObserver,
-)
+from ..families import AllStripsObserver, Linearised, PerStripObserver, PropagationObserver
+from ..kernels import StepKernel, by_option
 from ..numerics.frad import alamo_frad_gain, alamo_frad_strips, combastel_gain, wang_frad_gain
 from ..options import Choice
 from ..registry import register
-from ..sets import _step_jit as kernels
 
 
 @register(
@@ -24,6 +18,8 @@ from ..sets import _step_jit as kernels
 class FRadA(Linearised, PerStripObserver):
     """Strip by strip with the closed-form F-radius gain of Alamo et al. (online)."""
 
+    KERNEL = StepKernel.ALAMO
+
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
         return alamo_frad_gain(G, self.C[i], self.sigma[i])
 
@@ -31,9 +27,6 @@ class FRadA(Linearised, PerStripObserver):
         """All strips at once on ``G G'`` (:func:`alamo_frad_strips`; the same set as the
         strip-by-strip loop of :class:`PerStripObserver` with :meth:`strip_gain`)."""
         return alamo_frad_strips(c, G, self.C, y, self.sigma)
-
-    def compiled_gain(self):
-        return kernels.ALAMO, NO_GAIN
 
 
 class WangGainVariant:
@@ -69,12 +62,10 @@ class FRadB(Linearised, WangGainVariant, AllStripsObserver):
         See :class:`WangGainVariant` (``"cora"``: CORA's double application of ``A``).
     """
 
+    KERNEL = by_option("variant", cora=StepKernel.WANG_CORA, textbook=StepKernel.WANG)
+
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.wang_gain(c, G)
-
-    def compiled_gain(self):
-        self._wang_cora = self.options["variant"] == "cora"
-        return kernels.WANG, NO_GAIN
 
 
 @register(
@@ -84,8 +75,7 @@ class FRadB(Linearised, WangGainVariant, AllStripsObserver):
 class FRadC(Linearised, PropagationObserver):
     """Set propagation with the online F-radius gain of Combastel (Kalman-like)."""
 
+    KERNEL = StepKernel.COMBASTEL
+
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return combastel_gain(G @ G.T, self.A, self.C, self.F)
-
-    def compiled_gain(self):
-        return kernels.COMBASTEL, NO_GAIN

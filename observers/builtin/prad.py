@@ -87,6 +87,7 @@ import numpy as np
 
 from ..errors import DesignFailed
 from ..families import AllStripsObserver, PerStripObserver
+from ..kernels import StepKernel
 from ..numerics.lmi import cora_bisection_end
 from ..numerics.prad import (
     centre_gain,
@@ -98,7 +99,6 @@ from ..numerics.prad import (
 from ..offline import OfflineGain
 from ..options import Choice, Number
 from ..registry import register
-from ..sets import _step_jit as kernels
 
 
 def cora_epsilon(W, sigma: np.ndarray) -> float:
@@ -125,6 +125,7 @@ class _BetaTol:
 class PRadA(_BetaTol, OfflineGain, PerStripObserver):
     """Strip by strip with offline P-radius gains, one single-output design per output."""
 
+    KERNEL = StepKernel.PER_STRIP
     DESIGN_VERSION = "1"
 
     def design_gain(self) -> np.ndarray:
@@ -140,18 +141,14 @@ class PRadA(_BetaTol, OfflineGain, PerStripObserver):
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
         return self.L[:, i]
 
-    def compiled_gain(self):
-        return kernels.PER_STRIP, self.L
-
 
 class _ConstantAllStrips(OfflineGain, AllStripsObserver):
     """Method II with the offline gain."""
 
+    KERNEL = StepKernel.STRIP_GIVEN
+
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
         return self.L
-
-    def compiled_gain(self):
-        return kernels.GIVEN, self.L
 
 
 class _Centre:
@@ -235,11 +232,8 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     DESIGN_VERSION = "4"
 
     def bound_gain(self) -> np.ndarray:
-        search = None
-        if self.options["design"] == "radius-bound-cora-rate":
-            s = -np.log10(1.0 - self.centre_rate())
-            search = {"s_range": (s, s), "grid": 1}  # one rate: no search
-        return wang_c1_gain(self.A, self.C, self.E, self.F, search=search).L
+        rate = self.centre_rate() if self.options["design"] == "radius-bound-cora-rate" else None
+        return wang_c1_gain(self.A, self.C, self.E, self.F, rate=rate).L
 
 
 @register(

@@ -28,10 +28,17 @@ import numpy as np
 
 from ..errors import DesignFailed
 from ..families import Linearised, PerStripObserver, StripBasedObserver
-from ..numerics.volmin import bravo_choice, bravo_update, null_basis, subset_count, volume_lp_gain
+from ..kernels import StepKernel
+from ..numerics.volmin import (
+    ZERO_PROJECTION,
+    bravo_choice,
+    bravo_update,
+    null_basis,
+    subset_count,
+    volume_lp_gain,
+)
 from ..options import Integer
 from ..registry import register
-from ..sets import _step_jit as kernels
 
 
 def _scientific(count: int) -> str:
@@ -80,13 +87,18 @@ class VolMinA(Linearised, PerStripObserver):
 class VolMinB(Linearised, StripBasedObserver):
     """Strip by strip, choosing Bravo's candidate zonotope of least det(T T') (online)."""
 
+    KERNEL = StepKernel.BRAVO
 
     def design(self) -> None:
         super().design()
+        self.output_changed()
+
+    def output_changed(self) -> None:
+        """Null-space bases of the rows of ``C`` (per step for a nonlinear output)."""
         self._bases = [null_basis(row) for row in self.C]
 
-    def compiled_gain(self):
-        return kernels.BRAVO, np.stack(self._bases)
+    def kernel_inputs(self):
+        return {"bases": np.stack(self._bases), "zero_projection": ZERO_PROJECTION}
 
     def intersect(self, c, G, y):
         for i, row in enumerate(self.C):

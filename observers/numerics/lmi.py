@@ -226,7 +226,9 @@ def analytic_centre(
     point, quadratically near the optimum; the iteration stops with a last full step when the
     squared Newton decrement falls below ``tol``.  Gradient and Hessian come from the whitened
     matrices
-    ``K_i = L^-1 F_i L^-T`` (``F = L L'``): ``g_i = tr K_i``, ``H_ij = -<K_i, K_j>``.
+    ``K_i = L^-1 F_i L^-T`` (``F = L L'``): ``g_i = tr K_i``, ``H_ij = -<K_i, K_j>``.  Each
+    block is factorised once per iteration: the factors of the accepted point of the line
+    search give its value and the next gradient and Hessian.
 
     Returns the maximiser; raises :class:`DesignFailed` if the iteration does not converge
     within ``max_iter`` steps (the point returned by a caller is verified in numpy anyway).
@@ -234,25 +236,33 @@ def analytic_centre(
     x = np.asarray(x0, dtype=float).copy()
     a = np.asarray(a_eq, dtype=float)
 
-    def value(z: np.ndarray) -> float | None:
-        total = 0.0
+    def factors(z: np.ndarray) -> list[np.ndarray] | None:
+        """The Cholesky factors of every ``F_j(z)``, or ``None`` if one is not positive
+        definite (``z`` infeasible)."""
+        out = []
         for B in blocks:
             try:
-                Lc = np.linalg.cholesky(np.tensordot(z, B, axes=1))
+                out.append(np.linalg.cholesky(np.tensordot(z, B, axes=1)))
             except np.linalg.LinAlgError:
                 return None
+        return out
+
+    def value(chol: list[np.ndarray]) -> float:
+        """``sum_j log det F_j`` from the factors of the ``F_j``."""
+        total = 0.0
+        for Lc in chol:
             total += 2.0 * float(np.log(np.diag(Lc)).sum())
         return total
 
-    f = value(x)
-    if f is None:
+    chol = factors(x)
+    if chol is None:
         raise DesignFailed(f"{what}: the starting point of the analytic centre is infeasible")
+    f = value(chol)
     N = x.size
     for _ in range(max_iter):
         g = np.zeros(N)
         H = np.zeros((N, N))
-        for B in blocks:
-            Lc = np.linalg.cholesky(np.tensordot(x, B, axes=1))
+        for B, Lc in zip(blocks, chol, strict=True):
             Li = np.linalg.inv(Lc)
             K = (Li @ B @ Li.T).reshape(N, -1)
             k = B.shape[1]
@@ -265,16 +275,18 @@ def analytic_centre(
         if not np.isfinite(decrement):
             break
         if decrement < tol:  # one last full step: quadratic convergence from here
-            return x + step if value(x + step) is not None else x
+            return x + step if factors(x + step) is not None else x
         t = 1.0
         while t > 1e-12:
-            fz = value(x + t * step)
-            if fz is not None and fz >= f + 0.25 * t * decrement:
-                break
+            chol_t = factors(x + t * step)
+            if chol_t is not None:
+                f_t = value(chol_t)
+                if f_t >= f + 0.25 * t * decrement:
+                    break
             t *= 0.5
         else:  # no progress at rounding level: accept a point that is already near the optimum
             if decrement < 1e-8:
                 return x
             break
-        x, f = x + t * step, fz
+        x, f, chol = x + t * step, f_t, chol_t
     raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")

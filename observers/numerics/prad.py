@@ -28,14 +28,17 @@ import numpy as np
 from ..errors import DesignFailed
 from .lmi import (
     GainDesign,
+    analytic_centre,
     bmat,
     cora_bisection_end,
     gain_from,
+    min_eig,
     psd_constraint,
     require_pd,
     require_psd,
     solve,
     solved,
+    sym,
 )
 
 #: relative tolerance of the numpy check of (*): the optimum of every design lies on the
@@ -67,7 +70,7 @@ def verify_decay(
 ) -> float:
     """Check ``P > 0`` (not numerically singular: smallest eigenvalue above ``1e-9`` times the
     largest) and ``D(P, P L) >= 0`` in numpy; returns the smallest eigenvalue of D."""
-    top = float(np.linalg.eigvalsh(0.5 * (P + P.T))[-1])
+    top = float(np.linalg.eigvalsh(sym(P))[-1])
     require_pd(P, f"{what}: P > 0", margin=1e-9 * max(top, 0.0))
     if not np.all(np.isfinite(L)):
         raise DesignFailed(f"{what}: the gain is not finite")
@@ -158,7 +161,7 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
     cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
             (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
     solve(cp.Problem(cp.Maximize(tau), cons), f"{what} (beta={beta})", solver)
-    Pv = 0.5 * (P.value + P.value.T)
+    Pv = sym(P.value)
     L = gain_from(Pv, Y.value, what)
     verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
     tau = float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)
@@ -179,6 +182,16 @@ def _line_searched(evaluate, what: str, search: dict | None, monotone: bool = Fa
     return beta, rough_solution if final is None else final[1]
 
 
+def _at_rate(evaluate, rate: float, what: str):
+    """The accurate solve at the decay rate ``rate`` (``evaluate(rate, rough)``), or the rough
+    one if it fails, as at the end of :func:`_line_searched`; returns ``(rate, solution)``."""
+    out = evaluate(rate, False) or evaluate(rate, True)
+    if out is None:
+        raise DesignFailed(f"{what}: the P-radius LMI has no solution with P > 0 at the decay "
+                           f"rate {rate}")
+    return rate, out[1]
+
+
 class _WeightedLMI:
     """(*) with ``Wx = beta P`` and free diagonal weights (CORA's PRad-C inequality): the
     variables, the parameter ``beta`` and the constraint, shared by PRad-C-I and PRad-C-II."""
@@ -195,8 +208,10 @@ class _WeightedLMI:
         self.lmi = decay_lmi(self.P, self.Y, A, C, E, F, self.beta * self.P,
                              cp.diag(self.gw), cp.diag(self.gv))
 
-    def design(self, objective, constraints: list, what: str, search: dict | None):
-        """Line search on ``beta`` minimising ``objective/(1 - beta)``, then verification."""
+    def design(self, objective, constraints: list, what: str, search: dict | None,
+               rate: float | None = None):
+        """Line search on ``beta`` minimising ``objective/(1 - beta)`` (or ``beta = rate``),
+        then verification."""
         import cvxpy as cp
 
         prob = cp.Problem(objective, [self.lmi, *constraints])
@@ -207,9 +222,10 @@ class _WeightedLMI:
                 return None
             return prob.value / (1 - b), tuple(v.value for v in (self.P, self.Y, self.gw, self.gv))
 
-        b, (Pv, Yv, gw, gv) = _line_searched(evaluate, what, search, monotone=True)
+        b, (Pv, Yv, gw, gv) = (_line_searched(evaluate, what, search, monotone=True)
+                               if rate is None else _at_rate(evaluate, rate, what))
         gw, gv = np.maximum(gw, 0), np.maximum(gv, 0)
-        Pv = 0.5 * (Pv + Pv.T)
+        Pv = sym(Pv)
         L = gain_from(Pv, Yv, what)
         A, C, E, F = self.data
         verify_decay(Pv, L, A, C, E, F, b * Pv, np.diag(gw), np.diag(gv), what)
@@ -217,21 +233,22 @@ class _WeightedLMI:
         return GainDesign(L, Pv, {"rate": b, "radius_bound": float(np.sqrt(bound))})
 
 
-def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None) -> GainDesign:
+def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None,
+                 rate: float | None = None) -> GainDesign:
     """PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
 
     Weights ``Wx = beta P`` and free diagonal ``Ww = diag(gw) >= 0``, ``Wv = diag(gv) >= 0``
     (CORA's ``G``, ``O``); normalisation ``P >= I``.  For fixed ``beta`` minimise
     ``tr(Ww) + tr(Wv)``, so that ``limsup R_k <= (tr Ww + tr Wv)/(1 - beta)`` and, since
     ``P >= I``, the same number bounds the squared Euclidean radius of the estimates; ``beta``
-    minimises that bound (:func:`line_search`).
+    minimises that bound (:func:`line_search`), or is ``rate`` if given.
     """
     import cvxpy as cp
 
     lmi = _WeightedLMI(A, C, E, F)
     n = lmi.P.shape[0]
     return lmi.design(cp.Minimize(cp.sum(lmi.gw) + cp.sum(lmi.gv)), [lmi.P >> np.eye(n)],
-                      what, search)
+                      what, search, rate)
 
 
 def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None) -> GainDesign:
@@ -297,7 +314,7 @@ def wang_d_gain(
         if out is None:
             raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius LMI with alpha={alpha}")
         al, (Pv, Yv) = alpha, out[1]
-    Pv = 0.5 * (Pv + Pv.T)
+    Pv = sym(Pv)
     L = gain_from(Pv, Yv, what)
     verify_decay(Pv, L, A, C, E, F, al * Pv, (1 - al) * beta * np.eye(nw),
                  (1 - al) * (1 - beta) * np.eye(nv), what)
@@ -356,8 +373,6 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     mode that the outputs cannot correct decays more slowly than ``sqrt(rate)``) the design
     fails (:class:`~observers.errors.DesignFailed`).
     """
-    from .lmi import sym
-
     A, C, E, F = _as_arrays(A, C, E, F)
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
     N = n * (n + 1) // 2 + n * m
@@ -400,19 +415,17 @@ def _centre_start(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]
         P = sla.solve_discrete_lyapunov(Al.T / s, np.eye(n) / rate)
     except (np.linalg.LinAlgError, ValueError):
         P = None
-    if P is None or not np.all(np.isfinite(P)) or np.linalg.eigvalsh(0.5 * (P + P.T))[0] <= 0:
+    if P is None or not np.all(np.isfinite(P)) or np.linalg.eigvalsh(sym(P))[0] <= 0:
         raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius decay at rate {rate} (a "
                            "mode that the outputs cannot correct decays more slowly than "
                            f"{s:.6g} per step)")
-    P = 0.5 * (P + P.T) / np.trace(P)
+    P = sym(P) / np.trace(P)
     return P, P @ L
 
 
 def _centre_newton(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
     """The centre by :func:`~observers.numerics.lmi.analytic_centre` (numpy Newton) on the
     variables ``(P, Y)``: the upper triangle of P, then Y column by column."""
-    from .lmi import analytic_centre
-
     n, m = C.shape[1], C.shape[0]
     H = C @ A
     iu = np.triu_indices(n)
@@ -444,8 +457,6 @@ def _centre_clarabel(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarr
     """The centre as a cvxpy log-det problem solved by Clarabel (systems too large for the
     dense Newton method)."""
     import cvxpy as cp
-
-    from .lmi import min_eig
 
     n, m = C.shape[1], C.shape[0]
     P, Y = _variables(n, m)

@@ -41,12 +41,11 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
-from observers.sets._step_jit import BRAVO_ZERO_PROJECTION
 from observers.sets.highs import new_highs
 
 #: CORA's threshold below which ``c g_j`` counts as zero (candidate j = unchanged zonotope;
-#: defined once, with the compiled step of VolMin-B)
-ZERO_PROJECTION = BRAVO_ZERO_PROJECTION
+#: VolMin-B passes it to its compiled step too)
+ZERO_PROJECTION = 1e10 * np.finfo(float).eps
 
 
 def null_basis(c_row: np.ndarray) -> np.ndarray:

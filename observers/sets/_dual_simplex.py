@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _dual_simplex_jit as _jit
+from . import _dual_simplex_jit
 
 #: primal feasibility tolerance on the basic variables (xi lives in [-1, 1])
 PRIMAL_TOL = 1e-9
@@ -81,7 +81,7 @@ class DualSimplexResult:
 def use_compiled() -> bool:
     """Whether :func:`solve` runs the compiled iterations (numba installed and not disabled
     by ``SETOBS_NUMBA=0``; :func:`set_compiled` switches it for tests and timings)."""
-    return _jit.AVAILABLE and _USE_COMPILED[0]
+    return _dual_simplex_jit.AVAILABLE and _USE_COMPILED[0]
 
 
 _USE_COMPILED = [True]
@@ -286,7 +286,7 @@ class _BatchLP:
         With numba (:data:`._dual_simplex_jit.AVAILABLE`) the same iterations run compiled,
         problem by problem (:meth:`_iterate_compiled`).
         """
-        if _jit.AVAILABLE and use_compiled():
+        if _dual_simplex_jit.AVAILABLE and use_compiled():
             return self._iterate_compiled(max_iter)
         key_mask, up = self.key_mask, self.up
         M, MT, b = self.M, self.MT, self.b
@@ -369,18 +369,19 @@ class _BatchLP:
     def _iterate_compiled(self, max_iter: int) -> int:
         """:meth:`iterate` by the compiled kernel :func:`._dual_simplex_jit.iterate`, pausing
         every ``REFACTOR_EVERY`` pivots for a numpy refactorisation (as the numpy path)."""
-        status = np.where(self.unbounded, _jit.UNBOUNDED, _jit.RUNNING).astype(np.int64)
+        status = np.where(self.unbounded, _dual_simplex_jit.UNBOUNDED,
+                          _dual_simplex_jit.RUNNING).astype(np.int64)
         its = np.zeros(self.K, np.int64)
         colnorm2 = self.colnorm * self.colnorm
         while True:
-            self.work += _jit.iterate(
+            self.work += _dual_simplex_jit.iterate(
                 self.M, self.MT, self.b, self.up, colnorm2, self.key_mask, PRIMAL_TOL, PIVOT_TOL,
                 REFACTOR_EVERY, self.z, self.D, self.Binv, self.basis, self.uB, status, its,
                 self.updates, max_iter)
-            if not np.any(status == _jit.PAUSED):
+            if not np.any(status == _dual_simplex_jit.PAUSED):
                 break
             self.refactor()
-        self.unbounded = status == _jit.UNBOUNDED
+        self.unbounded = status == _dual_simplex_jit.UNBOUNDED
         self.any_unbounded = bool(self.unbounded.any())
         self.updates = REFACTOR_EVERY  # pivots since the last refactorisation differ per problem
         return int(its.max(initial=0))

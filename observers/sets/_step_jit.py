@@ -3,28 +3,39 @@ step instead of about 30-80 numpy calls.
 
 On the 6-state vehicle (a 6 x ~600 generator matrix) a step of a zonotope observer costs a few
 tens of thousands of flops, and the numpy path spends most of its time in per-call overhead
-(about 1 us per call).  The kernels run the formulas of :mod:`observers.families` and
-:mod:`observers.numerics.frad` in the same order of operations, then the order reduction of
-:func:`reduce` (below), so the sets are those of the numpy path up to rounding:
+(about 1 us per call).  The kernels run the formulas of :mod:`observers.families`,
+:mod:`observers.numerics.frad` and :mod:`observers.numerics.volmin` in the same order of
+operations, then the order reduction of :func:`reduce` (below), so the sets are those of the
+numpy path up to rounding.
 
-* :func:`strip_step`: prediction ``(A c + d + c_W, [A G, E])``, intersection with the
-  strips ``|C x - y| <= sigma`` (:func:`observers.families.strip_update`) with the gain chosen
-  by ``mode``, reduction;
-* :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W``
-  (:func:`observers.families.propagate`) with a given gain or Combastel's, reduction;
+Doorway
+-------
+An observer declares its kernel by name (:class:`observers.kernels.StepKernel`); at the first
+compiled step of a run its family calls :func:`prepare` with that name and the static arrays
+of the run, and gets the kernel and one :class:`StepData`.  Every kernel is called as
+``kernel(c, G, d, y, args)`` (``d = B u``, ``args = tuple(data)``: see :class:`StepData`) and
+returns ``(c, G, ok)``:
+
+* :func:`strip_step`: prediction ``(A c + d + c_W, [A G, E])``, intersection with the strips
+  ``|C x - y| <= sigma`` with a given gain (:func:`strip_update`; column by column for
+  ``"per-strip"``), Alamo's strip-by-strip gains (:func:`alamo_frad_strips`) or Wang's gain
+  (:func:`wang_frad_gain`, with ``A`` applied once more for ``"wang-cora"``), reduction;
+* :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W`` (:func:`propagate`)
+  with a given gain or Combastel's (:func:`combastel_gain`), reduction;
 * :func:`bravo_step`: prediction, Bravo's choice of the least ``det(T T')`` candidate strip by
-  strip (VolMin-B, :mod:`observers.numerics.volmin`), reduction.
+  strip (:func:`bravo_choice`, :func:`bravo_update`; VolMin-B), reduction.
 
-Gain modes of :func:`strip_step`: :data:`GIVEN` (``L``, all strips at once: PRad-B/C/D),
-:data:`PER_STRIP` (column ``i`` of ``L`` for strip ``i``, one strip after the other: PRad-A),
-:data:`ALAMO` (FRad-A, :func:`observers.numerics.frad.alamo_frad_strips`), :data:`WANG`
-(FRad-B, :func:`observers.numerics.frad.wang_frad_gain`, with ``A`` applied once more when
-``wang_cora`` is true).  :func:`propagate_step` takes :data:`GIVEN` (Nom-G, PRad-E) or
-:data:`COMBASTEL` (FRad-C, :func:`observers.numerics.frad.combastel_gain`).
+The kernels' names for their gain formulas (integers) do not leave this module: :func:`prepare`
+maps the kernel names to them.  The compiled formulas carry the names of their numpy twins
+(:func:`strip_update` and :func:`propagate` of :mod:`observers.families`;
+:func:`alamo_frad_strips`, :func:`wang_frad_gain`, :func:`combastel_gain` of
+:mod:`observers.numerics.frad`; :func:`bravo_choice`, :func:`bravo_update` of
+:mod:`observers.numerics.volmin`), so that the tests pair them one to one.
 
 A kernel returns ``ok = False`` when it cannot vouch for the numpy path's result (a
 non-finite entry, a singular matrix in a gain): the caller then runs the numpy path for that
-step, which knows the fallbacks (pseudo-inverse, zero gain).
+step, which knows the fallbacks (pseudo-inverse, zero gain).  The compiled gains return
+``(gain, ok)`` for the same reason.
 
 Order reductions (:func:`reduce`, also used alone by :class:`.reduction.Girard` and
 :class:`.reduction.PCA`): as one kernel call each.
@@ -57,18 +68,26 @@ cached step kernels.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
 from ._jit import AVAILABLE, njit
 
-GIVEN, PER_STRIP, ALAMO, WANG, COMBASTEL, BRAVO = 0, 1, 2, 3, 4, 5
-#: CORA's threshold below which ``c g_j`` counts as zero in Bravo's choice (candidate j = the
-#: unchanged zonotope); :data:`observers.numerics.volmin.ZERO_PROJECTION` is this value
-BRAVO_ZERO_PROJECTION = 1e10 * np.finfo(float).eps
-#: reduction methods of :func:`reduce`
-GIRARD, PCA = 0, 1
+#: singular values closer than this (relative to the largest) form one cluster (repeated), in
+#: the principal axes of the PCA reduction (:func:`.reduction.principal_axes` and here)
+CLUSTER_RTOL = 1e-9
+#: pivot ties of the cluster basis: diagonal entries within this (relative) count as equal
+PIVOT_RTOL = 1e-6
 
+# the gain formulas of the step kernels and the reduction methods of :func:`reduce`, by number
+# (numba branches on integers); outside this module they are named (:func:`prepare`)
+_GIVEN, _PER_STRIP, _ALAMO, _WANG, _WANG_CORA, _COMBASTEL, _BRAVO = range(7)
+_GIRARD, _PCA = 0, 1
+#: the reduction methods of :func:`reduce` by the names of their strategies
+#: (:mod:`.reduction`)
+REDUCTIONS = {"girard": _GIRARD, "pca": _PCA}
 
 def _cluster_basis_into(P, out, col0, m, pivot_rtol):
     """Pivoted-Cholesky basis of the projector ``P`` (n x n, rank ``m``) into
@@ -341,7 +360,7 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol, jacobi_dim):
     for i in range(n):  # row by row: contiguous reads and writes
         for q in range(n_keep):
             out[i, q] = G[i, kept[q]]
-    if method == GIRARD:
+    if method == _GIRARD:
         # numpy sums |G_red| (a column gather: Fortran-ordered) column after column, except
         # for a single row (then also C-contiguous: pairwise summation); the same order here
         if n == 1:
@@ -491,117 +510,133 @@ def _solve_t(S, B):
     return np.ascontiguousarray(X.T), ok
 
 
-def _strip_step_py(c, G, A, d, cW, E, C, y, sigma, L, F, mode, wang_cora, order, method,
-                   cluster_rtol, pivot_rtol):
+# -- the compiled one-step formulas, named like their numpy twins --------------------------------
+def _predict(c, G, A, d, W_c, E):
+    """Prediction ``(A c + d + c_W, [A G, E])`` (the start of every strip-based step)."""
     n, r = G.shape
-    m = C.shape[0]
-    re = E.shape[1]
-    cp = np.dot(A, c) + d + cW
-    Gp = np.empty((n, r + re))
+    cp = np.dot(A, c) + d + W_c
+    Gp = np.empty((n, r + E.shape[1]))
     Gp[:, :r] = np.dot(A, G)
     Gp[:, r:] = E
-    rp = r + re
-    if mode == GIVEN or mode == WANG:
-        if mode == WANG:
-            P = np.dot(Gp, np.ascontiguousarray(Gp.T))
-            if wang_cora:
-                R = np.dot(np.dot(A, P), np.ascontiguousarray(A.T)) + np.dot(
-                    E, np.ascontiguousarray(E.T))
-            else:
-                R = P
-            CT = np.ascontiguousarray(C.T)
-            S = np.dot(np.dot(C, R), CT) + np.dot(F, np.ascontiguousarray(F.T))
-            if not _finite(S):
-                return cp, Gp, False
-            Lam, ok = _solve_t(S, np.dot(C, R))
-            if not ok:
-                return cp, Gp, False
-        else:
-            Lam = L
-        cn = cp + np.dot(Lam, y - np.dot(C, cp))
-        Gn = np.empty((n, rp + m))
-        Gn[:, :rp] = Gp - np.dot(Lam, np.dot(C, Gp))
-        for i in range(n):
-            for j in range(m):
-                Gn[i, rp + j] = Lam[i, j] * sigma[j]
-    elif mode == PER_STRIP:
-        cn = cp
-        Gn = Gp
-        for i in range(m):
-            lam = L[:, i].copy()
-            ci = C[i]
-            cn = cn + lam * (y[i] - np.dot(ci, cn))
-            k = Gn.shape[1]
-            G2 = np.empty((n, k + 1))
-            cg = np.dot(ci, Gn)
-            for a in range(n):
-                for b in range(k):
-                    G2[a, b] = Gn[a, b] - lam[a] * cg[b]
-                G2[a, k] = lam[a] * sigma[i]
-            Gn = G2
-    else:  # ALAMO
-        P = np.dot(Gp, np.ascontiguousarray(Gp.T))
-        Lm = np.empty((n, m))
-        cn = cp.copy()
-        for i in range(m):
-            ci = C[i].copy()
-            p = np.dot(P, ci)
-            s = np.dot(ci, p) + sigma[i] ** 2
-            if s > 0:
-                lam = p / s
-            else:
-                lam = np.zeros(n)
-            cn = cn + lam * (y[i] - np.dot(ci, cn))
-            if i:
-                for b in range(i):
-                    wb = 0.0
-                    for a in range(n):
-                        wb += ci[a] * Lm[a, b]
-                    for a in range(n):
-                        Lm[a, b] -= lam[a] * wb
-            Lm[:, i] = lam
-            for a in range(n):
-                for b in range(n):
-                    P[a, b] -= p[a] * lam[b]
-        Gn = np.empty((n, rp + m))
-        if 2 * m < n:
-            Gn[:, :rp] = Gp - np.dot(Lm, np.dot(C, Gp))
-        else:
-            T = -np.dot(Lm, C)
-            for a in range(n):
-                T[a, a] += 1.0
-            Gn[:, :rp] = np.dot(T, Gp)
+    return cp, Gp
+
+
+def strip_update(c, G, Lam, C, y, sigma):
+    """:func:`observers.families.strip_update`: ``(c, G)`` intersected with the strips
+    ``|C x - y| <= sigma`` with the gain ``Lam``."""
+    n, r = G.shape
+    m = C.shape[0]
+    c_new = c + np.dot(Lam, y - np.dot(C, c))
+    G_new = np.empty((n, r + m))
+    G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+    for i in range(n):
+        for j in range(m):
+            G_new[i, r + j] = Lam[i, j] * sigma[j]
+    return c_new, G_new
+
+
+def _per_strip_update(c, G, L, C, y, sigma):
+    """:meth:`observers.families.PerStripObserver.intersect` with the gain ``L[:, i]`` for
+    strip ``i`` (PRad-A): :func:`strip_update` strip after strip."""
+    n = G.shape[0]
+    for i in range(C.shape[0]):
+        lam = L[:, i].copy()
+        ci = C[i]
+        c = c + lam * (y[i] - np.dot(ci, c))
+        k = G.shape[1]
+        G2 = np.empty((n, k + 1))
+        cg = np.dot(ci, G)
         for a in range(n):
-            for j in range(m):
-                Gn[a, rp + j] = Lm[a, j] * sigma[j]
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
-    return cn, out, ok
+            for b in range(k):
+                G2[a, b] = G[a, b] - lam[a] * cg[b]
+            G2[a, k] = lam[a] * sigma[i]
+        G = G2
+    return c, G
 
 
-def _propagate_step_py(c, G, A, d, C, L, F, y, cV, cW, E, mode, order, method, cluster_rtol,
-                       pivot_rtol):
+def alamo_frad_strips(c, G, C, y, sigma):
+    """:func:`observers.numerics.frad.alamo_frad_strips`: every strip in turn with Alamo's
+    F-radius gain, computed on ``P = G G'`` and applied to ``G`` once (FRad-A)."""
+    n, r = G.shape
+    m = C.shape[0]
+    P = np.dot(G, np.ascontiguousarray(G.T))
+    Lm = np.empty((n, m))
+    cn = c.copy()
+    for i in range(m):
+        ci = C[i].copy()
+        p = np.dot(P, ci)
+        s = np.dot(ci, p) + sigma[i] ** 2
+        if s > 0:
+            lam = p / s
+        else:
+            lam = np.zeros(n)
+        cn = cn + lam * (y[i] - np.dot(ci, cn))
+        if i:
+            for b in range(i):
+                wb = 0.0
+                for a in range(n):
+                    wb += ci[a] * Lm[a, b]
+                for a in range(n):
+                    Lm[a, b] -= lam[a] * wb
+        Lm[:, i] = lam
+        for a in range(n):
+            for b in range(n):
+                P[a, b] -= p[a] * lam[b]
+    Gn = np.empty((n, r + m))
+    if 2 * m < n:
+        Gn[:, :r] = G - np.dot(Lm, np.dot(C, G))
+    else:
+        T = -np.dot(Lm, C)
+        for a in range(n):
+            T[a, a] += 1.0
+        Gn[:, :r] = np.dot(T, G)
+    for a in range(n):
+        for j in range(m):
+            Gn[a, r + j] = Lm[a, j] * sigma[j]
+    return cn, Gn
+
+
+def wang_frad_gain(P, A, C, E, F):
+    """:func:`observers.numerics.frad.wang_frad_gain`: ``(Lam, ok)`` with
+    ``Lam = R C' (C R C' + F F')^{-1}``, ``R = A P A' + E E'`` (``R = P`` for ``A = None``);
+    ``ok`` is false where the numpy path must decide (a non-finite or singular ``S``)."""
+    if A is None:
+        R = P
+    else:
+        R = np.dot(np.dot(A, P), np.ascontiguousarray(A.T)) + np.dot(
+            E, np.ascontiguousarray(E.T))
+    S = np.dot(np.dot(C, R), np.ascontiguousarray(C.T)) + np.dot(F, np.ascontiguousarray(F.T))
+    if not _finite(S):
+        return np.zeros((P.shape[0], C.shape[0])), False
+    return _solve_t(S, np.dot(C, R))
+
+
+def combastel_gain(P, A, C, F):
+    """:func:`observers.numerics.frad.combastel_gain`: ``(L, ok)`` with
+    ``L = A P C' (C P C' + F F')^{-1}``; ``ok`` as in :func:`wang_frad_gain`."""
+    S = np.dot(np.dot(C, P), np.ascontiguousarray(C.T)) + np.dot(F, np.ascontiguousarray(F.T))
+    if not _finite(S):
+        return np.zeros((A.shape[0], C.shape[0])), False
+    X, ok = _solve_t(S, np.dot(C, P))
+    if not ok:
+        return X, False
+    return np.dot(A, X), True
+
+
+def propagate(c, G, A, d, C, L, y, V, W):
+    """:func:`observers.families.propagate` (linear: no remainder): one step
+    ``S+ = (A - L C) S + d + L y + (-L) V + W`` with ``V = (c_V, G_V)``, ``W = (c_W, G_W)``."""
+    V_c, F = V
+    W_c, E = W
     n, r = G.shape
     rv, rw = F.shape[1], E.shape[1]
-    if mode == COMBASTEL:
-        P = np.dot(G, np.ascontiguousarray(G.T))
-        S = np.dot(np.dot(C, P), np.ascontiguousarray(C.T)) + np.dot(
-            F, np.ascontiguousarray(F.T))
-        if not _finite(S):
-            return c, G, False
-        X, ok = _solve_t(S, np.dot(C, P))
-        if not ok:
-            return c, G, False
-        Lg = np.dot(A, X)
-    else:
-        Lg = L
-    M = A - np.dot(Lg, C)
-    cn = np.dot(M, c) + d + np.dot(Lg, y - cV) + cW
-    Gn = np.empty((n, r + rv + rw))
-    Gn[:, :r] = np.dot(M, G)
-    Gn[:, r:r + rv] = np.dot(-Lg, F)
-    Gn[:, r + rv:] = E
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
-    return cn, out, ok
+    M = A - np.dot(L, C)
+    c_new = np.dot(M, c) + d + np.dot(L, y - V_c) + W_c
+    G_new = np.empty((n, r + rv + rw))
+    G_new[:, :r] = np.dot(M, G)
+    G_new[:, r:r + rv] = np.dot(-L, F)
+    G_new[:, r + rv:] = E
+    return c_new, G_new
 
 
 def _adjugate_psd(S):
@@ -638,7 +673,7 @@ def _adjugate_psd(S):
     return det, np.dot(np.ascontiguousarray(U * cof), np.ascontiguousarray(U.T))
 
 
-def _bravo_choice(G, c_row, sigma, B, zero_projection):
+def bravo_choice(G, c_row, sigma, B, zero_projection):
     """:func:`observers.numerics.volmin.bravo_choice`: the index of the candidate of least
     ``det(T T')`` (0: unchanged zonotope; ties: the first)."""
     n, r = G.shape
@@ -671,31 +706,111 @@ def _bravo_choice(G, c_row, sigma, B, zero_projection):
     return int(np.argmin(scores))
 
 
-def _bravo_step_py(c, G, A, d, cW, E, C, y, sigma, bases, zero_projection, order, method,
-                   cluster_rtol, pivot_rtol):
-    """Prediction, Bravo's strip-by-strip intersection (VolMin-B,
-    :func:`observers.numerics.volmin.bravo_update`), reduction."""
-    n, r = G.shape
-    re = E.shape[1]
-    cn = np.dot(A, c) + d + cW
-    Gn = np.empty((n, r + re))
-    Gn[:, :r] = np.dot(A, G)
-    Gn[:, r:] = E
-    for i in range(C.shape[0]):
-        ci = C[i].copy()
-        j = _bravo_choice(Gn, ci, sigma[i], bases[i], zero_projection)
-        if j == 0:
-            continue
-        a = np.dot(ci, Gn)
-        lam = Gn[:, j - 1] / a[j - 1]
-        cn = cn + lam * (y[i] - np.dot(ci, cn))
-        G2 = np.empty_like(Gn)
-        for p in range(n):
-            for k in range(Gn.shape[1]):
-                G2[p, k] = Gn[p, k] - lam[p] * a[k]
-            G2[p, j - 1] = sigma[i] * lam[p]
-        Gn = G2
-    out, ok = reduce(Gn, order, method, cluster_rtol, pivot_rtol, JACOBI_MAX_DIM)
+def bravo_update(c, G, c_row, y, sigma, j):
+    """:func:`observers.numerics.volmin.bravo_update`: Bravo's candidate ``j`` (1-based
+    generator index; 0 returns ``(c, G)`` unchanged)."""
+    if j == 0:
+        return c, G
+    n = G.shape[0]
+    a = np.dot(c_row, G)
+    lam = G[:, j - 1] / a[j - 1]
+    c_new = c + lam * (y - np.dot(c_row, c))
+    G_new = np.empty_like(G)
+    for p in range(n):
+        for k in range(G.shape[1]):
+            G_new[p, k] = G[p, k] - lam[p] * a[k]
+        G_new[p, j - 1] = sigma * lam[p]
+    return c_new, G_new
+
+
+# -- the step kernels ------------------------------------------------------------------------
+class StepData(NamedTuple):
+    """The static data of a run of a step kernel, built once per run by :func:`prepare`.
+
+    One type for every kernel and observer (read-only C-contiguous float arrays, empty where a
+    kernel does not use them), so that numba compiles each kernel once.  A kernel takes it as
+    the plain tuple ``tuple(data)`` and names it again in its first line
+    (``data = StepData(*args)``, free in compiled code): numba types a named-tuple argument
+    from its class and field names at every call, about 1 us per step more than a plain
+    tuple.
+    """
+
+    #: the gain formula (internal number)
+    mode: int
+    #: the given gain (n x m; ``"strip-given"``, ``"per-strip"``, ``"propagation-given"``)
+    gain: np.ndarray
+    #: the null-space bases of the rows of ``C`` (m x n x n-1; ``"bravo"``)
+    bases: np.ndarray
+    A: np.ndarray
+    #: the caller's prediction input matrix (``d = B u``, computed in numpy); unused here
+    B: np.ndarray
+    W_c: np.ndarray
+    #: generators of ``W``
+    E: np.ndarray
+    C: np.ndarray
+    #: strip half-widths
+    sigma: np.ndarray
+    #: generators of ``V``
+    F: np.ndarray
+    V_c: np.ndarray
+    #: Bravo's threshold of ``|c g_j|`` (``"bravo"``)
+    zero_projection: float
+    order: float
+    #: reduction method (internal number)
+    method: int
+    cluster_rtol: float
+    pivot_rtol: float
+
+
+def _strip_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
+    mode = data.mode
+    if mode == _PER_STRIP:
+        cn, Gn = _per_strip_update(cp, Gp, data.gain, data.C, y, data.sigma)
+    elif mode == _ALAMO:
+        cn, Gn = alamo_frad_strips(cp, Gp, data.C, y, data.sigma)
+    elif mode == _GIVEN:
+        cn, Gn = strip_update(cp, Gp, data.gain, data.C, y, data.sigma)
+    else:  # _WANG, _WANG_CORA
+        P = np.dot(Gp, np.ascontiguousarray(Gp.T))
+        if mode == _WANG_CORA:
+            Lam, ok = wang_frad_gain(P, data.A, data.C, data.E, data.F)
+        else:
+            Lam, ok = wang_frad_gain(P, None, data.C, data.E, data.F)
+        if not ok:
+            return cp, Gp, False
+        cn, Gn = strip_update(cp, Gp, Lam, data.C, y, data.sigma)
+    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
+                     JACOBI_MAX_DIM)
+    return cn, out, ok
+
+
+def _propagate_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    if data.mode == _COMBASTEL:
+        L, ok = combastel_gain(np.dot(G, np.ascontiguousarray(G.T)), data.A, data.C, data.F)
+        if not ok:
+            return c, G, False
+        cn, Gn = propagate(c, G, data.A, d, data.C, L, y, (data.V_c, data.F),
+                           (data.W_c, data.E))
+    else:  # _GIVEN
+        cn, Gn = propagate(c, G, data.A, d, data.C, data.gain, y, (data.V_c, data.F),
+                           (data.W_c, data.E))
+    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
+                     JACOBI_MAX_DIM)
+    return cn, out, ok
+
+
+def _bravo_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
+    for i in range(data.C.shape[0]):
+        ci = data.C[i].copy()
+        j = bravo_choice(Gn, ci, data.sigma[i], data.bases[i], data.zero_projection)
+        cn, Gn = bravo_update(cn, Gn, ci, y[i], data.sigma[i], j)
+    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
+                     JACOBI_MAX_DIM)
     return cn, out, ok
 
 
@@ -706,11 +821,93 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
          _pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
          _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
          _solve_t))
-    _bravo_choice = njit(_bravo_choice, error_model="numpy")
+    # the formulas of the kernels keep the kernels' error model (a division by zero gives
+    # inf or nan, as in numpy, instead of raising; no checks in the loops)
+    (_predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
+     combastel_gain, propagate, bravo_choice, bravo_update) = (
+        njit(f, error_model="numpy") for f in (
+            _predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
+            combastel_gain, propagate, bravo_choice, bravo_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
-#: the compiled :func:`_strip_step_py` and :func:`_propagate_step_py` (``None`` without numba)
+#: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
+#: ``args = tuple(data)`` of a :class:`StepData` (``None`` without numba)
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
-#: the compiled :func:`_bravo_step_py` (``None`` without numba)
 bravo_step = njit(_bravo_step_py, error_model="numpy")
+
+#: the kernel names (:class:`observers.kernels.StepKernel`) -> (kernel, gain formula)
+_KERNELS = {
+    "strip-given": (strip_step, _GIVEN),
+    "per-strip": (strip_step, _PER_STRIP),
+    "alamo": (strip_step, _ALAMO),
+    "wang": (strip_step, _WANG),
+    "wang-cora": (strip_step, _WANG_CORA),
+    "bravo": (bravo_step, _BRAVO),
+    "propagation-given": (propagate_step, _GIVEN),
+    "combastel": (propagate_step, _COMBASTEL),
+}
+#: the kernel names :func:`prepare` accepts
+KERNEL_NAMES = tuple(_KERNELS)
+_NO_GAIN = np.zeros((0, 0))
+_NO_GAIN.setflags(write=False)
+_NO_BASES = np.zeros((0, 0, 0))
+_NO_BASES.setflags(write=False)
+
+
+def _frozen_c(a) -> np.ndarray:
+    """A read-only C-contiguous float64 copy of ``a`` (one argument type per field)."""
+    out = np.array(a, dtype=np.float64, order="C", copy=True)
+    out.setflags(write=False)
+    return out
+
+
+class StepRun(NamedTuple):
+    """A compiled step kernel with the static data of one run (:func:`prepare`)."""
+
+    #: ``kernel(c, G, d, y, args) -> (c, G, ok)``
+    kernel: Callable
+    #: the static data by name
+    data: StepData
+    #: ``tuple(data)``, the kernel's last argument
+    args: tuple
+
+
+def prepare(
+    kernel: str, reduction: str, order: float, *, A, B, W_c, E, C, sigma, F, V_c,
+    gain=None, bases=None, zero_projection: float = 0.0,
+) -> StepRun:
+    """The compiled kernel named ``kernel`` and the static data of a run (the doorway of the
+    step kernels: the only place where names become the kernels' numbers).
+
+    Parameters
+    ----------
+    kernel : str
+        One of :data:`KERNEL_NAMES` (the value of an :class:`observers.kernels.StepKernel`).
+    reduction : str
+        Name of a reduction of :func:`reduce` (a key of :data:`REDUCTIONS`).
+    order : float
+        Zonotope order, validated by the caller (>= 1).
+    A, B, W_c, E, C, sigma, F, V_c : array_like
+        The linear model, the centre and generators of ``W`` and ``V``, the strip half-widths.
+    gain : array_like, optional
+        The given gain of the ``*-given`` and ``"per-strip"`` kernels.
+    bases : array_like, optional
+        The null-space bases of the rows of ``C`` (m x n x n-1) of ``"bravo"``.
+    zero_projection : float
+        Bravo's threshold of ``|c g_j|`` (``"bravo"``).
+
+    Returns
+    -------
+    StepRun
+        ``(kernel, data, args)``: call ``kernel(c, G, data.B @ u, y, args)`` with writable
+        C-contiguous float vectors ``data.B @ u`` and ``y`` and the ``c, G`` of the previous
+        step (read-only, as the sets keep them).
+    """
+    step, mode = _KERNELS[kernel]
+    data = StepData(
+        mode, _NO_GAIN if gain is None else _frozen_c(gain),
+        _NO_BASES if bases is None else _frozen_c(bases),
+        *(_frozen_c(a) for a in (A, B, W_c, E, C, sigma, F, V_c)),
+        float(zero_projection), float(order), REDUCTIONS[reduction], CLUSTER_RTOL, PIVOT_RTOL)
+    return StepRun(step, data, tuple(data))

@@ -30,7 +30,7 @@ from ._arrays import frozen, matrix
 from ._lp import box_feasible
 from .conzonotope import ConZonotope
 from .errors import SetError
-from .reduction import Reduction, get_reduction
+from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
 _EPS = np.finfo(float).eps
@@ -274,6 +274,7 @@ class MatrixZonotope:
     def reduce(self, order: float, method: str | Reduction = "girard") -> MatrixZonotope:
         """Enclosing matrix zonotope with at most ``order * r * c`` generators (the
         reduction strategy acts on the vectorised zonotope)."""
+        check_order(order)
         G = get_reduction(method).reduce(self._G.reshape(self.num_generators, -1).T, order)
         return MatrixZonotope(self._C, G.T.reshape(-1, *self.shape))
 

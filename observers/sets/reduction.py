@@ -37,7 +37,8 @@ therefore makes the basis a function of the subspace only:
    ``P_jj`` (the lowest index among those within ``PIVOT_RTOL`` of the largest, so rounding
    cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
 
-For a single singular value this only fixes the sign (largest component positive).
+For a single singular value this only fixes the sign (largest component positive).  The two
+tolerances are defined with the compiled kernel that shares them (:mod:`._step_jit`).
 """
 
 from __future__ import annotations
@@ -47,13 +48,18 @@ from typing import Protocol
 
 import numpy as np
 
-from . import _jit as _switch
-from . import _step_jit as _jit
+from . import _jit, _step_jit
+from ._step_jit import CLUSTER_RTOL, PIVOT_RTOL
 from .errors import SetError
 
 
 class Reduction(Protocol):
-    """Interface of an order-reduction strategy."""
+    """Interface of an order-reduction strategy.
+
+    ``reduce`` trusts ``order`` (a finite number >= 1): the public entries validate it once
+    (:meth:`.Zonotope.reduce`, :func:`split_generators`, an observer's ``order`` option), so
+    that the hot loops that call a strategy at every step do not.
+    """
 
     name: str
 
@@ -68,17 +74,18 @@ def split_generators(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarra
     Zero columns are dropped first.  The to-be-reduced block is returned sorted by the metric
     ``||g||_1 - ||g||_inf`` (stable), the unreduced block in the original column order.
     """
+    check_order(order)
     keep, red, _ = _split(G, order)
     return keep, red
 
 
 def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """:func:`split_generators` plus ``|red|`` (``None`` if nothing is reduced).
+    """:func:`split_generators` (``order`` trusted) plus ``|red|`` (``None`` if nothing is
+    reduced).
 
     One pass of ``|G|`` serves the zero-column test (a column is zero iff its 1-norm is), the
     metric and the box of the reduced generators; a matrix without zero columns is not copied.
     """
-    check_order(order)
     absG = np.abs(G)
     norm1 = absG.sum(axis=0)
     nonzero = norm1 != 0.0
@@ -113,18 +120,17 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 def use_compiled() -> bool:
     """Whether the built-in reductions run the compiled kernel :func:`._step_jit.reduce`
     (:func:`._jit.use_compiled`: numba installed and not disabled by ``SETOBS_NUMBA=0``)."""
-    return _switch.use_compiled()
+    return _jit.use_compiled()
 
 
-def _compiled(G: np.ndarray, order: float, method: int) -> np.ndarray | None:
-    """The compiled reduction of ``G`` (a float matrix), or ``None`` where the numpy path must
-    decide (numba off, or a non-finite entry)."""
-    if not _switch.use_compiled():
+def _compiled(G: np.ndarray, order: float, method: str) -> np.ndarray | None:
+    """The compiled reduction ``method`` (a name of :data:`._step_jit.REDUCTIONS`) of ``G``
+    (``order`` trusted), or ``None`` where the numpy path must decide (numba off, not a float
+    matrix, or a non-finite entry)."""
+    if not _jit.use_compiled() or G.dtype != np.float64 or G.ndim != 2:
         return None
-    check_order(order)
-    if G.dtype != np.float64 or G.ndim != 2:
-        return None
-    out, ok = _jit.reduce(G, float(order), method, CLUSTER_RTOL, PIVOT_RTOL, 0)
+    out, ok = _step_jit.reduce(G, float(order), _step_jit.REDUCTIONS[method], CLUSTER_RTOL,
+                               PIVOT_RTOL, 0)
     return out if ok else None
 
 
@@ -142,7 +148,7 @@ class Girard:
     name = "girard"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        out = _compiled(G, order, _jit.GIRARD)
+        out = _compiled(G, order, "girard")
         if out is not None:
             return out
         keep, red, abs_red = _split(G, order)
@@ -153,12 +159,6 @@ class Girard:
         out[:, :k] = keep
         out[:, k:].flat[:: n + 1] = abs_red.sum(axis=1)  # the diagonal box
         return out
-
-
-#: singular values closer than this (relative to the largest) form one cluster (repeated)
-CLUSTER_RTOL = 1e-9
-#: pivot ties of the cluster basis: diagonal entries within this (relative) count as equal
-PIVOT_RTOL = 1e-6
 
 
 def _cluster_basis(V: np.ndarray) -> np.ndarray:
@@ -197,7 +197,7 @@ class PCA:
     name = "pca"
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        out = _compiled(G, order, _jit.PCA)
+        out = _compiled(G, order, "pca")
         if out is not None:
             return out
         keep, red, abs_red = _split(G, order)
@@ -277,10 +277,10 @@ def get_reduction(method: str | Reduction) -> Reduction:
     return method
 
 
-def kernel_method(strategy: Reduction) -> int | None:
-    """The method id of the compiled kernel computing ``strategy`` (the built-in
-    :class:`Girard` and :class:`PCA`), ``None`` for any other strategy."""
-    return {Girard: _jit.GIRARD, PCA: _jit.PCA}.get(type(strategy))
+def compiled_name(strategy: Reduction) -> str | None:
+    """The name under which the compiled kernels (:mod:`._step_jit`) compute ``strategy``
+    (the built-in :class:`Girard` and :class:`PCA`), ``None`` for any other strategy."""
+    return strategy.name if type(strategy) in (Girard, PCA) else None
 
 
 def reduction_names() -> list[str]:

@@ -8,7 +8,7 @@ from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
 from ._lp import box_feasible
 from .errors import SetError
 from .interval import Interval
-from .reduction import Reduction, get_reduction
+from .reduction import Reduction, check_order, get_reduction
 
 
 class Zonotope:
@@ -143,6 +143,7 @@ class Zonotope:
 
     def reduce(self, order: float, method: str | Reduction = "girard") -> Zonotope:
         """Enclosing zonotope of order at most ``order`` using the named strategy."""
+        check_order(order)
         return Zonotope(self._c, get_reduction(method).reduce(self._G, order))
 
     def compact(self) -> Zonotope:

@@ -1,0 +1,214 @@
+"""The import structure of ``observers``, ``systems`` and ``benchmarks``: no module-level import
+cycle, ``observers.sets`` a leaf, plugins without access to the private modules of
+``observers.sets``, the wings of ``benchmarks`` importing one way (``cli`` -> wings; ``gate``,
+``timing``, ``studies`` -> ``run``, ``report``; ``run``, ``report`` -> the floor ``errors``,
+``io``, ``metrics``, ``verdicts``), matplotlib only in ``benchmarks/report/figures.py``, one
+number formatter (``benchmarks/report/numbers.py``).
+
+The graph is read from the source with :mod:`ast`: an edge for every import statement at module
+level (also inside ``try``/``if`` blocks, but not under ``if TYPE_CHECKING:``, which never
+runs), none for imports inside functions (they run after every module is loaded).  ``from P
+import x`` is an edge to the submodule ``P.x`` if there is one, else to the package ``P``;
+the implicit import of parent packages is not an edge (a package that imports its submodules
+in ``__init__`` is the normal layout).  ``python tests/test_layering.py`` prints the cycles.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("observers", "systems", "benchmarks")
+#: the shared floor of ``benchmarks/`` (top-level modules every wing may import)
+FLOOR = {"errors", "io", "metrics", "verdicts"}
+#: the wings of ``benchmarks/`` and the other wings each may import (besides the floor)
+WINGS = {"run": set(), "report": set(), "gate": {"run", "report"},
+         "timing": {"run", "report"}, "studies": {"run", "report"}}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def all_modules() -> dict[str, Path]:
+    return {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+def _module_level(body: list[ast.stmt]):
+    """The import statements that run when the module is imported."""
+    for node in body:
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            yield node
+        elif isinstance(node, ast.If):
+            test = node.test
+            is_type_checking = (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+                isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+            if not is_type_checking:
+                yield from _module_level(node.body)
+            yield from _module_level(node.orelse)
+        elif isinstance(node, ast.Try):
+            for block in (node.body, node.orelse, node.finalbody,
+                          *(h.body for h in node.handlers)):
+                yield from _module_level(block)
+        elif isinstance(node, ast.With):
+            yield from _module_level(node.body)
+
+
+def imports_of(name: str, path: Path, modules: dict[str, Path],
+               anywhere: bool = False) -> set[str]:
+    """The modules of ours that ``name`` imports at module level (``anywhere``: also inside
+    functions)."""
+    is_package = path.name == "__init__.py"
+    out: set[str] = set()
+    tree = ast.parse(path.read_text())
+    nodes = (n for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))) \
+        if anywhere else _module_level(tree.body)
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        else:
+            base = node.module or ""
+            if node.level:
+                parts = name.split(".")
+                anchor = parts if is_package else parts[:-1]
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join([*anchor, *([base] if base else [])])
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base
+                       for a in node.names]
+        out.update(t for t in targets if t in modules)
+    return out - {name}
+
+
+def import_graph() -> dict[str, set[str]]:
+    modules = all_modules()
+    return {name: imports_of(name, path, modules) for name, path in modules.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_graph_reads_the_imports():
+    graph = import_graph()
+    assert "observers.sets._step_jit" in graph["observers.sets.reduction"]
+    assert "observers.base" in graph["observers.families"]
+    assert "observers.registry" not in graph["observers.base"]  # annotation only
+    assert "observers.sets" in graph["observers.families"]  # ``from .sets import Interval``
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_module_level_import_cycle():
+    assert cycles(import_graph()) == []
+
+
+def test_sets_is_a_leaf():
+    graph = import_graph()
+    for name, deps in graph.items():
+        if name.startswith("observers.sets"):
+            outside = {d for d in deps if not d.startswith("observers.sets")}
+            assert not outside, f"{name} imports {sorted(outside)}"
+
+
+def test_plugins_do_not_import_private_modules_of_sets():
+    for name, deps in import_graph().items():
+        if name.startswith("observers.builtin"):
+            private = {d for d in deps if d.startswith("observers.sets.")
+                       and d.rsplit(".", 1)[1].startswith("_")}
+            assert not private, f"{name} imports {sorted(private)}"
+
+
+def test_registry_imports_base_not_the_reverse():
+    graph = import_graph()
+    assert "observers.base" in graph["observers.registry"]
+    assert "observers.registry" not in graph["observers.base"]
+
+
+def _benchmarks_part(module: str) -> str | None:
+    """The wing (``run``, ``report``, ...) or floor module of a ``benchmarks`` module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == "benchmarks" else None
+
+
+def test_benchmarks_imports_run_one_way():
+    modules = all_modules()
+    bad = []
+    for name, path in modules.items():
+        part = _benchmarks_part(name)
+        if part is None or part in ("cli", "__main__"):
+            continue  # the entry points may import every wing
+        for target in imports_of(name, path, modules, anywhere=True):
+            tpart = _benchmarks_part(target)
+            if tpart is None:
+                continue  # observers, systems, or the package itself
+            if part in FLOOR:
+                ok = tpart in FLOOR
+            elif part in WINGS:
+                ok = tpart in FLOOR or tpart == part or tpart in WINGS[part]
+            else:
+                ok = name == "benchmarks"  # the package re-exports the public API
+            if not ok:
+                bad.append(f"{name} -> {target}")
+    assert bad == []
+
+
+def test_top_level_of_benchmarks_is_the_floor_and_the_entry_points():
+    top = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py"))
+    assert len(top) <= 8, top
+    assert set(top) <= FLOOR | {"__init__", "__main__", "cli"}
+
+
+def test_matplotlib_only_in_the_figures_module():
+    users = sorted(path.relative_to(ROOT).as_posix() for path in all_modules().values()
+                   if any(isinstance(n, (ast.Import, ast.ImportFrom))
+                          and "matplotlib" in ((n.module or "") if isinstance(n, ast.ImportFrom)
+                                               else " ".join(a.name for a in n.names))
+                          for n in ast.walk(ast.parse(path.read_text()))))
+    assert users == ["benchmarks/report/figures.py"]
+
+
+def test_one_number_formatter():
+    defs = sorted(f"{path.relative_to(ROOT).as_posix()}:{n.name}"
+                  for path in all_modules().values()
+                  for n in ast.walk(ast.parse(path.read_text()))
+                  if isinstance(n, ast.FunctionDef) and n.name in ("_fmt", "_num", "fmt"))
+    assert defs == ["benchmarks/report/numbers.py:fmt"]
+
+
+if __name__ == "__main__":  # pragma: no cover - a tool for a reader
+    found = cycles(import_graph())
+    print("\n".join(" -> ".join(c) for c in found) or "no module-level import cycle")
