@@ -303,15 +303,18 @@ def test_relaxation_domain_error_ends_the_run_as_diverged():
     assert res.status == "diverged" and "left its domain" in res.message
 
 
-# -- the README example ------------------------------------------------------------------------
-def test_readme_nonlinear_measurement_example_runs(capsys):
+# -- the documentation's example (docs/guide/nonlinear.rst, "Nonlinear measurements") ----------
+def test_docs_nonlinear_measurement_example_runs(capsys):
+    import re
     from pathlib import Path
 
-    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
-    section = readme.split("## Nonlinear measurements", 1)[1]
-    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    page = (Path(__file__).parents[1] / "docs" / "guide" / "nonlinear.rst").read_text(
+        encoding="utf-8")
+    section = page.split("Nonlinear measurements\n", 1)[1]
+    body = re.search(r"\.\. code-block:: python\n\n((?:   .*\n|\n)+)", section).group(1)
+    code = "\n".join(ln[3:] for ln in body.splitlines())
     assert len(code.strip().splitlines()) <= 20
-    exec(compile(code, "README.md", "exec"), {"__name__": "readme"})
+    exec(compile(code, "docs/guide/nonlinear.rst", "exec"), {"__name__": "docs"})
     lines = capsys.readouterr().out.strip().splitlines()
     assert [ln.split()[0] for ln in lines] == CZ_ESTIMATORS
     assert all(" ok contained: True " in ln for ln in lines)

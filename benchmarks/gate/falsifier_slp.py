@@ -74,7 +74,7 @@ NOISE_MARGIN = 1e-7
 #: rounding allowance of the verification on the factors of V (those of X0 and W are the
 #: trajectory's own numbers and are checked exactly): the measurements and the simulated
 #: outputs carry the rounding of the simulation (a record with noise on the vertices of V,
-#: e.g. the audit's, has |v| = r_V exactly and no consistent trajectory strictly inside)
+#: e.g. the audit's, has ``|v| = r_V`` exactly and no consistent trajectory strictly inside)
 VERIFY_TOL = 1e-9
 #: measurement factors this close to 1 are held by :meth:`Search.polish`, which runs on
 #: candidates beyond 1 by at most POLISH_EXCESS, with at most POLISH_SIZE gradient entries
