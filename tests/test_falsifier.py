@@ -27,7 +27,8 @@ from observers.sets import Zonotope
 from systems import LinearSystem, ModelError
 
 #: observers that must be among the nonlinear-capable built-ins (the test is not vacuous)
-KNOWN_NONLINEAR = {"FRad-A", "FRad-B", "FRad-C", "CZN-A", "CZN-B", "CZN-MV", "VolMin-B"}
+#: observers that must run on every nonlinear record here (CZN-DC refuses more than 12 states)
+KNOWN_NONLINEAR = {"FRad-A", "FRad-B", "FRad-C", "CZN-A", "CZN-B", "CZN-MV", "CZN-FO", "VolMin-B"}
 
 
 @pytest.fixture
@@ -63,8 +64,11 @@ def _nonlinear_capable(sc, u, y) -> dict:
         except (Unsupported, DesignFailed, OptionError):
             continue
         res = observers.run(obs, u, y, keep_sets=False)
-        assert res.status == "ok", f"{info.name}: {res.message}"
-        hulls[info.name] = res
+        # a run may stop as diverged (CZN-PR: its relaxation leaves the domain of sqrt on the
+        # tank); a crash may not, and the observers that must run are listed below
+        assert res.status in ("ok", "diverged"), f"{info.name}: {res.message}"
+        if res.status == "ok":
+            hulls[info.name] = res
     assert KNOWN_NONLINEAR <= set(hulls), sorted(hulls)
     return hulls
 

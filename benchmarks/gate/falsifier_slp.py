@@ -187,7 +187,9 @@ class Model:
                 raise ModelError(f"falsifier: the system has no attribute {key}")
         if not (hasattr(system, "dynamics") or hasattr(system, "f")):
             raise ModelError("falsifier: the system has neither dynamics(x, u) nor f(x, u)")
-        self.nonlinear_output = callable(getattr(system, "h", None))
+        # every model of ours has h(x); a linear one says so (output_is_linear) and has C
+        self.nonlinear_output = (callable(getattr(system, "h", None))
+                                 and not getattr(system, "output_is_linear", False))
         if not (self.nonlinear_output or hasattr(system, "C")):
             raise ModelError("falsifier: the system has neither h(x) nor C")
         self.system = system
