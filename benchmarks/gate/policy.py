@@ -1,9 +1,9 @@
 """What passes and what fails: the verdicts of ``check``, ``baseline`` and ``audit``.
 
 The mechanisms live beside this module (:mod:`.regression` compares golden files,
-:mod:`.kernels` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the soundness audit,
-:mod:`benchmarks.report.freshness` hashes the committed reports); the rules that turn their
-findings into an exit code are here, in one place:
+:mod:`~benchmarks.gate.kernels` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the
+soundness audit, :mod:`benchmarks.report.freshness` hashes the committed reports); the rules
+that turn their findings into an exit code are here, in one place:
 
 * ``check`` fails (1) on a stale committed report, on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
