@@ -26,7 +26,7 @@ from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
 from .run import designs, executors
-from .run.config import inline_config, load_config
+from .run.config import inline_config, load_config, parse_memory, parse_timeout
 from .run.runner import run_config
 from .timing import speed
 from .timing import steps as timing
@@ -42,6 +42,10 @@ def _cmd_run(args) -> int:
     try:
         cfg = (load_config(args.config) if args.config
                else inline_config(args.scenario, args.observer, args.name))
+        if args.timeout is not None:  # the command line over the config
+            cfg.timeout = parse_timeout(args.timeout, "--timeout")
+        if args.memory_limit is not None:
+            cfg.memory_limit = parse_memory(args.memory_limit, "--memory-limit")
         out = Path(args.out) if args.out else Path("results") / cfg.name
         _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
                                 executor=executor)
@@ -188,6 +192,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="serial (default), processes (as --jobs) or dask (a Dask cluster)")
     r.add_argument("--address", metavar="tcp://HOST:PORT",
                    help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
+    r.add_argument("--timeout", metavar="SECONDS",
+                   help="time budget per job (default: the config's 'timeout', else "
+                        f"{executors.DEFAULT_TIMEOUT:g} s; 'none': no budget); a job over it "
+                        "is stopped and reported as status 'timeout'")
+    r.add_argument("--memory-limit", metavar="SIZE",
+                   help="resident memory per job, e.g. 2G or 512M (default: the config's "
+                        "'memory_limit', else "
+                        f"{executors.DEFAULT_MEMORY_FRACTION:.0%} of the available memory "
+                        "shared by the workers; 'none': no limit); a job over it is stopped "
+                        "and reported as status 'memory' (third-party plugins and parallel "
+                        "jobs; the project's own observers in a serial run keep the time "
+                        "budget only)")
     r.set_defaults(func=_cmd_run)
     rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")

@@ -21,7 +21,8 @@ EXIT_CODES_HELP = (
     "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
     "1 a guaranteed observer's set missed the true state (or became empty); "
     "2 bad input (config, scenario, options, output folder), nothing written; "
-    "3 an observer crashed (status 'error', its failing step in summary.csv), after the "
+    "3 an observer crashed (status 'error', its failing step in summary.csv) or was stopped "
+    "over its time budget or memory limit (status 'timeout' or 'memory'), after the "
     "others ran. 1 takes precedence over 3."
 )
 
@@ -86,7 +87,8 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     -------
     code : int
         :data:`EXIT_VIOLATION` if a guaranteed observer violates containment, else
-        :data:`EXIT_CRASH` if an observer crashed, else :data:`EXIT_OK`.
+        :data:`EXIT_CRASH` if an observer crashed or was stopped by its budget, else
+        :data:`EXIT_OK`.
     lines : list of str
         One line per kind of failure.
     """
@@ -95,6 +97,7 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
                                      if c in summary.columns])
     bad = pairs[violating(pairs)]
     crashed = pairs[pairs["status"] == "error"]
+    stopped = pairs[pairs["status"].isin(["timeout", "memory"])]
     lines = []
     if len(bad):
         lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
@@ -102,11 +105,18 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
                                                      strict=True)))))
     if len(crashed):
         lines.append("CRASHED: " + ", ".join(
-            f"{r.observer} on {r.scenario} ({_where(r.failed_step)})"
+            f"{r.observer} on {r.scenario} ({_where(r.failed_step, r.message)})"
             for r in crashed.itertuples(index=False)))
-    code = EXIT_VIOLATION if len(bad) else EXIT_CRASH if len(crashed) else EXIT_OK
+    if len(stopped):
+        lines.append("STOPPED: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({r.status}: {r.message})"
+            for r in stopped.itertuples(index=False)))
+    code = (EXIT_VIOLATION if len(bad) else EXIT_CRASH if len(crashed) or len(stopped)
+            else EXIT_OK)
     return code, lines
 
 
-def _where(step) -> str:
+def _where(step, message="") -> str:
+    if isinstance(message, str) and message.startswith("worker process died"):
+        return message
     return "in its design" if pd.isna(step) else f"at step {int(step)}"

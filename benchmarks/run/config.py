@@ -11,6 +11,9 @@
     observer_options:                    # optional, per observer
       FRad-B: {variant: textbook}
     containment: exact                   # exact (LP membership) | hull (interval hull only)
+    timeout: 600                         # seconds per job (default 600; none: no budget)
+    memory_limit: 4G                     # per job (default: 80 % of the available memory
+                                         # shared by the workers; none: no limit)
     sweep:                               # optional: a grid of runs, one tidy table
       seeds: [0, 1, 2]                   # or {count: 20} (seeds 0..19) for simulated scenarios
       sizes: [6, 12, 30]                 # substituted for {n} in scenario names (tank{n}-linear)
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,11 +48,50 @@ import observers
 from systems import Scenario
 
 from ..errors import ConfigError
+from .executors import DEFAULT_TIMEOUT as DEFAULT_JOB_TIMEOUT
+from .executors import default_memory_limit
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
             "containment", "description", "sweep",
-            "variants"}
+            "variants", "timeout", "memory_limit"}
+#: the per-job time budget by default (seconds), as :data:`.executors.DEFAULT_TIMEOUT`
+DEFAULT_TIMEOUT = DEFAULT_JOB_TIMEOUT
+_UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def parse_timeout(value: Any, where: str) -> float | None:
+    """A time budget in seconds: a positive number, or ``none``/``null`` for no budget."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("none", "off")):
+        return None
+    try:
+        seconds = float(value) if not isinstance(value, bool) else math.nan
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ConfigError(f"{where}: the time budget must be a positive number of seconds "
+                          f"or 'none', got {value!r}")
+    return seconds
+
+
+def parse_memory(value: Any, where: str) -> int | str | None:
+    """A memory limit: bytes as an integer or with a binary unit (``512M``, ``4G``,
+    ``1.5GiB``), ``auto`` (the default share of the available memory) or ``none``."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("none", "off")):
+        return None
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        return "auto"
+    text = str(value).strip().upper().removesuffix("IB").removesuffix("B")
+    unit = text[-1:] if text[-1:] in _UNITS and text[-1:] else ""
+    try:
+        number = float(text[:-1] if unit else text) if not isinstance(value, bool) else math.nan
+    except ValueError:
+        number = math.nan
+    size = number * _UNITS[unit]
+    if not (math.isfinite(size) and size >= 1):
+        raise ConfigError(f"{where}: the memory limit must be a size such as 512M or 4G, "
+                          f"'auto' or 'none', got {value!r}")
+    return int(size)
 SWEEP_KEYS = {"seeds", "sizes", "grid"}
 
 
@@ -80,6 +123,16 @@ class BenchConfig:
     #: per observer, the option combinations of the sweep grid as (label, options)
     variants: dict[str, list[tuple[str, dict[str, Any]]]] = field(default_factory=dict)
     base: Path | None = None
+    #: per-job time budget (seconds) and memory limit (bytes, ``"auto"``); None: no limit
+    timeout: float | None = DEFAULT_TIMEOUT
+    memory_limit: int | str | None = "auto"
+
+    def job_memory_limit(self, workers: int) -> int | None:
+        """The memory limit per job in bytes (``auto``: the default share for ``workers``
+        workers running at once, :func:`.executors.default_memory_limit`)."""
+        if self.memory_limit == "auto":
+            return default_memory_limit(workers)
+        return self.memory_limit  # type: ignore[return-value]
 
     def __post_init__(self):
         if not self.instances:  # built in code from scenario values: their names as entries
@@ -233,6 +286,9 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
         observer_options={str(k): dict(v) for k, v in per.items()},
         containment=containment, description=str(raw.get("description", "")), raw=raw,
         instances=instances, variants=variants, base=base,
+        timeout=parse_timeout(raw.get("timeout", DEFAULT_TIMEOUT), f"config '{name}': timeout"),
+        memory_limit=parse_memory(raw.get("memory_limit", "auto"),
+                                  f"config '{name}': memory_limit"),
     )
 
 

@@ -158,6 +158,8 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     if not same_dim and res.status == "ok":
         res.status, res.failed_step = "error", 0
         res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
+    if isinstance(res.error, MemoryError):  # the job's memory limit (or the machine's)
+        res.status = "memory"
     run = ObserverRun(sc, info, res, res.status, res.message)
     if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
         run.contained, run.in_set, run.decided = check_containment(
@@ -267,6 +269,12 @@ class Job:
     #: a labelled variant of the config (``ESO-C[cora]``): its label and guarantee
     label: str = ""
     guaranteed: bool = True
+    #: run in a worker process even by the serial executor (a third-party plugin: a crash,
+    #: hang or leak of it must not end the run)
+    isolate: bool = False
+    #: the built scenario, sent with an isolated job of the serial executor (so that a
+    #: scenario built in code, which no worker could rebuild from its entry, still runs)
+    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def inputs(self) -> tuple[Scenario, dict]:
         """The job's scenario (built once per process) and the options its observer runs with
@@ -289,9 +297,32 @@ def _key(spec: dict, base: str | None) -> str:
 
 def _scenario(job: Job) -> Scenario:
     key = scenario_key(job)
+    if job.scenario is not None:
+        _SCENARIOS.setdefault(key, job.scenario)
     if key not in _SCENARIOS:
         _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
     return _SCENARIOS[key]
+
+
+def is_project_module(module: str) -> bool:
+    """Whether ``module`` belongs to the project's ``observers`` package (not a plugin)."""
+    return module == "observers" or module.startswith("observers.")
+
+
+def isolatable(cls: type) -> bool:
+    """Whether observer class ``cls`` is a third-party plugin that a worker process can
+    import by its module and name (a class defined in ``__main__`` or inside a function, as in
+    a notebook or a test, cannot be: it runs in this process)."""
+    module, qualname = getattr(cls, "__module__", ""), getattr(cls, "__qualname__", "")
+    if is_project_module(module) or module == "__main__" or "<locals>" in qualname:
+        return False
+    try:
+        obj = importlib.import_module(module)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except Exception:
+        return False
+    return obj is cls
 
 
 def make_jobs(cfg: BenchConfig) -> list[Job]:
@@ -304,10 +335,12 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
             obs = cfg.observer_of(name)  # a labelled variant runs its observer
             per = cfg.labelled[name][1] if name in cfg.labelled else cfg.observer_options.get(
                 name, {})
+            cls = observers.get(obs).cls
             for label, opts in cfg.variants_of(obs):
-                jobs.append(Job(inst.spec, base, obs, observers.get(obs).cls.__module__,
+                jobs.append(Job(inst.spec, base, obs, cls.__module__,
                                 cfg.options, {**per, **opts}, cfg.containment, inst.seed, label,
-                                name if name != obs else "", cfg.guaranteed(name)))
+                                name if name != obs else "", cfg.guaranteed(name),
+                                isolatable(cls)))
     return jobs
 
 
@@ -356,6 +389,23 @@ def summary_columns(containment: str) -> list[str]:
             "set_type", "timing", "guaranteed"]
 
 
+def _run_jobs(cfg: BenchConfig, executor, jobs: list[Job], payloads: list[Job], frames: list,
+              progress: bool | None) -> None:
+    """Run ``payloads`` (the jobs, or the jobs with their scenario) on ``executor`` and put
+    each one's rows (or failure rows) into ``frames``."""
+    with progress_bar(len(jobs), cfg.name, progress) as bar:
+        # the jobs of one scenario instance go to a worker together (built once there)
+        for i, outcome in executor.map(execute_job, payloads,
+                                       keys=[scenario_key(j) for j in jobs],
+                                       isolate=[j.isolate for j in jobs]):
+            if isinstance(outcome, JobFailure):
+                outcome = failed_job(jobs[i], outcome)
+            frames[i] = outcome
+            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
+                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
+            bar.update()
+
+
 def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None,
                executor=None):
     """Run every job of ``cfg`` (scenario x observer x option variant).
@@ -371,18 +421,19 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     if out is not None:
         check_output_dir(out)
     check_memory(cfg)
+    own = executor is None
     executor = executor or SerialExecutor()
+    executor.set_budget(cfg.timeout, cfg.job_memory_limit(executor.workers))
     jobs = make_jobs(cfg)
+    # the serial executor sends an isolated job with its scenario (built here already)
+    payloads = [dataclasses.replace(j, scenario=_scenario(j)) if j.isolate and
+                executor.name == "serial" else j for j in jobs]
     frames: list = [None] * len(jobs)
-    with progress_bar(len(jobs), cfg.name, progress) as bar:
-        # the jobs of one scenario instance go to a worker together (built once there)
-        for i, outcome in executor.map(execute_job, jobs, keys=[scenario_key(j) for j in jobs]):
-            if isinstance(outcome, JobFailure):
-                outcome = failed_job(jobs[i], outcome)
-            frames[i] = outcome
-            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
-                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
-            bar.update()
+    try:
+        _run_jobs(cfg, executor, jobs, payloads, frames, progress)
+    finally:
+        if own:
+            executor.close()
     runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
     summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
