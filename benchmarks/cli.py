@@ -199,7 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--memory-limit", metavar="SIZE",
                    help="resident memory per job, e.g. 2G or 512M (default: the config's "
                         "'memory_limit', else "
-                        f"{executors.DEFAULT_MEMORY_FRACTION:.0%} of the available memory "
+                        f"{executors.DEFAULT_MEMORY_FRACTION * 100:.0f} %% of the available memory "
                         "shared by the workers; 'none': no limit); a job over it is stopped "
                         "and reported as status 'memory' (third-party plugins and parallel "
                         "jobs; the project's own observers in a serial run keep the time "

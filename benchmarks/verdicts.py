@@ -14,6 +14,18 @@ import pandas as pd
 
 YES, NO, NA = "yes", "no", "n/a"
 
+#: the soundness verdict columns of ``summary.csv`` (``yes`` / ``no`` / ``n/a``): a row of a
+#: guaranteed observer with ``no`` in any of them present is unsound: never the reference of
+#: eq. (9), never called tighter by ``check``, never written by ``baseline --update``.
+#: ``contained``: exact membership of the true state in every set (the gate computes it beside
+#: the hull test of its subset).  Extend this tuple with a new verdict column (e.g.
+#: ``covers_exact``) and every rule above applies to it.
+SOUNDNESS_COLUMNS: tuple[str, ...] = ("contained",)
+
+#: the containment mode of the regression gate: the hull test decides ``violations`` and
+#: ``contained_hull`` (as the golden files hold them); exact membership gives ``contained``
+HULL_AND_EXACT = "hull+exact"
+
 #: exit codes of ``python -m benchmarks run``
 EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH = 0, 1, 2, 3
 
@@ -64,9 +76,18 @@ def containment_verdict(status: str, steps: int, in_set: np.ndarray | None,
     return YES if status == "ok" and len(in_set) == steps and decided else NA
 
 
+def unsound(summary: pd.DataFrame) -> pd.Series:
+    """Rows with ``no`` in a :data:`SOUNDNESS_COLUMNS` column (any observer)."""
+    bad = pd.Series(False, index=summary.index)
+    for col in SOUNDNESS_COLUMNS:
+        if col in summary.columns:
+            bad = bad | (summary[col].astype(str) == NO)
+    return bad
+
+
 def violating(summary: pd.DataFrame) -> pd.Series:
     """Rows of guaranteed observers whose sets missed the true state (or became empty)."""
-    bad = summary["status"] == "empty"
+    bad = (summary["status"] == "empty") | unsound(summary)
     for col in (contained_column("exact"), contained_column("hull")):
         if col in summary.columns:
             bad = bad | (summary[col] == NO)

@@ -76,3 +76,66 @@ def test_timeout_and_memory_limit_from_the_config_and_refused_when_malformed(
         assert capsys.readouterr().err.startswith("error: config 'b': ")
     assert main(["run", cfg, "--out", str(out), "--timeout", "0", "--no-progress"]) == 2
     assert "--timeout" in capsys.readouterr().err
+
+
+# -- defect 3: a tighter value must prove itself ----------------------------------------------
+def _gate(tmp_path, command, cfg, *extra) -> int:
+    argv = [command, "--config", cfg, "--baseline", str(tmp_path / "baseline"),
+            "--no-progress", *extra]
+    argv += ["--out", str(tmp_path / "check")] if command == "check" else ["--kernels", "none"]
+    return main(argv)
+
+
+@pytest.fixture
+def gate_subset(tmp_path, monkeypatch):
+    """A one-observer subset (FRad-A, hull containment as the real subset) with its golden
+    files written from the real FRad-A; the proof audit on one scenario, in this process (so
+    that the patched FRad-A below is the one audited)."""
+    from benchmarks.gate import policy
+
+    cfg = _cfg(tmp_path, ["FRad-A"], name="subset", steps=40)
+    assert _gate(tmp_path, "baseline", cfg, "--update") == 0
+    monkeypatch.setattr(policy, "PROOF_SCENARIOS", ("alamo2d-sim",))
+    monkeypatch.setattr(policy.soundness, "default_jobs", lambda: 1)
+    return cfg
+
+
+def _patch_frad(monkeypatch, change):
+    from observers.builtin.frad import FRadA
+
+    original = FRadA.step
+    monkeypatch.setattr(FRadA, "step", lambda self, u, y: change(original(self, u, y)))
+
+
+def test_sets_scaled_to_095_are_not_called_tighter_nor_enshrined(tmp_path, monkeypatch, capsys,
+                                                                gate_subset):
+    from observers.sets import Zonotope
+
+    golden = (tmp_path / "baseline" / "alamo2d-sim.csv").read_text()
+    _patch_frad(monkeypatch, lambda Z: Zonotope(Z.c, 0.95 * Z.G))
+    capsys.readouterr()
+    assert _gate(tmp_path, "check", gate_subset) == 1
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert "tighter: none" in last and "containment: FRad-A (audit --short)" in last
+    assert _gate(tmp_path, "baseline", gate_subset, "--update") == 1
+    assert "FRad-A got tighter but fails the short soundness audit" in capsys.readouterr().err
+    assert (tmp_path / "baseline" / "alamo2d-sim.csv").read_text() == golden
+
+
+def test_a_set_missing_the_true_state_inside_its_hull_fails_the_gate(tmp_path, monkeypatch,
+                                                                      capsys, gate_subset):
+    """The hull test passes (same hull), exact membership fails: ``contained`` is ``no``."""
+    from observers.sets import Zonotope
+
+    def diagonal(Z):
+        I = Z.interval()
+        return Zonotope(0.5 * (I.hi + I.lo), (0.5 * (I.hi - I.lo)).reshape(-1, 1))
+
+    _patch_frad(monkeypatch, diagonal)
+    capsys.readouterr()
+    assert _gate(tmp_path, "check", gate_subset) == 1
+    cap = capsys.readouterr()
+    assert "containment: FRad-A (alamo2d-sim)" in cap.err.splitlines()[-1]
+    assert "the true state is outside one of its sets" in cap.out
+    assert _gate(tmp_path, "baseline", gate_subset, "--update") == 1
+    assert "FRad-A fails 'contained' on alamo2d-sim" in capsys.readouterr().err

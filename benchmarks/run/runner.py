@@ -26,7 +26,7 @@ from systems import ModelError, Scenario, available_memory
 from ..errors import ConfigError
 from ..io import check_output_dir, environment, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
-from ..verdicts import contained_column, containment_verdict
+from ..verdicts import HULL_AND_EXACT, NA, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
 from .executors import JobFailure, SerialExecutor
 from .membership import MembershipTester
@@ -49,6 +49,8 @@ class ObserverRun:
     contained: np.ndarray | None = None  # N x n, hull containment (with tolerance)
     in_set: np.ndarray | None = None  # per set: exact membership (hull with `hull`)
     decided: bool = True  # every set tested as the configuration asks (exact or hull)
+    #: the exact-membership verdict beside a hull test (containment ``hull+exact``)
+    exact_verdict: str = NA
 
     @property
     def violations(self) -> int:
@@ -164,6 +166,9 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
         run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
+        if containment == HULL_AND_EXACT:  # the gate: exact membership beside the hull
+            _, exact_in, exact_decided = check_containment(res, sc.x_true, sc.tolerance, True)
+            run.exact_verdict = containment_verdict(res.status, sc.N, exact_in, exact_decided)
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
@@ -204,7 +209,9 @@ def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
     ok = run.status == "ok"
     first_violation = (int(np.argmax(~run.in_set)) if run.in_set is not None
                        and run.violations else -1)
+    extra = {"contained": run.exact_verdict} if containment == HULL_AND_EXACT else {}
     return pd.DataFrame({
+        **extra,
         "scenario": sc.name,
         "observer": info.name,
         "state": np.arange(n),
@@ -382,11 +389,13 @@ def failed_job(job: Job, failure: JobFailure):
 
 
 def summary_columns(containment: str) -> list[str]:
-    """Columns of ``summary.csv`` (the containment column is named by the check made)."""
+    """Columns of ``summary.csv`` (the containment column is named by the check made; the
+    gate's ``hull+exact`` has both)."""
+    both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
             "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
-            "violations", "first_violation_step", "status", "failed_step", "message", "family",
-            "set_type", "timing", "guaranteed"]
+            *both, "violations", "first_violation_step", "status", "failed_step", "message",
+            "family", "set_type", "timing", "guaranteed"]
 
 
 def _run_jobs(cfg: BenchConfig, executor, jobs: list[Job], payloads: list[Job], frames: list,
