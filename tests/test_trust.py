@@ -139,3 +139,47 @@ def test_a_set_missing_the_true_state_inside_its_hull_fails_the_gate(tmp_path, m
     assert "the true state is outside one of its sets" in cap.out
     assert _gate(tmp_path, "baseline", gate_subset, "--update") == 1
     assert "FRad-A fails 'contained' on alamo2d-sim" in capsys.readouterr().err
+
+
+# -- defect 4: the design cache is verified on load -------------------------------------------
+def test_broken_or_tampered_cache_entries_are_recomputed_with_a_warning(tmp_path, monkeypatch,
+                                                                         capsys):
+    import numpy as np
+
+    import observers
+    import systems
+    from observers.offline import cached_design
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    sc = systems.scenario("vehicle6d-cora")
+    fresh = observers.create("PRad-E", sc.system, **sc.options).L
+    (entry,) = tmp_path.glob("*.npz")
+    assert not list(tmp_path.glob("*.lock"))  # no empty lock files piling up
+    # a valid entry whose gain was replaced by zeros (the rest of the file as it was)
+    with np.load(entry) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["gain"] = np.zeros_like(arrays["gain"])
+    np.savez(entry, **arrays)
+    capsys.readouterr()
+    again = observers.create("PRad-E", sc.system, **sc.options).L
+    np.testing.assert_array_equal(again, fresh)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(entry) in err[0] and "recomputing" in err[0]
+    # truncated and empty entries
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return {"gain": np.ones((2, 1))}
+
+    cached_design("K", "1", {"A": np.eye(2)}, {}, compute)
+    (path,) = tmp_path.glob("K-*.npz")
+    for broken in (path.read_bytes()[:40], b""):
+        path.write_bytes(broken)
+        capsys.readouterr()
+        np.testing.assert_array_equal(cached_design("K", "1", {"A": np.eye(2)}, {}, compute)
+                                      ["gain"], np.ones((2, 1)))
+        assert str(path) in capsys.readouterr().err
+    assert len(calls) == 3
+    cached_design("K", "1", {"A": np.eye(2)}, {}, compute)  # the rewritten entry is used
+    assert len(calls) == 3 and not list(tmp_path.glob("*.lock"))
