@@ -21,7 +21,7 @@ from systems import scenario_names
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
 from .gate import audit, history, kernels, policy, regression
-from .io import atomic_write_json, check_output_dir
+from .io import atomic_write_json, check_output_dir, path_component
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
@@ -46,7 +46,7 @@ def _cmd_run(args) -> int:
             cfg.timeout = parse_timeout(args.timeout, "--timeout")
         if args.memory_limit is not None:
             cfg.memory_limit = parse_memory(args.memory_limit, "--memory-limit")
-        out = Path(args.out) if args.out else Path("results") / cfg.name
+        out = Path(args.out) if args.out else Path("results") / path_component(cfg.name)
         _, summary = run_config(cfg, out, progress=False if args.no_progress else None,
                                 executor=executor)
     finally:

@@ -23,6 +23,7 @@ import io
 import json
 import os
 import platform
+import re
 import secrets
 import shutil
 import subprocess
@@ -33,6 +34,23 @@ from pathlib import Path
 import pandas as pd
 
 from .errors import ConfigError
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+=,\[\]-]")
+
+
+def path_component(name: str) -> str:
+    """``name`` (a config, scenario or observer name) as one safe file or folder name: every
+    character but letters, digits and ``._+=,[]-`` becomes ``_`` (so no ``/``, ``\\`` or
+    NUL), and a leading dot too (no ``..``, no hidden files).
+
+    Examples
+    --------
+    >>> path_component("../../x"), path_component("Acme/FRad"), path_component("ESO-C[cora]")
+    ('_._.._x', 'Acme_FRad', 'ESO-C[cora]')
+    """
+    safe = _UNSAFE.sub("_", str(name))
+    return "_" + safe[1:] if safe.startswith(".") else (safe or "_")
+
 
 #: the files of one result generation, in the order they are written
 RESULT_FILES = ("runs.csv", "summary.csv", "meta.json")

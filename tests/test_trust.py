@@ -183,3 +183,35 @@ def test_broken_or_tampered_cache_entries_are_recomputed_with_a_warning(tmp_path
     assert len(calls) == 3
     cached_design("K", "1", {"A": np.eye(2)}, {}, compute)  # the rewritten entry is used
     assert len(calls) == 3 and not list(tmp_path.glob("*.lock"))
+
+
+# -- defect 7: names used as paths ------------------------------------------------------------
+def _files_under(folder):
+    return {p for p in folder.rglob("*") if p.is_file()}
+
+
+def test_names_never_become_paths_outside_the_results(tmp_path, monkeypatch):
+    import observers
+    from observers.builtin.frad import FRadA
+
+    work = tmp_path / "a" / "b" / "c"
+    work.mkdir(parents=True)
+    monkeypatch.chdir(work)
+    observers.register("Test/Slash", family="strip", set_type="zonotope",
+                       ready_for_control=False)(type("Slash", (FRadA,), {"__doc__": "test"}))
+    try:
+        cfg = {"name": "../../x", "containment": "hull", "observers": ["FRad-A", "Test/Slash"],
+               "scenarios": [{"name": "alamo2d-sim", "steps": 8, "label": "../../../y"}]}
+        path = work / "cfg.yaml"
+        path.write_text(yaml.safe_dump(cfg))
+        assert main(["run", str(path), "--no-progress"]) == 0
+        assert main(["report", str(work / "results" / "_._.._x")]) == 0
+        assert main(["report", str(work / "results" / "_._.._x"), "--out",
+                     str(work / "results" / "md" / "report.md")]) == 0
+    finally:
+        registry._REGISTRY.pop("Test/Slash", None)
+    outside = _files_under(tmp_path) - _files_under(work / "results") - {path}
+    assert not outside, sorted(map(str, outside))
+    figures = [p.relative_to(work / "results") for p in _files_under(work / "results")
+               if p.suffix == ".png"]
+    assert figures and all(len(p.parts) == 4 for p in figures), figures  # no nested folders

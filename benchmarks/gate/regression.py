@@ -60,7 +60,7 @@ import pandas as pd
 import observers
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv, atomic_write_json, environment
+from ..io import atomic_write_csv, atomic_write_json, environment, path_component
 from ..metrics import add_relative_rms
 from ..report.numbers import fmt, text_table
 from ..run.config import BenchConfig, load_config
@@ -160,7 +160,7 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
     folder = Path(folder)
     written = []
     for sc, g in frame.groupby("scenario", sort=False):
-        path = folder / f"{sc}.csv"
+        path = folder / f"{path_component(sc)}.csv"
         g = g[BASELINE_COLUMNS].reset_index(drop=True).assign(
             rtol=g["rtol"].map("{:g}".format).to_numpy(),
             kernel_spread=g["kernel_spread"].map("{:.3g}".format).to_numpy())

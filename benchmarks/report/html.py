@@ -24,7 +24,7 @@ import yaml
 from observers.registry import table_order
 
 from ..errors import ConfigError
-from ..io import atomic_write_text, environment, load_results
+from ..io import atomic_write_text, environment, load_results, path_component
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
 from .figures import bounds_over_time, heat_map, step_times
@@ -250,14 +250,15 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
         if figures:
             names = info.get("state_names") or []
             label = names[0] if names else "x1"
-            figs = [figure_html(heat_map(df, sc, fig_dir / sc / "rel_rms_heatmap"), page_dir,
+            sc_dir = fig_dir / path_component(sc)  # a name, never a path
+            figs = [figure_html(heat_map(df, sc, sc_dir / "rel_rms_heatmap"), page_dir,
                             "relative RMS, observer x state"),
-                    figure_html(time_figure(df, sc, meta, fig_dir / sc / "step_time"), page_dir,
+                    figure_html(time_figure(df, sc, meta, sc_dir / "step_time"), page_dir,
                             "per-step time, log scale, with the paper's")]
             if runs is not None:
                 truth = runs.loc[runs["scenario"] == sc, "x_true"].notna().any()
                 figs.insert(0, figure_html(bounds_over_time(
-                    runs, df, sc, 0, fig_dir / sc / "bounds_x1", label), page_dir,
+                    runs, df, sc, 0, sc_dir / "bounds_x1", label), page_dir,
                     f"bounds of {label} over time "
                     + ("with the true state" if truth else "(the record has no true state)")))
             body.append('<div class="figures">' + "".join(f for f in figs if f) + "</div>")

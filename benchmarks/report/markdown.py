@@ -10,7 +10,7 @@ import pandas as pd
 
 from observers.registry import table_order
 
-from ..io import atomic_write_text, load_results
+from ..io import atomic_write_text, load_results, path_component
 from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
@@ -56,7 +56,8 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
             links = []
             names = info.get("state_names") or []
             for obs in table_order(df["observer"].unique()):
-                paths = observer_bounds(runs, sc, obs, names, fig_dir / sc / obs)
+                base = fig_dir / path_component(sc) / path_component(obs)  # names, not paths
+                paths = observer_bounds(runs, sc, obs, names, base)
                 if paths is not None:
                     links.append(f"[{obs}]({paths[0].relative_to(out.parent).as_posix()})")
             if links:
