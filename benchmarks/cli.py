@@ -21,7 +21,7 @@ from systems import scenario_names
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
 from .gate import audit, history, kernels, policy, regression
-from .io import atomic_write_json, check_output_dir, path_component
+from .io import atomic_write_json, check_output_dir, check_output_file, path_component
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
@@ -35,7 +35,7 @@ from .timing import steps as timing
 def _cmd_run(args) -> int:
     if args.config and (args.observer or args.scenario):
         raise ConfigError("run: give either a YAML config or --observer/--scenario, not both")
-    if args.out:
+    if args.out is not None:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
     # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
@@ -95,6 +95,8 @@ def _cmd_audit(args) -> int:
 
 
 def _cmd_time(args) -> int:
+    if args.json is not None:
+        check_output_file(args.json, "--json")  # before the timing, not after it
     sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup,
                                              args.steps)
     print(timing.format_table(sc, args.repeat, warmup, rows))
@@ -120,12 +122,16 @@ def _cmd_designs(args) -> int:
 
 
 def _cmd_speed(args) -> int:
+    check_output_file(args.out, "--out")  # before the timing, not after it
+    check_output_file(args.json, "--json")
     path = speed.write_speed_report(args.out, args.json)
     print(f"wrote {path} and {args.json}")
     return 0
 
 
 def _cmd_report(args) -> int:
+    if args.out is not None:
+        check_output_file(args.out, "--out")
     path = write_report(args.dir, args.out, figures=not args.no_figures)
     print(f"wrote {path}")
     if args.out is None:  # DIR/index.html beside DIR/report.md
@@ -315,6 +321,10 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except USER_ERRORS as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # writing an output (a full disk, a folder removed meanwhile)
+        print(f"error: {exc.strerror or type(exc).__name__}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -215,3 +215,107 @@ def test_names_never_become_paths_outside_the_results(tmp_path, monkeypatch):
     figures = [p.relative_to(work / "results") for p in _files_under(work / "results")
                if p.suffix == ".png"]
     assert figures and all(len(p.parts) == 4 for p in figures), figures  # no nested folders
+
+
+# -- defect 6: one line, not a traceback; outputs checked before the work ---------------------
+def _one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    return err[0]
+
+
+@pytest.fixture
+def results(tmp_path):
+    out = tmp_path / "res"
+    assert main(["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--out", str(out),
+                 "--no-progress"]) == 0
+    return out
+
+
+def test_unwritable_outputs_are_one_line_before_the_work(tmp_path, results, capsys):
+    (tmp_path / "file").write_text("x")
+    capsys.readouterr()
+    for argv in (["report", str(results), "--out", str(tmp_path)],
+                 ["report", str(results), "--out", str(tmp_path / "file" / "r.md")],
+                 ["time", "FRad-A", "--scenario", "alamo2d", "--json", str(tmp_path)],
+                 ["speed", "--out", str(tmp_path / "file" / "s.md")],
+                 ["speed", "--json", str(tmp_path)],
+                 ["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--out", ""],
+                 ["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--executor", "dask",
+                  "--address", "nonsense"]):
+        assert main(argv) == 2, argv
+        _one_error_line(capsys)
+        assert capsys.readouterr().out == ""  # nothing timed or run first
+
+
+def test_a_full_disk_during_run_is_one_line_and_keeps_the_old_results(results, monkeypatch,
+                                                                       capsys):
+    import errno
+    from pathlib import Path
+
+    before = (results / "summary.csv").read_bytes()
+
+    def full(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device", str(self))
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    capsys.readouterr()
+    assert main(["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--out", str(results),
+                 "--no-progress"]) == 2
+    line = _one_error_line(capsys)
+    assert "No space left on device" in line and "intact" in line
+    assert (results / "summary.csv").read_bytes() == before
+
+
+def _rehash(folder):
+    """Recompute the hashes of meta.json after a hand edit (as a careful vandal would)."""
+    import hashlib
+    import json
+
+    meta = json.loads((folder / "meta.json").read_text())
+    for name in ("runs.csv", "summary.csv"):
+        data = (folder / name).read_bytes()
+        meta["files"][name] = {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    (folder / "meta.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize("edit", ["drop summary column", "text in summary", "text in runs"])
+def test_edited_result_tables_are_refused_in_one_line(results, edit, capsys):
+    name = "runs.csv" if "runs" in edit else "summary.csv"
+    df = pd.read_csv(results / name)
+    if edit.startswith("drop"):
+        df = df.drop(columns="rel_rms")
+    else:
+        col = "lo" if name == "runs.csv" else "rms_radius"
+        df[col] = df[col].astype(object)
+        df.loc[1, col] = "oops"
+    df.to_csv(results / name, index=False)
+    _rehash(results)
+    capsys.readouterr()
+    assert main(["report", str(results)]) == 2
+    line = _one_error_line(capsys)
+    assert name in line and ("rel_rms" in line or "oops" in line)
+
+
+def test_two_writers_creating_the_same_new_folder(tmp_path, monkeypatch):
+    """The other writer's generation appears between our check and our rename: ours is
+    swapped in, not an ``OSError: Directory not empty``."""
+    import os
+
+    from benchmarks import io as bio
+
+    out = tmp_path / "new"
+    real = os.rename
+    raced = []
+
+    def racing(src, dst):
+        if os.fspath(dst) == os.fspath(out) and not out.exists() and not raced:
+            raced.append(1)
+            bio.write_results(out, {"runs.csv": pd.DataFrame({"a": [1]}),
+                                    "summary.csv": pd.DataFrame({"b": [2]})}, {"who": "other"})
+        return real(src, dst)
+
+    monkeypatch.setattr(bio.os, "rename", racing)
+    run_id = bio.write_results(out, {"runs.csv": pd.DataFrame({"a": [3]}),
+                                     "summary.csv": pd.DataFrame({"b": [4]})}, {"who": "us"})
+    assert f'"run_id": "{run_id}"' in (out / "meta.json").read_text()

@@ -24,7 +24,7 @@ import yaml
 from observers.registry import table_order
 
 from ..errors import ConfigError
-from ..io import atomic_write_text, environment, load_results, path_component
+from ..io import atomic_write_text, environment, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
 from .figures import bounds_over_time, heat_map, step_times
@@ -219,7 +219,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
     fig_dir = page_dir / FIGURE_DIR
     runs = None
     if figures and (results_dir / "runs.csv").is_file():
-        runs = pd.read_csv(results_dir / "runs.csv")
+        runs = load_runs(results_dir)
     title = meta.get("config", {}).get("title", results_dir.name)
     sweep = is_sweep(summary)
     scenarios = [] if sweep else list(dict.fromkeys(summary["scenario"]))

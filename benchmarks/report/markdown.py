@@ -6,11 +6,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
-
 from observers.registry import table_order
 
-from ..io import atomic_write_text, load_results, path_component
+from ..io import atomic_write_text, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
@@ -41,7 +39,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         summary = summary.iloc[0:0]  # no per-seed tables
     runs = None
     if figures and (results_dir / "runs.csv").is_file() and len(summary):
-        runs = pd.read_csv(results_dir / "runs.csv")
+        runs = load_runs(results_dir)
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
         df = full[full["status"] != "unsupported"]  # listed below the tables instead

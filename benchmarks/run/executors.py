@@ -499,8 +499,10 @@ class DaskExecutor(_Budgeted):
         else:
             try:
                 self.client = Client(address, timeout="10s")
-            except (OSError, TimeoutError) as exc:
-                raise ConfigError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+            except Exception as exc:  # unreachable, or not an address at all
+                reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise ConfigError(f"cannot reach the Dask scheduler at {address}: "
+                                  f"{reason}") from None
             self.workers = max(1, sum(self.client.nthreads().values()))
         self.address = self.client.scheduler.address
 

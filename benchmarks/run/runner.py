@@ -24,7 +24,7 @@ from observers.sets import ConZonotope, Interval, Zonotope
 from systems import ModelError, Scenario, available_memory
 
 from ..errors import ConfigError
-from ..io import check_output_dir, environment, write_results
+from ..io import check_output_dir, environment, write_error, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
 from ..verdicts import HULL_AND_EXACT, NA, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
@@ -398,6 +398,15 @@ def summary_columns(containment: str) -> list[str]:
             "family", "set_type", "timing", "guaranteed"]
 
 
+def _write(out, runs_df: pd.DataFrame, summary: pd.DataFrame, meta: dict) -> None:
+    """:func:`benchmarks.io.write_results`; a write error (a full disk) is one line."""
+    try:
+        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, meta)
+    except OSError as exc:
+        raise write_error(exc, f"the results to {out} (the previous results there, if any, "
+                               "are intact)") from None
+
+
 def _run_jobs(cfg: BenchConfig, executor, jobs: list[Job], payloads: list[Job], frames: list,
               progress: bool | None) -> None:
     """Run ``payloads`` (the jobs, or the jobs with their scenario) on ``executor`` and put
@@ -449,7 +458,7 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     summary["timed"] = "serial" if executor.workers == 1 else "parallel"
     summary = summary[summary_columns(cfg.containment)]
     if out is not None:
-        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, {
+        _write(out, runs_df, summary, {
             "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
                        "containment": cfg.containment},
             "scenarios": {sc.name: {
