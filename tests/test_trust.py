@@ -319,3 +319,49 @@ def test_two_writers_creating_the_same_new_folder(tmp_path, monkeypatch):
     run_id = bio.write_results(out, {"runs.csv": pd.DataFrame({"a": [3]}),
                                      "summary.csv": pd.DataFrame({"b": [4]})}, {"who": "us"})
     assert f'"run_id": "{run_id}"' in (out / "meta.json").read_text()
+
+
+# -- defect 9: nothing silently accepted --------------------------------------------------------
+def _inline(**extra) -> dict:
+    system = {"A": [[0.9, 0.1], [0.0, 0.8]], "B": [[0.0], [0.1]], "C": [[1.0, 0.0]],
+              "W": {"box": [0.01, 0.01]}, "V": {"box": [0.05]},
+              "X0": {"center": [0, 0], "generators": [[1, 0], [0, 1]]}}
+    system.update(extra.pop("system", {}))
+    return {"name": "toy", "system": system, "simulate": {"steps": 10, "seed": 0}, **extra}
+
+
+@pytest.mark.parametrize("scenario, expected", [
+    (_inline(options={"ordr": 5}), "option(s) ['ordr'] are accepted by none"),
+    (_inline(system={"C": [[1.0], [0.0]]}), "C must have one row per output"),
+    (_inline(tolerance=1e9), "tolerance 1e+09 exceeds 0.001"),
+], ids=["options typo", "C as a column", "huge tolerance"])
+def test_inline_scenario_mistakes_are_refused(tmp_path, scenario, expected, capsys):
+    cfg = _cfg(tmp_path, ["FRad-A"])
+    path = tmp_path / "inline.yaml"
+    path.write_text(yaml.safe_dump({"name": "inline", "scenarios": [scenario],
+                                    "observers": ["FRad-A"]}))
+    assert main(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    assert expected in _one_error_line(capsys)
+    del cfg
+
+
+def test_a_large_tolerance_needs_an_explicit_override(tmp_path):
+    from benchmarks.run.config import parse_config
+
+    cfg = parse_config({"scenarios": [_inline(tolerance=0.5, large_tolerance=True)],
+                        "observers": ["FRad-A"]}, "ok")
+    assert cfg.scenarios[0].tolerance == 0.5
+
+
+def test_duplicate_yaml_keys_are_refused_and_1e3_is_a_number(tmp_path, capsys):
+    from benchmarks.run.config import load_config
+
+    dup = tmp_path / "dup.yaml"
+    dup.write_text("name: dup\nscenarios: [alamo2d]\nobservers: [FRad-A]\nobservers: [FRad-C]\n")
+    assert main(["run", str(dup), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    assert "key 'observers' appears twice" in _one_error_line(capsys)
+    num = tmp_path / "num.yaml"
+    num.write_text("name: num\nscenarios: [alamo2d]\nobservers: [FRad-A]\n"
+                   "observer_options: {ESO-A: {alpha: 1e-4}}\ntimeout: 1e3\n")
+    cfg = load_config(num)
+    assert cfg.observer_options["ESO-A"]["alpha"] == 1e-4 and cfg.timeout == 1000.0

@@ -38,6 +38,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -270,6 +271,12 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     for spec in _expand(scen, seeds, sizes, name):
         seed = spec.get("seed", (spec.get("simulate") or {}).get("seed"))
         instances.append(Instance(build_scenario(spec, base), spec, seed))
+    for inst in instances:  # a scenario's own options: the same check as the top level's
+        own = inst.spec.get("options") or {}
+        bad = set(own) - accepted_any if isinstance(own, dict) else set()
+        if bad:
+            raise ConfigError(f"config '{name}': scenario '{inst.scenario.name}': option(s) "
+                              f"{sorted(bad)} are accepted by none of the selected observers")
     seen = [(i.scenario.name, i.seed) for i in instances]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"config '{name}': a scenario appears twice with the same seed: "
@@ -429,7 +436,33 @@ def load_config(path: str | Path) -> BenchConfig:
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     try:
-        raw = yaml.safe_load(text)
+        raw = yaml.load(text, Loader=StrictLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
         raise _yaml_error(path, exc) from None
     return parse_config(raw, path.stem, path.parent)
+
+
+class StrictLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice in one mapping (plain YAML keeps the
+    last one silently) and reading ``1e3``, ``-2.5E-4`` as numbers (YAML 1.1, which PyYAML
+    follows, reads a float without a dot as text; YAML 1.2 and every user read a number)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                first = seen.setdefault(key, key_node.start_mark)
+            except TypeError:  # an unhashable key: SafeLoader reports it
+                continue
+            if first is not key_node.start_mark:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} appears twice in one mapping (first on line "
+                    f"{first.line + 1})", key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
