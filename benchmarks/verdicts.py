@@ -27,7 +27,7 @@ SOUNDNESS_COLUMNS: tuple[str, ...] = ("contained",)
 HULL_AND_EXACT = "hull+exact"
 
 #: exit codes of ``python -m benchmarks run``
-EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH = 0, 1, 2, 3
+EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH, EXIT_BAD_DATA = 0, 1, 2, 3, 4
 
 EXIT_CODES_HELP = (
     "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
@@ -35,7 +35,9 @@ EXIT_CODES_HELP = (
     "2 bad input (config, scenario, options, output folder), nothing written; "
     "3 an observer crashed (status 'error', its failing step in summary.csv) or was stopped "
     "over its time budget or memory limit (status 'timeout' or 'memory'), after the "
-    "others ran. 1 takes precedence over 3."
+    "others ran; 4 a record contradicts its model (status 'inconsistent' on every row of "
+    "that scenario: no initial state and noise in their sets reproduce its measurements), "
+    "the results written. 1 takes precedence over 4, 4 over 3."
 )
 
 
@@ -96,9 +98,14 @@ def violating(summary: pd.DataFrame) -> pd.Series:
 
 def reference_rows(summary: pd.DataFrame) -> pd.Series:
     """Rows that may serve as the reference (the minimum) of eq. (9): successful guaranteed
-    observers without a containment violation."""
+    observers that violate containment on no scenario of the run (one proven unsound on one
+    record is no reference on a record without true states either)."""
+    bad = violating(summary)
+    keys = [c for c in ("observer", "variant") if c in summary.columns]
+    who = summary[keys].astype(str).agg("|".join, axis=1)
+    unsound_anywhere = who.isin(set(who[bad]))
     return ((summary["status"] == "ok") & summary["guaranteed"].astype(bool)
-            & ~violating(summary))
+            & ~bad & ~unsound_anywhere)
 
 
 def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
@@ -119,6 +126,7 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     bad = pairs[violating(pairs)]
     crashed = pairs[pairs["status"] == "error"]
     stopped = pairs[pairs["status"].isin(["timeout", "memory"])]
+    bad_data = pairs[pairs["status"] == "inconsistent"]
     lines = []
     if len(bad):
         lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
@@ -132,8 +140,11 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
         lines.append("STOPPED: " + ", ".join(
             f"{r.observer} on {r.scenario} ({r.status}: {r.message})"
             for r in stopped.itertuples(index=False)))
-    code = (EXIT_VIOLATION if len(bad) else EXIT_CRASH if len(crashed) or len(stopped)
-            else EXIT_OK)
+    if len(bad_data):
+        lines.append("RECORD INCONSISTENT WITH THE MODEL (bad data, no observer blamed): "
+                     + ", ".join(sorted(set(bad_data["scenario"].astype(str)))))
+    code = (EXIT_VIOLATION if len(bad) else EXIT_BAD_DATA if len(bad_data)
+            else EXIT_CRASH if len(crashed) or len(stopped) else EXIT_OK)
     return code, lines
 
 

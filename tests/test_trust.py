@@ -331,7 +331,7 @@ def _inline(**extra) -> dict:
 
 
 @pytest.mark.parametrize("scenario, expected", [
-    (_inline(options={"ordr": 5}), "option(s) ['ordr'] are accepted by none"),
+    (_inline(options={"ordr": 5}), "option(s) ['ordr'] are accepted by no observer"),
     (_inline(system={"C": [[1.0], [0.0]]}), "C must have one row per output"),
     (_inline(tolerance=1e9), "tolerance 1e+09 exceeds 0.001"),
 ], ids=["options typo", "C as a column", "huge tolerance"])

@@ -271,12 +271,15 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     for spec in _expand(scen, seeds, sizes, name):
         seed = spec.get("seed", (spec.get("simulate") or {}).get("seed"))
         instances.append(Instance(build_scenario(spec, base), spec, seed))
-    for inst in instances:  # a scenario's own options: the same check as the top level's
+    # a scenario's own options are defaults for any observer: a key no registered observer
+    # accepts is a typo (the top level's options are checked against this run's observers)
+    known = accepted_any.union(*(i.option_defaults() for i in observers.available()))
+    for inst in instances:
         own = inst.spec.get("options") or {}
-        bad = set(own) - accepted_any if isinstance(own, dict) else set()
+        bad = set(own) - known if isinstance(own, dict) else set()
         if bad:
             raise ConfigError(f"config '{name}': scenario '{inst.scenario.name}': option(s) "
-                              f"{sorted(bad)} are accepted by none of the selected observers")
+                              f"{sorted(bad)} are accepted by no observer")
     seen = [(i.scenario.name, i.seed) for i in instances]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"config '{name}': a scenario appears twice with the same seed: "

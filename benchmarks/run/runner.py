@@ -28,6 +28,7 @@ from ..io import check_output_dir, environment, write_error, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
 from ..verdicts import HULL_AND_EXACT, NA, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
+from .consistency import INCONSISTENT, inconsistency_message, record_inflation
 from .executors import JobFailure, SerialExecutor
 from .membership import MembershipTester
 from .progress import progress_bar
@@ -282,6 +283,10 @@ class Job:
     #: the built scenario, sent with an isolated job of the serial executor (so that a
     #: scenario built in code, which no worker could rebuild from its entry, still runs)
     scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
+    #: the registry entry of an isolated job's observer, registered again in a worker where
+    #: importing ``module`` does not (a plugin registered by a call, not at import)
+    info: observers.ObserverInfo | None = dataclasses.field(default=None, compare=False,
+                                                             repr=False)
 
     def inputs(self) -> tuple[Scenario, dict]:
         """The job's scenario (built once per process) and the options its observer runs with
@@ -347,7 +352,8 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
                 jobs.append(Job(inst.spec, base, obs, cls.__module__,
                                 cfg.options, {**per, **opts}, cfg.containment, inst.seed, label,
                                 name if name != obs else "", cfg.guaranteed(name),
-                                isolatable(cls)))
+                                isolatable(cls), info=observers.get(obs) if isolatable(cls)
+                                else None))
     return jobs
 
 
@@ -371,6 +377,11 @@ def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
 def execute_job(job: Job):
     """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
     importlib.import_module(job.module)
+    if job.info is not None and job.observer not in observers.names():
+        i = job.info
+        observers.register(i.name, family=i.family, set_type=i.set_type,
+                           ready_for_control=i.ready_for_control, guaranteed=i.guaranteed,
+                           reference=i.reference)(i.cls)
     sc, options = job.inputs()
     run = run_observer(job.observer, sc, options, job.containment)
     if job.label:  # its rows carry the label and its own guarantee
@@ -396,6 +407,37 @@ def summary_columns(containment: str) -> list[str]:
             "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
             *both, "violations", "first_violation_step", "status", "failed_step", "message",
             "family", "set_type", "timing", "guaranteed"]
+
+
+def inconsistent_records(cfg: BenchConfig) -> dict[tuple[str, str], float]:
+    """``(scenario, seed) -> s`` of the records of ``cfg`` that contradict their linear model
+    (:func:`.consistency.record_inflation` above :data:`.consistency.INCONSISTENT`)."""
+    out = {}
+    for inst in cfg.instances:
+        sc = inst.scenario
+        s = record_inflation(sc.system, sc.u, sc.y)
+        if s is not None and s > INCONSISTENT:
+            out[(sc.name, "" if inst.seed is None else str(inst.seed))] = s
+    return out
+
+
+def mark_inconsistent(summary: pd.DataFrame, bad: dict[tuple[str, str], float],
+                      containment: str) -> pd.DataFrame:
+    """Every row of an inconsistent record: status ``inconsistent``, the reason as its
+    message, and no containment verdict (the data, not the observer, are at fault)."""
+    if not bad or summary.empty:
+        return summary
+    seed = summary["seed"].astype(object).where(summary["seed"].notna(), "").map(
+        lambda v: str(int(v)) if isinstance(v, float) else str(v))
+    summary = summary.copy()
+    for (sc, sd), s in bad.items():
+        rows = (summary["scenario"] == sc) & (seed == sd)
+        summary.loc[rows, "status"] = "inconsistent"
+        summary.loc[rows, "message"] = inconsistency_message(s)
+        for col in {contained_column(containment), "contained"} & set(summary.columns):
+            summary.loc[rows, col] = NA
+        summary.loc[rows, ["violations", "first_violation_step"]] = None
+    return summary
 
 
 def _write(out, runs_df: pd.DataFrame, summary: pd.DataFrame, meta: dict) -> None:
@@ -447,6 +489,7 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     payloads = [dataclasses.replace(j, scenario=_scenario(j)) if j.isolate and
                 executor.name == "serial" else j for j in jobs]
     frames: list = [None] * len(jobs)
+    bad_records = inconsistent_records(cfg)
     try:
         _run_jobs(cfg, executor, jobs, payloads, frames, progress)
     finally:
@@ -454,7 +497,8 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
             executor.close()
     runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
-    summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
+    summary = pd.concat([s for _, s in frames], ignore_index=True)
+    summary = add_relative_rms(mark_inconsistent(summary, bad_records, cfg.containment))
     summary["timed"] = "serial" if executor.workers == 1 else "parallel"
     summary = summary[summary_columns(cfg.containment)]
     if out is not None:
