@@ -365,3 +365,68 @@ def test_duplicate_yaml_keys_are_refused_and_1e3_is_a_number(tmp_path, capsys):
                    "observer_options: {ESO-A: {alpha: 1e-4}}\ntimeout: 1e3\n")
     cfg = load_config(num)
     assert cfg.observer_options["ESO-A"]["alpha"] == 1e-4 and cfg.timeout == 1000.0
+
+
+# -- defect 8: verdicts across scenarios ---------------------------------------------------------
+def test_an_observer_unsound_on_one_record_is_no_reference_on_another():
+    """Eq. (9) by hand: on the record without true states (``b``) the only guaranteed
+    observers are U (unsound on ``a``) and S; the reference of ``b`` is S's radius, not U's."""
+    from benchmarks.metrics import add_relative_rms
+
+    rows = [("a", "U", 1.0, "no"), ("a", "S", 2.0, "yes"),
+            ("b", "U", 0.5, "n/a"), ("b", "S", 4.0, "n/a")]
+    df = pd.DataFrame(rows, columns=["scenario", "observer", "rms_radius", "contained"]).assign(
+        state=0, status="ok", guaranteed=True, variant="")
+    rel = add_relative_rms(df).set_index(["scenario", "observer"])["rel_rms"]
+    assert rel[("b", "S")] == 1.0 and rel[("b", "U")] == 0.5 / 4.0
+    assert rel[("a", "S")] == 1.0
+
+
+def test_an_interval_with_lo_above_hi_is_an_error_not_a_score():
+    """A plugin's set whose ``interval()`` is a plain object with ``lo`` and ``hi``."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    import observers
+
+    class Box:
+        def interval(self):
+            return SimpleNamespace(lo=np.array([1.0, 0.0]), hi=np.array([0.0, 1.0]))
+
+    class Crossed:
+        def step(self, u_prev, y):
+            return Box()
+
+    res = observers.run(Crossed(), None, np.zeros((3, 1)), on_error="status")
+    assert res.status == "error" and res.failed_step == 0
+    assert "lo > hi in state 1" in res.message
+
+
+def test_a_record_that_contradicts_the_model_blames_the_data_not_the_observers(tmp_path,
+                                                                               capsys):
+    from benchmarks.verdicts import EXIT_BAD_DATA
+
+    scenario = _inline()
+    del scenario["simulate"]
+    scenario.update(y=[[0.0], [50.0], [0.1], [0.0]], x_true=[[0, 0]] * 4, u=[[0.0]] * 4)
+    path = tmp_path / "data.yaml"
+    path.write_text(yaml.safe_dump({"name": "data", "scenarios": [scenario],
+                                    "observers": ["CZN-A", "FRad-A"]}))
+    out = tmp_path / "o"
+    assert main(["run", str(path), "--out", str(out), "--no-progress"]) == EXIT_BAD_DATA
+    err = capsys.readouterr().err
+    assert "CONTAINMENT VIOLATIONS" not in err
+    assert "RECORD INCONSISTENT WITH THE MODEL (bad data, no observer blamed): toy" in err
+    s = pd.read_csv(out / "summary.csv", keep_default_na=False)
+    assert (s["status"] == "inconsistent").all() and (s["contained"] == "n/a").all()
+    assert s["message"].str.contains("the record contradicts the model").all()
+
+
+def test_the_lp_check_finds_the_shipped_records_consistent():
+    import systems
+    from benchmarks.run.consistency import record_inflation
+
+    for name in ("alamo2d", "vehicle2d-cora"):
+        sc = systems.scenario(name)
+        assert record_inflation(sc.system, sc.u, sc.y) == pytest.approx(0.0, abs=1e-7)
