@@ -54,6 +54,9 @@ def path_component(name: str) -> str:
 
 #: the files of one result generation, in the order they are written
 RESULT_FILES = ("runs.csv", "summary.csv", "meta.json")
+#: what ``report`` writes into a results folder: made from one generation, so a new
+#: generation does not carry them over (``report`` regenerates them, with the new run id)
+REPORT_ARTEFACTS = ("report.md", "index.html", "html_figures", "report_figures")
 
 
 def _new_file(folder: Path, prefix: str, suffix: str = ".tmp") -> tuple[int, Path]:
@@ -268,10 +271,11 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
 
     Every CSV gets a ``run_id`` column and ``meta.json`` the keys ``run_id`` and ``files``
     (size and SHA-256 of each CSV). The files are written into a temporary folder beside
-    ``out``; other entries of an existing ``out`` (reports, figures) are moved into it, and
-    the folder is then swapped in atomically, so that a kill at any moment leaves either the
-    old or the new generation in ``out``. Temporary folders of killed writers are removed
-    the next time (:func:`remove_stale_generations`).
+    ``out``; other entries of an existing ``out`` are moved into it, except the reports of
+    the previous generation (:data:`REPORT_ARTEFACTS`: they describe the old CSVs, and go
+    with them), and the folder is then swapped in atomically, so that a kill at any moment
+    leaves either the old or the new generation in ``out``. Temporary folders of killed
+    writers are removed the next time (:func:`remove_stale_generations`).
 
     Parameters
     ----------
@@ -311,7 +315,8 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
             except OSError as exc:  # another writer created it just now: swap as below
                 if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
                     raise
-        moved = [e.name for e in out.iterdir() if e.name not in RESULT_FILES]
+        moved = [e.name for e in out.iterdir()
+                 if e.name not in RESULT_FILES and e.name not in REPORT_ARTEFACTS]
         try:
             for name in moved:  # reports, figures: kept beside the new results
                 os.rename(out / name, tmp / name)

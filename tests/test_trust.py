@@ -430,3 +430,20 @@ def test_the_lp_check_finds_the_shipped_records_consistent():
     for name in ("alamo2d", "vehicle2d-cora"):
         sc = systems.scenario(name)
         assert record_inflation(sc.system, sc.u, sc.y) == pytest.approx(0.0, abs=1e-7)
+
+
+# -- defect 5: no stale report beside new results ------------------------------------------------
+def test_reports_carry_their_run_id_and_a_new_generation_drops_the_old_ones(results):
+    import json
+
+    assert main(["report", str(results)]) == 0
+    old_id = json.loads((results / "meta.json").read_text())["run_id"]
+    assert f"Run {old_id} of " in (results / "report.md").read_text()
+    assert old_id in (results / "index.html").read_text()
+    assert (results / "html_figures").is_dir()
+    (results / "notes.txt").write_text("mine")  # the user's own files stay
+    assert main(["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--out", str(results),
+                 "--no-progress"]) == 0
+    for stale in ("report.md", "index.html", "html_figures", "report_figures"):
+        assert not (results / stale).exists(), stale
+    assert (results / "notes.txt").read_text() == "mine"

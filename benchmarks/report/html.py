@@ -270,7 +270,8 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
              "none).</p>",
              html_table(*ranking_table(summary), table_id="ranking-table")] if not sweep else []
     raw = meta.get("config", {}).get("raw")
-    env = {"created": meta.get("created", "?"), **meta.get("versions", {})}
+    env = {"run_id": meta.get("run_id", "?"), "created": meta.get("created", "?"),
+           **meta.get("versions", {})}
     now = environment()
     body += ['<h2 id="environment">Configuration and environment</h2>',
              f"<p>git commit of the run: <code>{html.escape(env.get('git') or 'unknown')}</code>"

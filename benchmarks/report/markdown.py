@@ -63,7 +63,8 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
                           ""]
     versions = meta.get("versions", {})
     if versions:
-        parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
+        parts += ["---", f"Run {meta.get('run_id', '?')} of " + meta.get("created", "") + "; "
+                  + ", ".join(
             f"{k} {v}" for k, v in versions.items()), ""]
     config = freshness.config_of(meta.get("config", {}).get("name"))
     parts.append(freshness.stamp(freshness.report_command(config, out), config))
