@@ -48,7 +48,7 @@ def test_hanging_exiting_and_leaking_plugins_become_rows_and_the_run_completes(
         pytest.importorskip("distributed")
     cfg = _cfg(tmp_path, ["FRad-A", "Test-Hang", "Test-Exit", "Test-Leak"])
     out = tmp_path / "out"
-    code = main(["run", cfg, "--out", str(out), "--no-progress", "--timeout", "12",
+    code = main(["run", cfg, "--out", str(out), "--no-progress", "--timeout", "20",
                  "--memory-limit", "1500M", *executor])
     assert code == EXIT_CRASH
     pairs = _pairs(out)
@@ -447,3 +447,59 @@ def test_reports_carry_their_run_id_and_a_new_generation_drops_the_old_ones(resu
     for stale in ("report.md", "index.html", "html_figures", "report_figures"):
         assert not (results / stale).exists(), stale
     assert (results / "notes.txt").read_text() == "mine"
+
+
+# -- defect 10: hygiene of the Dask executor -----------------------------------------------------
+def test_the_local_dask_cluster_serves_no_http_pages():
+    import urllib.error
+    import urllib.request
+
+    pytest.importorskip("distributed")
+    from benchmarks.run.executors import DaskExecutor
+
+    ex = DaskExecutor(jobs=1)
+    try:
+        port = ex.client.scheduler_info()["services"].get("dashboard")
+        for path in ("/status", "/health", "/info/main/workers.html", "/metrics"):
+            with pytest.raises(urllib.error.HTTPError) as err:
+                urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=10)
+            assert err.value.code == 404, path
+    finally:
+        ex.close()
+
+
+def test_ctrl_c_under_dask_prints_one_line(tmp_path):
+    """SIGINT to the whole process group (as a terminal's Ctrl-C) while a job hangs."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    pytest.importorskip("distributed")
+    root = Path(__file__).resolve().parents[1]
+    flag = tmp_path / "hanging"
+    script = tmp_path / "run.py"
+    script.write_text("import sys\nimport tests.plugins.misbehave  # noqa: F401\n"
+                      "from benchmarks.cli import main\n"
+                      "if __name__ == '__main__':\n    sys.exit(main(sys.argv[1:]))\n")
+    env = dict(os.environ, PYTHONPATH=str(root), SETOBS_TEST_HANG_FLAG=str(flag))
+    proc = subprocess.Popen(
+        [sys.executable, str(script), "run", _cfg(tmp_path, ["Test-Hang", "FRad-A"]), "--out",
+         str(tmp_path / "o"), "--no-progress", "--executor", "dask", "--jobs", "2"],
+        cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        for _ in range(3000):  # until the hanging job runs (or the run ended: the test fails)
+            if flag.exists() or proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert flag.exists(), proc.communicate()[1]
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["interrupted"], err

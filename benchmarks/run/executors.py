@@ -221,7 +221,29 @@ class SerialExecutor(_Budgeted):
             self._pool = None
 
 
-def _worker_loop(conn, env: dict[str, str]) -> None:  # pragma: no cover - in the worker
+def _die_with_parent() -> None:  # pragma: no cover - in the worker
+    """Linux: this process is killed when its parent ends (``PR_SET_PDEATHSIG``), so that a
+    job stuck in a loop does not outlive a run that was interrupted or killed."""
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent ended before the call
+        os._exit(1)
+
+
+def _worker_loop(conn, env: dict[str, str],
+                 preload: bool = False) -> None:  # pragma: no cover - in the worker
+    _die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    if preload:  # a spawned worker: what the server would have preloaded, before any budget
+        try:
+            import benchmarks.run.workerinit  # noqa: F401
+        except Exception:
+            pass
     # the parent's environment now (the server forked from may have started with another one:
     # settings read when used, like SETOBS_CACHE_DIR, then follow the parent)
     os.environ.clear()
@@ -255,8 +277,8 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_loop, args=(child, dict(os.environ)),
-                                daemon=True)
+        self.proc = ctx.Process(target=_worker_loop, daemon=True, args=(
+            child, dict(os.environ), ctx.get_start_method() == "spawn"))
         self.proc.start()
         child.close()
         self.chunk: deque = deque()
@@ -316,9 +338,12 @@ def _exit_reason(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def _context():
+def _context(method: str | None = None):
     """``forkserver`` with the harness preloaded where available (a new worker is then a fork
-    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
+    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``;
+    ``method`` forces one."""
+    if method is not None:
+        return mp.get_context(method)
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(["benchmarks.run.workerinit"])
@@ -344,12 +369,12 @@ class ProcessExecutor(_Budgeted):
     name = "processes"
 
     def __init__(self, jobs: int, timeout: float | None = None,
-                 memory_limit: int | None = None):
+                 memory_limit: int | None = None, start_method: str | None = None):
         if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
             raise ConfigError(f"--jobs must be an integer >= 1, got {jobs!r}")
         self.set_budget(timeout, memory_limit)
         self.workers = jobs
-        self._ctx = _context()
+        self._ctx = _context(start_method)
         self._idle: list[_Worker] = []
         if self._ctx.get_start_method() == "forkserver":
             # start the server now: it preloads the harness while the caller reads its config
@@ -445,6 +470,20 @@ class ProcessExecutor(_Budgeted):
             self._idle.pop().end()
 
 
+@contextmanager
+def _no_sigint() -> Iterator[None]:
+    """Ignore Ctrl-C (SIGINT) in the block: processes started in it inherit that (Python keeps
+    an ignored SIGINT ignored), so they leave the interruption to this process."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 _TASK_POOLS: dict[tuple, ProcessExecutor] = {}
 
 
@@ -452,11 +491,13 @@ def _isolated_task(fn: Callable[[Any], Any], job: Any, timeout: float | None,
                    memory_limit: int | None) -> Any:
     """A Dask task: ``fn(job)`` in a child process of this Dask worker with the budget (one
     pool per worker process and budget, kept for the next tasks); ``fn(job)`` here where
-    this process may not have children (a daemonic worker)."""
+    this process may not have children (a daemonic worker).  The child is spawned, not
+    forked from a server: a direct child dies with its Dask worker (no orphan left running
+    a hung job when the cluster closes)."""
     key = (timeout, memory_limit)
     try:
         pool = _TASK_POOLS.get(key) or _TASK_POOLS.setdefault(
-            key, ProcessExecutor(1, timeout, memory_limit))
+            key, ProcessExecutor(1, timeout, memory_limit, start_method="spawn"))
         return next(iter(pool.map(fn, [job])))[1]
     except AssertionError:  # "daemonic processes are not allowed to have children"
         return fn(job)
@@ -489,12 +530,17 @@ class DaskExecutor(_Budgeted):
             # one task per worker thread at a time (no queued tasks on a worker that dies),
             # and a task whose worker died is not retried on another one: reported at once
             # (non-daemonic workers: each task runs its job in a child process, with the budget)
+            # no HTTP routes (dashboard, /health, /metrics, /info): the HTTP server each Dask
+            # node starts anyway then serves nothing; workers ignore Ctrl-C (the parent
+            # handles it and closes the cluster: no page of worker tracebacks)
             with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                                   "distributed.scheduler.worker-saturation": 1.0,
-                                  "distributed.worker.daemon": False}):
+                                  "distributed.worker.daemon": False,
+                                  "distributed.scheduler.http.routes": [],
+                                  "distributed.worker.http.routes": []}), _no_sigint():
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
-                    host="127.0.0.1", dashboard_address=None, silence_logs=40)
+                    host="127.0.0.1", dashboard_address=None, silence_logs=50)
             self.client = Client(self.cluster)
         else:
             try:
