@@ -164,8 +164,8 @@ def parse_system(spec: Any, where: str) -> LinearSystem:
     n = A.shape[0]
     C = _array(spec["C"], f"{where}: C", None)
     if C.shape[1] != n:  # never transposed silently: a column may be a typo of a row
-        raise ConfigError(f"{where}: C must have one row per output and {n} columns (one "
-                          f"per state), got shape {C.shape}"
+        raise ConfigError(f"{where}: C has shape {C.shape}; C must have one row per output "
+                          f"and {n} columns (one per state)"
                           + (f"; for one output write C: [[{', '.join(['c'] * n)}]]"
                              if C.shape == (n, 1) else ""))
     B = _array(spec["B"], f"{where}: B", None) if "B" in spec else np.zeros((n, 0))
