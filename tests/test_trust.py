@@ -95,7 +95,7 @@ def gate_subset(tmp_path, monkeypatch):
 
     cfg = _cfg(tmp_path, ["FRad-A"], name="subset", steps=40)
     assert _gate(tmp_path, "baseline", cfg, "--update") == 0
-    monkeypatch.setattr(policy, "PROOF_SCENARIOS", ("alamo2d-sim",))
+    monkeypatch.setattr(policy, "PROOF_SCENARIOS", ("alamo2d-sim",), raising=False)
     monkeypatch.setattr(policy.soundness, "default_jobs", lambda: 1)
     return cfg
 
