@@ -11,7 +11,7 @@
     observer_options:                    # optional, per observer
       FRad-B: {variant: textbook}
     containment: exact                   # exact (LP membership) | hull (interval hull only)
-    timeout: 600                         # seconds per job (default 600; none: no budget)
+    timeout: 600                         # seconds per job (default 1800; none: no budget)
     memory_limit: 4G                     # per job (default: 80 % of the available memory
                                          # shared by the workers; none: no limit)
     sweep:                               # optional: a grid of runs, one tidy table

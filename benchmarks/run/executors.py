@@ -68,8 +68,9 @@ from ..errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
 _KILLED = object()  # a Dask task whose worker died
-#: time budget per job by default (seconds)
-DEFAULT_TIMEOUT = 600.0
+#: time budget per job by default (seconds): above the slowest legitimate job (an SDP design
+#: on 30 tanks with a cold design cache takes minutes), far below "for ever"
+DEFAULT_TIMEOUT = 1800.0
 #: memory limit per job by default: this fraction of the memory available when the run
 #: starts, shared by the workers running at once
 DEFAULT_MEMORY_FRACTION = 0.8
