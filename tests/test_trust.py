@@ -503,3 +503,29 @@ def test_ctrl_c_under_dask_prints_one_line(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130
     assert err.strip().splitlines() == ["interrupted"], err
+
+
+# -- acceptance: the gate with misbehaving plugins installed --------------------------------------
+def test_check_runs_to_its_last_line_and_names_the_misbehaving_plugins(tmp_path, misbehaving,
+                                                                       capsys):
+    import observers
+    from benchmarks.gate import regression
+
+    project = [i.name for i in observers.available() if regression.is_project_observer(i.name)]
+    others = [i.name for i in observers.available() if not regression.is_project_observer(i.name)
+              and i.name not in misbehaving]
+    cfg = {"name": "mini", "observers": "all", "containment": "hull", "timeout": 25,
+           "memory_limit": "1G", "exclude": [o for o in project + others if o != "FRad-A"],
+           "scenarios": [{"name": "alamo2d-sim", "seed": 2, "noise": "vertex", "steps": 30}]}
+    path = tmp_path / "mini.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    assert _gate(tmp_path, "baseline", str(path), "--update") == 0  # plugins left out
+    capsys.readouterr()
+    assert _gate(tmp_path, "check", str(path)) == 1
+    cap = capsys.readouterr()
+    last = cap.err.strip().splitlines()[-1]
+    assert last.startswith("check FAILED") and "plugins failing: " in last, last
+    for name, what in [("Test-Hang", "status timeout"), ("Test-Exit", "status error"),
+                       ("Test-Leak", "status memory"), ("Test-Lie", "unsound (contained: no)")]:
+        assert f"{name} on alamo2d-sim: {what}" in last, (name, last)
+    assert "FRad-A" not in last.split("plugins failing: ")[1]

@@ -7,7 +7,8 @@ findings into an exit code are here, in one place:
 
 * ``check`` fails (1) on a stale committed report, on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
-  in the baseline is listed with what went wrong, and fails only with ``strict``); a radius
+  in the baseline is listed, and fails only with ``strict``, or if it crashed, was stopped or is
+  unsound: then the last line names it); a radius
   that got smaller is called *tighter* only once proven: no ``no`` in a soundness verdict
   column (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`) and no violation in the short
   soundness audit of that observer (:data:`PROOF_SCENARIOS`, adversarial realisations);

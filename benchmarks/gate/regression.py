@@ -290,9 +290,12 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
         note = ("not in the baseline (third-party plugin, not gated; --strict fails on it)"
                 if plugin and not strict else
                 "not in the baseline: `python -m benchmarks baseline --update`")
+        # a plugin's numbers are not gated, but a plugin that crashed, was stopped or is
+        # unsound fails the gate (named on the last line)
         culprit = _culprit(cur_status[(sc, obs)], bad_verdicts.get((sc, obs)))
         rows.append(_row(sc, obs, "-", "observer", "absent", "present", "",
-                         plugin and not strict, note + (f"; {culprit}" if culprit else "")))
+                         plugin and not strict and not culprit,
+                         note + (f"; {FAILING}{culprit}" if culprit else "")))
     for (sc, obs), col in sorted(bad_verdicts.items()):
         if (sc, obs) in bpairs:
             rows.append(_row(sc, obs, "-", col, "-", NO, "", False,
@@ -345,6 +348,10 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
                                        "current", "rel_diff", "tol", "ok", "note"])
 
 
+#: marks what went wrong with a plugin in its diff note
+FAILING = "failing: "
+
+
 def _culprit(status: str, bad_verdict: str | None) -> str:
     """What is wrong with a run (``""`` if nothing): its status, or an unsound verdict."""
     if status not in ("ok", "noGain", "unsupported"):
@@ -356,8 +363,9 @@ def culprits(diff: pd.DataFrame) -> str:
     """The third-party plugins not in the baseline that crashed, were stopped or are
     unsound, with their scenarios and what went wrong (``""`` if none)."""
     rows = diff[(diff["metric"] == "observer") & (diff["current"] == "present")
-                & diff["note"].astype(str).str.contains("; ")]
-    return "; ".join(f"{r.observer} on {r.scenario}: {str(r.note).split('; ', 1)[1]}"
+                & diff["note"].astype(str).str.contains("third-party plugin")
+                & diff["note"].astype(str).str.contains(FAILING, regex=False)]
+    return "; ".join(f"{r.observer} on {r.scenario}: {str(r.note).split(FAILING, 1)[1]}"
                      for r in rows.itertuples(index=False))
 
 
@@ -433,7 +441,8 @@ def change_summary(diff: pd.DataFrame) -> str:
              f"tighter: {_where(radius[(cur < base) & ~unproven])}",
              f"containment: {_where(containment)}"]
     extra = {"status": own[own["metric"] == "status"],
-             "new": own[(own["metric"] == "observer") & (own["current"] == "present")],
+             "new": own[(own["metric"] == "observer") & (own["current"] == "present")
+                        & ~own["note"].astype(str).str.contains("third-party plugin")],
              "missing": own[(own["metric"] == "observer") & (own["current"] == "missing")],
              "not in the baseline (plugins)": diff[diff["ok"] & (diff["metric"] == "observer")]}
     bad_plugins = culprits(diff)
