@@ -27,6 +27,8 @@ from scipy.optimize import linprog
 INCONSISTENT = 1e-3
 #: records with more LP variables than this are not checked (``None``)
 MAX_VARIABLES = 200_000
+#: HiGHS dual simplex: on 30 tanks x 235 steps 2 s, where the default choice took 28 s
+METHOD = "highs-ds"
 
 
 def record_inflation(system, u: np.ndarray, y: np.ndarray) -> float | None:
@@ -90,7 +92,7 @@ def record_inflation(system, u: np.ndarray, y: np.ndarray) -> float | None:
     bounds = [(None, None)] * (nvar - 1) + [(0, None)]
     try:
         res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds,
-                      method="highs")
+                      method=METHOD)
     except (ValueError, MemoryError):  # pragma: no cover - solver refused the problem
         return None
     return float(res.x[i_s]) if res.status == 0 else None
