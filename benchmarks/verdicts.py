@@ -102,7 +102,8 @@ def reference_rows(summary: pd.DataFrame) -> pd.Series:
     record is no reference on a record without true states either)."""
     bad = violating(summary)
     keys = [c for c in ("observer", "variant") if c in summary.columns]
-    who = summary[keys].astype(str).agg("|".join, axis=1)
+    who = pd.Series(list(zip(*(summary[k].astype(object).where(summary[k].notna(), "")
+                               for k in keys), strict=True)), index=summary.index)
     unsound_anywhere = who.isin(set(who[bad]))
     return ((summary["status"] == "ok") & summary["guaranteed"].astype(bool)
             & ~bad & ~unsound_anywhere)

@@ -48,9 +48,12 @@ def prove_tighter(names: Sequence[str], progress: bool | None = None) -> dict[st
     ``observer -> "N steps on S, ..."`` for those whose sets missed the true state."""
     if not names:
         return {}
+    # worker processes know the project's observers; a plugin registered in this process
+    # only (a notebook, a test) is audited here
+    jobs = (soundness.default_jobs() if all(regression.is_project_observer(n) for n in names)
+            else 1)
     df = soundness.run_audit(PROOF_SCENARIOS, list(names), soundness.SHORT_REALISATIONS,
-                             soundness.default_jobs(), progress=progress,
-                             kinds=soundness.ADVERSARIAL)
+                             jobs, progress=progress, kinds=soundness.ADVERSARIAL)
     agg = soundness.aggregate(df)
     bad = agg[agg["violations"] > 0]
     return {o: ", ".join(f"{int(v)} steps on {s}" for s, v in zip(g["scenario"],
