@@ -71,6 +71,9 @@ DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regressio
 DEFAULT_BASELINE = Path("results") / "baseline"
 BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
                     "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread"]
+#: the time budget per job of the gate's subset, unless its configuration sets one (every job
+#: of the subset takes seconds, designs included)
+GATE_TIMEOUT = 300.0
 #: absolute floor of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
@@ -135,6 +138,8 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
     whether the true state lies in every set."""
     if cfg.containment == "hull":
         cfg.containment = HULL_AND_EXACT  # not in cfg.raw: the configuration is unchanged
+    if "timeout" not in cfg.raw:  # a hanging plugin must not hold the gate for half an hour
+        cfg.timeout = GATE_TIMEOUT
     with design_cache(use_cache) as cache_note:
         _, summary = run_config(cfg, out, progress=progress)
     frame = summary.copy()
