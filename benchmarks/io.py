@@ -399,7 +399,7 @@ def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
 
 
 #: columns a ``summary.csv`` must have, and those of them (where present) that are numbers
-SUMMARY_REQUIRED = ("scenario", "observer", "status")
+SUMMARY_REQUIRED = ("scenario", "observer", "state", "rel_rms", "status")
 SUMMARY_NUMERIC = ("state", "rms_radius", "rel_rms", "step_ms", "hull_ms", "design_s",
                    "violations", "first_violation_step", "failed_step")
 #: the same for ``runs.csv``

@@ -376,7 +376,8 @@ def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
 
 def execute_job(job: Job):
     """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
-    importlib.import_module(job.module)
+    if job.observer not in observers.names():  # registered here already: nothing to import
+        importlib.import_module(job.module)
     if job.info is not None and job.observer not in observers.names():
         i = job.info
         observers.register(i.name, family=i.family, set_type=i.set_type,
