@@ -22,12 +22,12 @@ from systems import scenario_names
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
 from .gate import audit, history, kernels, policy, regression
-from .io import atomic_write_json, check_output_dir
+from .io import atomic_write_json, check_output_dir, check_output_file, path_component
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
 from .run import designs, executors
-from .run.config import inline_config, load_config
+from .run.config import inline_config, load_config, parse_memory, parse_timeout
 from .run.runner import run_config
 from .run.shipped import shipped_configs
 from .timing import speed
@@ -48,7 +48,7 @@ def _only(cfg, names: list[str]):
 def _cmd_run(args) -> int:
     if args.config and args.scenario:
         raise ConfigError("run: give either a YAML config or --scenario, not both")
-    if args.out:
+    if args.out is not None:
         check_output_dir(args.out)  # before any work (again in run_config for the default)
     # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
@@ -62,7 +62,11 @@ def _cmd_run(args) -> int:
                     print(f"{sc.name}: {sc.source[len('config; '):]}", file=sys.stderr)
         else:
             cfg = inline_config(args.scenario, args.observer, args.name)
-        out = Path(args.out) if args.out else Path("results") / cfg.name
+        if args.timeout is not None:  # the command line over the config
+            cfg.timeout = parse_timeout(args.timeout, "--timeout")
+        if args.memory_limit is not None:
+            cfg.memory_limit = parse_memory(args.memory_limit, "--memory-limit")
+        out = Path(args.out) if args.out else Path("results") / path_component(cfg.name)
         result = run_config(cfg, out, progress=False if args.no_progress else None,
                             executor=executor)
         summary = result.summary
@@ -111,6 +115,8 @@ def _cmd_audit(args) -> int:
 
 
 def _cmd_time(args) -> int:
+    if args.json is not None:
+        check_output_file(args.json, "--json")  # before the timing, not after it
     sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup,
                                              args.steps)
     print(timing.format_table(sc, args.repeat, warmup, rows))
@@ -136,12 +142,16 @@ def _cmd_designs(args) -> int:
 
 
 def _cmd_speed(args) -> int:
+    check_output_file(args.out, "--out")  # before the timing, not after it
+    check_output_file(args.json, "--json")
     path = speed.write_speed_report(args.out, args.json)
     print(f"wrote {path} and {args.json}")
     return 0
 
 
 def _cmd_report(args) -> int:
+    if args.out is not None:
+        check_output_file(args.out, "--out")
     path = write_report(args.dir, args.out, figures=not args.no_figures)
     print(f"wrote {path}")
     if args.out is None:  # DIR/index.html beside DIR/report.md
@@ -225,6 +235,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="serial (default), processes (as --jobs) or dask (a Dask cluster)")
     r.add_argument("--address", metavar="tcp://HOST:PORT",
                    help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
+    r.add_argument("--timeout", metavar="SECONDS",
+                   help="time budget per job (default: the config's 'timeout', else "
+                        f"{executors.DEFAULT_TIMEOUT:g} s; 'none': no budget); a job over it "
+                        "is stopped and reported as status 'timeout'")
+    r.add_argument("--memory-limit", metavar="SIZE",
+                   help="resident memory per job, e.g. 2G or 512M (default: the config's "
+                        "'memory_limit', else "
+                        f"{executors.DEFAULT_MEMORY_FRACTION * 100:.0f} %% of the available memory "
+                        "shared by the workers; 'none': no limit); a job over it is stopped "
+                        "and reported as status 'memory' (third-party plugins and parallel "
+                        "jobs; the project's own observers in a serial run keep the time "
+                        "budget only)")
     r.set_defaults(func=_cmd_run)
     rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")
@@ -350,6 +372,10 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except USER_ERRORS as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # writing an output (a full disk, a folder removed meanwhile)
+        print(f"error: {exc.strerror or type(exc).__name__}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -23,6 +23,7 @@ import io
 import json
 import os
 import platform
+import re
 import secrets
 import shutil
 import subprocess
@@ -34,8 +35,28 @@ import pandas as pd
 
 from .errors import ConfigError
 
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+=,\[\]-]")
+
+
+def path_component(name: str) -> str:
+    """``name`` (a config, scenario or observer name) as one safe file or folder name: every
+    character but letters, digits and ``._+=,[]-`` becomes ``_`` (so no ``/``, ``\\`` or
+    NUL), and a leading dot too (no ``..``, no hidden files).
+
+    Examples
+    --------
+    >>> path_component("../../x"), path_component("Acme/FRad"), path_component("ESO-C[cora]")
+    ('_._.._x', 'Acme_FRad', 'ESO-C[cora]')
+    """
+    safe = _UNSAFE.sub("_", str(name))
+    return "_" + safe[1:] if safe.startswith(".") else (safe or "_")
+
+
 #: the files of one result generation, in the order they are written
 RESULT_FILES = ("runs.csv", "summary.csv", "meta.json")
+#: what ``report`` writes into a results folder: made from one generation, so a new
+#: generation does not carry them over (``report`` regenerates them, with the new run id)
+REPORT_ARTEFACTS = ("report.md", "index.html", "html_figures", "report_figures")
 
 
 def _new_file(folder: Path, prefix: str, suffix: str = ".tmp") -> tuple[int, Path]:
@@ -98,6 +119,39 @@ def atomic_write_with(path: str | Path, write) -> None:
         raise
 
 
+def check_output_file(path: str | Path, what: str = "output file") -> Path:
+    """Check, before any work, that file ``path`` can be written (atomically, by a
+    temporary file beside it): it is not a folder, and its folder exists or can be made and
+    is writable.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line reason if it could not be written.
+    """
+    if str(path).strip() == "":
+        raise ConfigError(f"{what}: an empty path")
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{what} {path} is a folder; give a file name")
+    node = path.parent
+    while not node.exists() and not node.is_symlink():
+        node = node.parent
+    if not node.is_dir():
+        raise ConfigError(f"{what} {path}: {node} is not a folder")
+    if not os.access(node, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)
+                                                  and not os.access(node, os.W_OK)):
+        raise ConfigError(f"{what} {path}: cannot write in {node} (permission denied)")
+    return path
+
+
+def write_error(exc: OSError, what: str) -> ConfigError:
+    """A one-line error for an ``OSError`` while writing ``what`` (a full disk, ...)."""
+    reason = exc.strerror or type(exc).__name__
+    return ConfigError(f"cannot write {what}: {reason}"
+                       + (f" ({exc.filename})" if exc.filename else ""))
+
+
 # -- the output folder of `run` ------------------------------------------------------------
 def _probe_writable(folder: Path, what: str) -> None:
     """Create and remove a folder in ``folder`` (what the generation swap will do)."""
@@ -134,6 +188,8 @@ def check_output_dir(out: str | Path) -> Path:
         With a one-line reason if the results could not be written there.
     """
     what = f"output folder {out}"
+    if str(out).strip() == "":
+        raise ConfigError("output folder: an empty path (give a folder, or leave --out out)")
     out = Path(os.path.realpath(out))  # a symlinked folder: work beside its target
     if out.parent == out:
         raise ConfigError(f"{what}: the root folder cannot be a results folder")
@@ -215,10 +271,11 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
 
     Every CSV gets a ``run_id`` column and ``meta.json`` the keys ``run_id`` and ``files``
     (size and SHA-256 of each CSV). The files are written into a temporary folder beside
-    ``out``; other entries of an existing ``out`` (reports, figures) are moved into it, and
-    the folder is then swapped in atomically, so that a kill at any moment leaves either the
-    old or the new generation in ``out``. Temporary folders of killed writers are removed
-    the next time (:func:`remove_stale_generations`).
+    ``out``; other entries of an existing ``out`` are moved into it, except the reports of
+    the previous generation (:data:`REPORT_ARTEFACTS`: they describe the old CSVs, and go
+    with them), and the folder is then swapped in atomically, so that a kill at any moment
+    leaves either the old or the new generation in ``out``. Temporary folders of killed
+    writers are removed the next time (:func:`remove_stale_generations`).
 
     Parameters
     ----------
@@ -252,9 +309,14 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
             with open(tmp / name, "rb") as fh:
                 os.fsync(fh.fileno())
         if not out.exists():
-            os.rename(tmp, out)
-            return run_id
-        moved = [e.name for e in out.iterdir() if e.name not in RESULT_FILES]
+            try:
+                os.rename(tmp, out)
+                return run_id
+            except OSError as exc:  # another writer created it just now: swap as below
+                if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                    raise
+        moved = [e.name for e in out.iterdir()
+                 if e.name not in RESULT_FILES and e.name not in REPORT_ARTEFACTS]
         try:
             for name in moved:  # reports, figures: kept beside the new results
                 os.rename(out / name, tmp / name)
@@ -332,7 +394,47 @@ def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
     if ids != {meta["run_id"]}:
         raise ConfigError(f"{folder / 'summary.csv'} is not from run {meta['run_id']} of "
                           f"{meta_path}")
+    check_columns(summary, folder / "summary.csv", SUMMARY_REQUIRED, SUMMARY_NUMERIC)
     return summary.drop(columns="run_id"), meta
+
+
+#: columns a ``summary.csv`` must have, and those of them (where present) that are numbers
+SUMMARY_REQUIRED = ("scenario", "observer", "state", "rel_rms", "status")
+SUMMARY_NUMERIC = ("state", "rms_radius", "rel_rms", "step_ms", "hull_ms", "design_s",
+                   "violations", "first_violation_step", "failed_step")
+#: the same for ``runs.csv``
+RUNS_REQUIRED = ("scenario", "observer", "step", "state", "lo", "hi", "x_true")
+RUNS_NUMERIC = ("step", "t", "state", "lo", "hi", "radius", "x_true")
+
+
+def check_columns(df: pd.DataFrame, path: Path, required: tuple[str, ...],
+                  numeric: tuple[str, ...]) -> None:
+    """Refuse a result table (edited by hand, its hashes recomputed) that lacks a column or
+    has text in a numeric one: one line naming the file, the column and the row."""
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ConfigError(f"{path} lacks column(s) {missing}; re-run `python -m benchmarks run`")
+    for col in numeric:
+        if col not in df.columns or pd.api.types.is_numeric_dtype(df[col]):
+            continue
+        values = pd.to_numeric(df[col], errors="coerce")
+        bad = values.isna() & df[col].notna() & (df[col].astype(str).str.strip() != "")
+        if bad.any():
+            row = int(bad.to_numpy().nonzero()[0][0])
+            raise ConfigError(f"{path}: column '{col}' holds text ({df[col].iloc[row]!r} in "
+                              f"data row {row + 1}) where a number is expected")
+
+
+def load_runs(folder: str | Path) -> pd.DataFrame:
+    """``runs.csv`` of a results folder whose generation :func:`load_results` checked,
+    with its columns checked (a missing column, text in a numeric one: one line)."""
+    path = Path(folder) / "runs.csv"
+    try:
+        runs = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path} is not readable CSV: {str(exc).splitlines()[0]}") from None
+    check_columns(runs, path, RUNS_REQUIRED, RUNS_NUMERIC)
+    return runs
 
 
 #: symbols of OpenBLAS builds that return the kernel family in use

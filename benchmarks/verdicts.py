@@ -15,23 +15,41 @@ import pandas as pd
 
 YES, NO, NA = "yes", "no", "n/a"
 
+#: the soundness verdict columns of ``summary.csv`` (``yes`` / ``no`` / ``n/a``): a row of a
+#: guaranteed observer with ``no`` in any of them present is unsound: never the reference of
+#: eq. (9), never called tighter by ``check``, never written by ``baseline --update``.
+#: ``contained``: exact membership of the true state in every set (the gate computes it beside
+#: the hull test of its subset).  Extend this tuple with a new verdict column (e.g.
+#: ``covers_exact``) and every rule above applies to it.
+SOUNDNESS_COLUMNS: tuple[str, ...] = ("contained",)
+
+#: the containment mode of the regression gate: the hull test decides ``violations`` and
+#: ``contained_hull`` (as the golden files hold them); exact membership gives ``contained``
+HULL_AND_EXACT = "hull+exact"
+
 #: exit codes of ``python -m benchmarks run``
-EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH = 0, 1, 2, 3
+EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH, EXIT_BAD_DATA = 0, 1, 2, 3, 4
 
 #: the meaning of each exit code of ``run``
 EXIT_MEANINGS = {
     EXIT_OK: "every observer ran and no guaranteed observer missed the true state",
     EXIT_VIOLATION: "a guaranteed observer's set missed the true state (or became empty)",
     EXIT_BAD_INPUT: "bad input (config, scenario, options, output folder), nothing written",
-    EXIT_CRASH: "an observer crashed (status 'error'), after the others ran",
+    EXIT_CRASH: "an observer crashed (status 'error') or was stopped ('timeout', 'memory'), "
+                "after the others ran",
+    EXIT_BAD_DATA: "a record contradicts its model (status 'inconsistent'): bad data, no "
+                   "observer blamed",
 }
 
 EXIT_CODES_HELP = (
     "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
     "1 a guaranteed observer's set missed the true state (or became empty); "
     "2 bad input (config, scenario, options, output folder), nothing written; "
-    "3 an observer crashed (status 'error', its failing step in summary.csv), after the "
-    "others ran. 1 takes precedence over 3."
+    "3 an observer crashed (status 'error', its failing step in summary.csv) or was stopped "
+    "over its time budget or memory limit (status 'timeout' or 'memory'), after the "
+    "others ran; 4 a record contradicts its model (status 'inconsistent' on every row of "
+    "that scenario: no initial state and noise in their sets reproduce its measurements), "
+    "the results written. 1 takes precedence over 4, 4 over 3."
 )
 
 
@@ -72,9 +90,18 @@ def containment_verdict(status: str, steps: int, in_set: np.ndarray | None,
     return YES if status == "ok" and len(in_set) == steps and decided else NA
 
 
+def unsound(summary: pd.DataFrame) -> pd.Series:
+    """Rows with ``no`` in a :data:`SOUNDNESS_COLUMNS` column (any observer)."""
+    bad = pd.Series(False, index=summary.index)
+    for col in SOUNDNESS_COLUMNS:
+        if col in summary.columns:
+            bad = bad | (summary[col].astype(str) == NO)
+    return bad
+
+
 def violating(summary: pd.DataFrame) -> pd.Series:
     """Rows of guaranteed observers whose sets missed the true state (or became empty)."""
-    bad = summary["status"] == "empty"
+    bad = (summary["status"] == "empty") | unsound(summary)
     for col in (contained_column("exact"), contained_column("hull")):
         if col in summary.columns:
             bad = bad | (summary[col] == NO)
@@ -83,9 +110,15 @@ def violating(summary: pd.DataFrame) -> pd.Series:
 
 def reference_rows(summary: pd.DataFrame) -> pd.Series:
     """Rows that may serve as the reference (the minimum) of eq. (9): successful guaranteed
-    observers without a containment violation."""
+    observers that violate containment on no scenario of the run (one proven unsound on one
+    record is no reference on a record without true states either)."""
+    bad = violating(summary)
+    keys = [c for c in ("observer", "variant") if c in summary.columns]
+    who = pd.Series(list(zip(*(summary[k].astype(object).where(summary[k].notna(), "")
+                               for k in keys), strict=True)), index=summary.index)
+    unsound_anywhere = who.isin(set(who[bad]))
     return ((summary["status"] == "ok") & summary["guaranteed"].astype(bool)
-            & ~violating(summary))
+            & ~bad & ~unsound_anywhere)
 
 
 def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
@@ -95,7 +128,8 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     -------
     code : int
         :data:`EXIT_VIOLATION` if a guaranteed observer violates containment, else
-        :data:`EXIT_CRASH` if an observer crashed, else :data:`EXIT_OK`.
+        :data:`EXIT_CRASH` if an observer crashed or was stopped by its budget, else
+        :data:`EXIT_OK`.
     lines : list of str
         One line per kind of failure.
     """
@@ -104,6 +138,8 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
                                      if c in summary.columns])
     bad = pairs[violating(pairs)]
     crashed = pairs[pairs["status"] == "error"]
+    stopped = pairs[pairs["status"].isin(["timeout", "memory"])]
+    bad_data = pairs[pairs["status"] == "inconsistent"]
     lines = []
     if len(bad):
         lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
@@ -111,13 +147,23 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
                                                      strict=True)))))
     if len(crashed):
         lines.append("CRASHED: " + ", ".join(
-            f"{r.observer} on {r.scenario} ({_where(r.failed_step)})"
+            f"{r.observer} on {r.scenario} ({_where(r.failed_step, r.message)})"
             for r in crashed.itertuples(index=False)))
-    code = EXIT_VIOLATION if len(bad) else EXIT_CRASH if len(crashed) else EXIT_OK
+    if len(stopped):
+        lines.append("STOPPED: " + ", ".join(
+            f"{r.observer} on {r.scenario} ({r.status}: {r.message})"
+            for r in stopped.itertuples(index=False)))
+    if len(bad_data):
+        lines.append("RECORD INCONSISTENT WITH THE MODEL (bad data, no observer blamed): "
+                     + ", ".join(sorted(set(bad_data["scenario"].astype(str)))))
+    code = (EXIT_VIOLATION if len(bad) else EXIT_BAD_DATA if len(bad_data)
+            else EXIT_CRASH if len(crashed) or len(stopped) else EXIT_OK)
     return code, lines
 
 
-def _where(step) -> str:
+def _where(step, message="") -> str:
+    if isinstance(message, str) and message.startswith("worker process died"):
+        return message
     return "in its design" if pd.isna(step) else f"at step {int(step)}"
 
 
@@ -131,7 +177,8 @@ class BenchResult(tuple):
     runs, summary : pandas.DataFrame
         The per-step rows and the per-state summary (``runs.csv``, ``summary.csv``).
     exit_code : int
-        :data:`EXIT_OK`, :data:`EXIT_VIOLATION` or :data:`EXIT_CRASH` (:func:`exit_code`).
+        :data:`EXIT_OK`, :data:`EXIT_VIOLATION`, :data:`EXIT_BAD_DATA` or :data:`EXIT_CRASH`
+        (:func:`exit_code`).
     meaning : str
         What the exit code means (:data:`EXIT_MEANINGS`).
     problems : list of str
@@ -148,7 +195,7 @@ class BenchResult(tuple):
     >>> r.exit_code, r.ok, r.problems
     (3, False, ['CRASHED: o on s (at step 3)'])
     >>> r.meaning
-    "an observer crashed (status 'error'), after the others ran"
+    "an observer crashed (status 'error') or was stopped ('timeout', 'memory'), after the others ran"
     """
 
     def __new__(cls, runs: pd.DataFrame, summary: pd.DataFrame) -> BenchResult:

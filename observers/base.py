@@ -359,6 +359,12 @@ def run(
             if np.shape(I.lo) != (n,) or np.shape(I.hi) != (n,):
                 raise ValueError(f"the interval hull of step {k} has shape {np.shape(I.lo)}, "
                                  f"expected ({n},)")
+            crossed = np.asarray(I.lo) - np.asarray(I.hi) > 1e-9 * np.maximum(
+                1.0, np.maximum(np.abs(I.lo), np.abs(I.hi)))
+            if np.any(crossed):  # not an interval: never scored
+                i = int(np.argmax(crossed))
+                raise ValueError(f"the interval hull of step {k} has lo > hi in state {i + 1} "
+                                 f"({float(I.lo[i]):.6g} > {float(I.hi[i]):.6g})")
         except Diverged as exc:
             result.status, result.message = "diverged", str(exc)
             result.failed_step = k if exc.step is None else exc.step

@@ -23,6 +23,13 @@ rename), and a design is computed once per key even by concurrent processes (``r
 Dask workers sharing a folder): the first takes an exclusive lock on ``<key>.lock`` and the
 others wait for it, then load its result.
 
+Entries are verified when loaded as a fresh design is checked when computed: each entry holds
+a SHA-256 of its arrays (names, types, shapes and bytes), and the design's own check
+(``verify``, e.g. the shape and finiteness of a gain) runs on the loaded arrays too.  An entry
+that is unreadable (truncated, empty), lacks the hash (written by an older version), does not
+match it or fails the check is recomputed, with a one-line warning naming the file.  The lock
+file of a key is removed once its design is stored.
+
 The folder is ``$SETOBS_CACHE_DIR`` if set, else ``~/.cache/setobs-bench/designs``; set
 ``SETOBS_CACHE_DIR=off`` to disable caching.
 """
@@ -33,6 +40,7 @@ import contextlib
 import hashlib
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Mapping
 from importlib import metadata
@@ -46,6 +54,8 @@ from .options import Matrix
 
 # -- design cache ---------------------------------------------------------------------------
 _FAILED = "__design_failed__"
+#: the entry's content hash (SHA-256 of every other array)
+_HASH = "__sha256__"
 #: designs of this process loaded from the cache instead of computed, per kind (so that a
 #: design time can be told apart from a cache read, e.g. by the scaling study)
 CACHE_LOADS: dict[str, int] = {}
@@ -90,24 +100,27 @@ def cached_design(
     arrays: Mapping[str, Any],
     params: Mapping[str, Any],
     compute: Callable[[], dict[str, np.ndarray]],
+    verify: Callable[[dict[str, np.ndarray]], None] | None = None,
 ) -> dict[str, np.ndarray]:
     """Return ``compute()`` (a dict of arrays), from the cache when possible.
 
     A :class:`~observers.errors.DesignFailed` raised by ``compute`` is cached and re-raised
-    on later calls with the same key.
+    on later calls with the same key.  ``verify(result)`` (raising any exception if the
+    arrays are not a valid design) is run on a loaded entry, after its content hash; an entry
+    failing either is recomputed with a warning naming its file.
     """
     folder = cache_dir()
     if folder is None:
         return compute()
     path = folder / f"{kind}-{design_key(kind, version, arrays, params)}.npz"
-    result = _load(path)
+    result = _load(path, verify)
     if result is not None:
         CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
     else:
         # one writer per key: concurrent workers wanting the same design wait for the first
         # one and then load its result instead of solving the same SDP again
         with _key_lock(path):
-            result = _load(path)
+            result = _load(path, verify, warn=False)  # (warned above)
             if result is not None:
                 CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
             else:
@@ -122,14 +135,38 @@ def cached_design(
     return result
 
 
-def _load(path: Path) -> dict[str, np.ndarray] | None:
+def content_hash(arrays: Mapping[str, np.ndarray]) -> str:
+    """SHA-256 of the arrays of a cache entry (names, dtypes, shapes and bytes)."""
+    h = hashlib.sha256()
+    for name in sorted(k for k in arrays if k != _HASH):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _load(path: Path, verify: Callable[[dict[str, np.ndarray]], None] | None = None,
+          warn: bool = True) -> dict[str, np.ndarray] | None:
+    """The verified entry at ``path``, or None (missing; or invalid: warned, recomputed)."""
     if not path.is_file():
         return None
     try:
         with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
-    except (OSError, ValueError):
-        return None  # unreadable cache entry: recompute
+            result = {k: data[k] for k in data.files}
+        stored = str(result.pop(_HASH)) if _HASH in result else None
+        if stored is None:
+            raise ValueError("no content hash (written by an older version)")
+        if stored != content_hash(result):
+            raise ValueError("its content does not match its hash")
+        if verify is not None and _FAILED not in result:
+            verify(result)
+    except Exception as exc:  # noqa: BLE001 - any broken entry is recomputed
+        if warn:
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            print(f"warning: design cache entry {path} is invalid ({reason}); recomputing",
+                  file=sys.stderr)
+        return None
+    return result
 
 
 @contextlib.contextmanager
@@ -147,6 +184,10 @@ def _key_lock(path: Path):
     try:
         fcntl.flock(fh, fcntl.LOCK_EX)
         yield
+        # no pile of empty lock files: a process still waiting on this one then finds the
+        # stored design when it gets the lock (a late one may compute again: harmless)
+        with contextlib.suppress(OSError):
+            os.unlink(fh.name)
     finally:
         fh.close()  # closing releases the lock
 
@@ -156,7 +197,7 @@ def _store(path: Path, arrays: dict[str, np.ndarray]) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
         os.close(fd)
-        np.savez(tmp, **arrays)
+        np.savez(tmp, **arrays, **{_HASH: np.array(content_hash(arrays))})
         os.replace(tmp, path)
     except OSError:  # a read-only home must not break designs
         pass
@@ -206,9 +247,22 @@ class OfflineGain:
                 raise OptionError(f"{self.name}: gain must have shape ({n}, {ny}), got {L.shape}")
             self.L = L
             return
+        def check(result: dict[str, np.ndarray]) -> None:
+            L = np.asarray(result["gain"], dtype=float)
+            if L.shape != (n, ny) or not np.all(np.isfinite(L)):
+                raise DesignFailed(f"{self.name}: design returned an invalid gain of shape "
+                                   f"{L.shape}")
+            self.verify_gain(L)
+
         result = cached_design(self.design_kind(), self.DESIGN_VERSION, self.design_arrays(),
-                               self.design_params(), lambda: {"gain": self.design_gain()})
-        L = np.asarray(result["gain"], dtype=float)
-        if L.shape != (n, ny) or not np.all(np.isfinite(L)):
-            raise DesignFailed(f"{self.name}: design returned an invalid gain of shape {L.shape}")
-        self.L = L
+                               self.design_params(), lambda: {"gain": self.design_gain()},
+                               verify=check)
+        check(result)
+        self.L = np.asarray(result["gain"], dtype=float)
+
+    def verify_gain(self, L: np.ndarray) -> None:
+        """Check a gain loaded from the cache (or just computed) as the design checks its own
+        result; raise :class:`DesignFailed` if it is not valid.  Default: nothing beyond the
+        shape and finiteness (the content hash of the cache entry guards the rest); a design
+        whose gain must satisfy a property checkable without the design's other matrices
+        overrides this."""

@@ -98,8 +98,8 @@ def test_the_last_line_of_a_failing_check_says_looser_tighter_or_containment(
                                    "containment: none"),
                            (0.995, "looser: none | tighter: FRad-A (alamo2d-sim) | "
                                    "containment: none"),
-                           (0.3, "tighter: FRad-A (alamo2d-sim) | "
-                                 "containment: FRad-A (alamo2d-sim)")]:
+                           # unsound: not called tighter (issue 27, defect 3)
+                           (0.3, "tighter: none | containment: FRad-A (alamo2d-sim)")]:
         _inflate(monkeypatch, factor)
         assert _gate(tmp_path, "check", cfg) == 1
         last = capsys.readouterr().err.strip().splitlines()[-1]

@@ -258,6 +258,7 @@ def test_an_interrupted_write_leaves_the_old_generation(tmp_path, monkeypatch, f
     out = tmp_path / "r"
     _run(tmp_path, out)
     assert main(["report", str(out), "--no-figures"]) == 0
+    (out / "notes.txt").write_text("the user's own file")  # moved into a new generation
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     if fail_at == "writing":
         real = bio.csv_text
@@ -273,7 +274,7 @@ def test_an_interrupted_write_leaves_the_old_generation(tmp_path, monkeypatch, f
         real_rename = os.rename
 
         def interrupted(a, b):
-            if str(a).endswith("report.md"):
+            if str(a).endswith("notes.txt"):
                 real_rename(a, b)
                 raise KeyboardInterrupt
             return real_rename(a, b)
@@ -290,14 +291,15 @@ def test_an_interrupted_write_leaves_the_old_generation(tmp_path, monkeypatch, f
     assert main(["report", str(out), "--no-figures"]) == 0
 
 
-def test_a_new_generation_replaces_the_old_and_keeps_reports(tmp_path):
+def test_a_new_generation_replaces_the_old_and_drops_its_reports(tmp_path):
+    """The old report described the old CSVs: it goes with them (issue 27, defect 5)."""
     out = tmp_path / "r"
     _run(tmp_path, out)
     assert main(["report", str(out), "--no-figures"]) == 0
     old_id = yaml.safe_load((out / "meta.json").read_text())["run_id"]
     _run(tmp_path, out, ("FRad-A", "FRad-B"), "new.yaml")
     meta = yaml.safe_load((out / "meta.json").read_text())
-    assert meta["run_id"] != old_id and (out / "report.md").is_file()
+    assert meta["run_id"] != old_id and not (out / "report.md").exists()
     assert set(pd.read_csv(out / "summary.csv")["observer"]) == {"FRad-A", "FRad-B"}
 
 

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv, atomic_write_text
+from ..io import atomic_write_csv, atomic_write_text, path_component
 from ..report import figures
 from ..report.html import figure_html, html_page, html_table
 
@@ -123,7 +123,7 @@ def write_history(baseline: str | Path = "results/baseline", out: str | Path = "
             "observer and its containment violations at each of these commits. A rising line "
             "is a looser bound.</p>"]
     for sc in dict.fromkeys(table["scenario"]):
-        paths = figures.history(table, sc, out / "figures" / f"{sc}_history")
+        paths = figures.history(table, sc, out / "figures" / f"{path_component(sc)}_history")
         body += [f"<h2>{html.escape(sc)}</h2>",
                  figure_html(paths, out, f"{sc}: relative RMS and violations over commits")]
     ch = changes(table)

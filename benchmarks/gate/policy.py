@@ -7,10 +7,16 @@ that turn their findings into an exit code are here, in one place:
 
 * ``check`` fails (1) on a stale committed report, on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
-  in the baseline is listed, and fails only with ``strict``);
-* ``baseline --update`` refuses (1) a run with a crash or a containment violation of a
-  guaranteed observer (never enshrined, not even with ``force``), and a status or containment
-  count that depends on the BLAS kernel (unless ``force``);
+  in the baseline is listed, and fails only with ``strict``, or if it crashed, was stopped or is
+  unsound: then the last line names it); a radius
+  that got smaller is called *tighter* only once proven: no ``no`` in a soundness verdict
+  column (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`) and no violation in the short
+  soundness audit of that observer (:data:`PROOF_SCENARIOS`, adversarial realisations);
+* ``baseline --update`` refuses (1) a run with a crash, a stop (time or memory) or a
+  containment violation of a guaranteed observer (hull, or ``no`` in any soundness verdict
+  column) or a tighter observer that fails the short audit (never enshrined, not even with
+  ``force``), and a status or containment count that depends on the BLAS kernel (unless
+  ``force``);
 * ``audit`` fails (1) when a guaranteed observer's set missed the true state of a realisation.
 
 Each function returns an :class:`Outcome`: the exit code and the lines to print, in order,
@@ -24,10 +30,45 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import pandas as pd
+
+from ..errors import ConfigError
 from ..io import atomic_write_csv, blas_corename
 from ..report import freshness
+from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
 from . import kernels, regression
+
+#: scenarios of the short soundness audit that a tighter observer must pass
+PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
+
+
+def prove_tighter(names: Sequence[str], progress: bool | None = None) -> dict[str, str]:
+    """Run the short soundness audit (adversarial realisations) on observers ``names``;
+    ``observer -> "N steps on S, ..."`` for those whose sets missed the true state."""
+    if not names:
+        return {}
+    # worker processes know the project's observers; a plugin registered in this process
+    # only (a notebook, a test) is audited here
+    jobs = (soundness.default_jobs() if all(regression.is_project_observer(n) for n in names)
+            else 1)
+    df = soundness.run_audit(PROOF_SCENARIOS, list(names), soundness.SHORT_REALISATIONS,
+                             jobs, progress=progress, kinds=soundness.ADVERSARIAL)
+    agg = soundness.aggregate(df)
+    bad = agg[agg["violations"] > 0]
+    return {o: ", ".join(f"{int(v)} steps on {s}" for s, v in zip(g["scenario"],
+                                                                    g["violations"],
+                                                                    strict=True))
+            for o, g in bad.groupby("observer", sort=False)}
+
+
+def _with_proof(diff: pd.DataFrame, progress: bool | None) -> pd.DataFrame:
+    """``diff`` with an ``audit`` row for every tighter observer that fails the proof."""
+    failing = set(diff.loc[~diff["ok"] & diff["metric"].isin(
+        ("violations", *SOUNDNESS_COLUMNS)), "observer"])
+    names = [o for o in regression.tighter_observers(diff) if o not in failing]
+    proof = regression.proof_rows(prove_tighter(names, progress))
+    return pd.concat([diff, proof], ignore_index=True) if len(proof) else diff
 
 
 @dataclass
@@ -74,7 +115,7 @@ def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, 
                  "review and run `python -m benchmarks baseline --update`")
         return 1
     frame, cache_note = regression.run_subset(cfg, use_cache, progress, out)
-    diff = regression.compare(base, frame, strict=strict)
+    diff = _with_proof(regression.compare(base, frame, strict=strict), progress)
     if out:
         atomic_write_csv(Path(out) / "diff.csv", diff)
     n, bad = len(diff), int((~diff["ok"]).sum())
@@ -122,6 +163,14 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
     cfg = regression.subset_config(config, plugins=False)
     frame, cache_note = regression.run_subset(cfg, use_cache, progress)
     unsound = regression.baseline_problems(frame)
+    try:
+        old, _ = regression.load_baseline(baseline)
+    except ConfigError:  # no (readable) baseline yet: nothing got tighter
+        old = None
+    if old is not None and not unsound:
+        proof = _with_proof(regression.compare(old, frame), progress)
+        unsound = [f"{r.observer} got tighter but fails the short soundness audit "
+                   f"({r.current})" for r in proof[proof["metric"] == "audit"].itertuples()]
     if unsound:  # never enshrined, not even with --force
         res.warn("baseline NOT written: " + "; ".join(unsound) + " (fix them first)")
         res.code = 1

@@ -13,7 +13,12 @@ re-runs the subset and compares:
 * ``rel_rms`` within ``rtol + rtol_best`` (a ratio: the tolerance of the best observer of
   that state adds), recomputed against the baseline's observers only, so that a new, better
   observer does not shift the ratios of the others;
-* ``violations`` (interval-hull containment failures, where the true state is known) exactly.
+* ``violations`` (interval-hull containment failures, where the true state is known) exactly;
+* the soundness verdicts (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`: ``contained``, exact
+  membership of the true state in every set, computed by the gate beside the hull test): a
+  guaranteed observer with ``no`` fails, and is never called tighter.  A tighter radius must
+  also pass the short soundness audit before the last line calls it tighter
+  (:mod:`.policy`).
 
 Timings are never compared.
 
@@ -55,16 +60,20 @@ import pandas as pd
 import observers
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv, atomic_write_json, environment
+from ..io import atomic_write_csv, atomic_write_json, environment, path_component
 from ..metrics import add_relative_rms
 from ..report.numbers import fmt, text_table
 from ..run.config import BenchConfig, load_config
-from ..run.runner import run_config
+from ..run.runner import is_project_module, run_config
+from ..verdicts import HULL_AND_EXACT, NO, SOUNDNESS_COLUMNS
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
 BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
                     "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread"]
+#: the time budget per job of the gate's subset, unless its configuration sets one (every job
+#: of the subset takes seconds, designs included)
+GATE_TIMEOUT = 300.0
 #: absolute floor of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
@@ -75,8 +84,7 @@ CHAOTIC_RTOL = 0.0025
 
 def is_project_observer(name: str) -> bool:
     """Whether ``name`` is one of the project's observers (not a third-party plugin)."""
-    module = getattr(observers.get(name).cls, "__module__", "") or ""
-    return module == "observers" or module.startswith("observers.")
+    return is_project_module(getattr(observers.get(name).cls, "__module__", "") or "")
 
 
 def regression_rtol(name: str) -> float:
@@ -122,13 +130,23 @@ def subset_config(path: str | Path = DEFAULT_CONFIG, plugins: bool = True) -> Be
 
 def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None = None,
                out: str | Path | None = None) -> tuple[pd.DataFrame, str]:
-    """Run the subset; returns the golden-file rows and the design-cache description."""
+    """Run the subset; returns the golden-file rows (with the soundness verdict columns,
+    which the golden files do not store) and the design-cache description.
+
+    Where the subset asks for the hull test, exact membership is checked beside it
+    (``hull+exact``): the golden ``violations`` stay hull counts, and ``contained`` says
+    whether the true state lies in every set."""
+    if cfg.containment == "hull":
+        cfg.containment = HULL_AND_EXACT  # not in cfg.raw: the configuration is unchanged
+    if "timeout" not in cfg.raw:  # a hanging plugin must not hold the gate for half an hour
+        cfg.timeout = GATE_TIMEOUT
     with design_cache(use_cache) as cache_note:
         _, summary = run_config(cfg, out, progress=progress)
     frame = summary.copy()
     frame["rtol"] = [regression_rtol(o) for o in frame["observer"]]
     frame["kernel_spread"] = 0.0
-    return frame[BASELINE_COLUMNS], cache_note
+    verdicts = [c for c in SOUNDNESS_COLUMNS if c in frame.columns]
+    return frame[BASELINE_COLUMNS + verdicts], cache_note
 
 
 def _meta(cfg: BenchConfig, cache_note: str) -> dict:
@@ -147,8 +165,8 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
     folder = Path(folder)
     written = []
     for sc, g in frame.groupby("scenario", sort=False):
-        path = folder / f"{sc}.csv"
-        g = g.reset_index(drop=True).assign(
+        path = folder / f"{path_component(sc)}.csv"
+        g = g[BASELINE_COLUMNS].reset_index(drop=True).assign(
             rtol=g["rtol"].map("{:g}".format).to_numpy(),
             kernel_spread=g["kernel_spread"].map("{:.3g}".format).to_numpy())
         atomic_write_csv(path, g)
@@ -159,17 +177,32 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
     return written
 
 
-def baseline_problems(frame: pd.DataFrame) -> list[str]:
-    """Why a run must not become the baseline: a crashed observer, or a guaranteed observer
-    whose sets miss the true state (a bug to fix, not a number to enshrine)."""
+def unsound_pairs(frame: pd.DataFrame) -> list[tuple[str, str, str]]:
+    """``(scenario, observer, column)`` of each guaranteed observer's run with ``no`` in a
+    soundness verdict column (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`)."""
     per = frame.drop_duplicates(["scenario", "observer"])
-    crashed = per[per["status"] == "error"]
+    guaranteed = per["guaranteed"].astype(str).str.lower().isin(["true", "1"])
+    return [(s, o, col) for col in SOUNDNESS_COLUMNS if col in per.columns
+            for s, o in zip(per.loc[guaranteed & (per[col].astype(str) == NO), "scenario"],
+                            per.loc[guaranteed & (per[col].astype(str) == NO), "observer"],
+                            strict=True)]
+
+
+def baseline_problems(frame: pd.DataFrame) -> list[str]:
+    """Why a run must not become the baseline: a crashed or stopped observer, or a guaranteed
+    observer whose sets miss the true state (hull violations, or ``no`` in any soundness
+    verdict column): a bug to fix, not a number to enshrine."""
+    per = frame.drop_duplicates(["scenario", "observer"])
+    crashed = per[per["status"].isin(["error", "timeout", "memory"])]
     unsound = per[(pd.to_numeric(per["violations"], errors="coerce").fillna(0) > 0)
                   & per["guaranteed"].astype(bool)]
-    return ([f"{o} crashed on {s}" for s, o in zip(crashed["scenario"], crashed["observer"],
-                                                     strict=True)]
+    return ([f"{o} crashed on {s}" if st == "error" else f"{o} stopped on {s} ({st})"
+             for s, o, st in zip(crashed["scenario"], crashed["observer"], crashed["status"],
+                                 strict=True)]
             + [f"{o} violates containment on {s}"
-               for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)])
+               for s, o in zip(unsound["scenario"], unsound["observer"], strict=True)]
+            + [f"{o} fails '{col}' on {s} (the true state is outside one of its sets)"
+               for s, o, col in unsound_pairs(frame)])
 
 
 def load_baseline(folder: str | Path) -> tuple[pd.DataFrame, dict]:
@@ -254,13 +287,24 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
     for sc, obs in sorted(bpairs - cpairs):
         rows.append(_row(sc, obs, "-", "observer", "present", "missing", "", False,
                          "in the baseline but not run now (removed or unregistered?)"))
+    bad_verdicts = {(s, o): c for s, o, c in unsound_pairs(cur)}
+    cur_status = dict(zip(zip(cur["scenario"], cur["observer"], strict=True), cur["status"],
+                          strict=True))
     for sc, obs in sorted(cpairs - bpairs):
         plugin = not is_project_observer(obs)
         note = ("not in the baseline (third-party plugin, not gated; --strict fails on it)"
                 if plugin and not strict else
                 "not in the baseline: `python -m benchmarks baseline --update`")
+        # a plugin's numbers are not gated, but a plugin that crashed, was stopped or is
+        # unsound fails the gate (named on the last line)
+        culprit = _culprit(cur_status[(sc, obs)], bad_verdicts.get((sc, obs)))
         rows.append(_row(sc, obs, "-", "observer", "absent", "present", "",
-                         plugin and not strict, note))
+                         plugin and not strict and not culprit,
+                         note + (f"; {FAILING}{culprit}" if culprit else "")))
+    for (sc, obs), col in sorted(bad_verdicts.items()):
+        if (sc, obs) in bpairs:
+            rows.append(_row(sc, obs, "-", col, "-", NO, "", False,
+                             "the true state is outside one of its sets (exact membership)"))
     keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
     common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
     # the larger of the stored (class or measured) and the current class tolerance
@@ -309,6 +353,47 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
                                        "current", "rel_diff", "tol", "ok", "note"])
 
 
+#: marks what went wrong with a plugin in its diff note
+FAILING = "failing: "
+
+
+def _culprit(status: str, bad_verdict: str | None) -> str:
+    """What is wrong with a run (``""`` if nothing): its status, or an unsound verdict."""
+    if status not in ("ok", "noGain", "unsupported"):
+        return f"status {status}"
+    return f"unsound ({bad_verdict}: no)" if bad_verdict else ""
+
+
+def culprits(diff: pd.DataFrame) -> str:
+    """The third-party plugins not in the baseline that crashed, were stopped or are
+    unsound, with their scenarios and what went wrong (``""`` if none)."""
+    rows = diff[(diff["metric"] == "observer") & (diff["current"] == "present")
+                & diff["note"].astype(str).str.contains("third-party plugin")
+                & diff["note"].astype(str).str.contains(FAILING, regex=False)]
+    return "; ".join(f"{r.observer} on {r.scenario}: {str(r.note).split(FAILING, 1)[1]}"
+                     for r in rows.itertuples(index=False))
+
+
+def proof_rows(violations: dict[str, str]) -> pd.DataFrame:
+    """Failing ``audit`` rows of the diff for observers that got tighter but whose sets
+    missed the true state in the short soundness audit (``observer -> where``)."""
+    return pd.DataFrame([_row("audit --short", o, "-", "audit", "0 violations", where, "",
+                              False, "tighter, but the short soundness audit found the true "
+                                     "state outside its sets: not an improvement")
+                         for o, where in violations.items()],
+                        columns=["scenario", "observer", "state", "metric", "baseline",
+                                 "current", "rel_diff", "tol", "ok", "note"])
+
+
+def tighter_observers(diff: pd.DataFrame) -> list[str]:
+    """Observers with an ``rms_radius`` that failed by getting smaller (to be proven sound
+    before they are called tighter)."""
+    own = diff[~diff["ok"] & (diff["metric"] == "rms_radius")]
+    cur = pd.to_numeric(own["current"], errors="coerce")
+    base = pd.to_numeric(own["baseline"], errors="coerce")
+    return list(dict.fromkeys(own.loc[cur < base, "observer"]))
+
+
 def _diff_table(rows: pd.DataFrame) -> str:
     """Fixed-width table of compared values (baseline and current to 10 digits)."""
     head = ["scenario", "observer", "state", "metric", "baseline", "current", "rel.diff", "tol",
@@ -354,14 +439,21 @@ def change_summary(diff: pd.DataFrame) -> str:
     radius = own[own["metric"] == "rms_radius"]
     cur = pd.to_numeric(radius["current"], errors="coerce")
     base = pd.to_numeric(radius["baseline"], errors="coerce")
+    # a smaller radius is "tighter" only if nothing says its sets miss the true state
+    containment = own[own["metric"].isin(("violations", "audit", *SOUNDNESS_COLUMNS))]
+    unproven = radius["observer"].isin(set(containment["observer"]))
     parts = [f"looser: {_where(radius[cur > base])}",
-             f"tighter: {_where(radius[cur < base])}",
-             f"containment: {_where(own[own['metric'] == 'violations'])}"]
+             f"tighter: {_where(radius[(cur < base) & ~unproven])}",
+             f"containment: {_where(containment)}"]
     extra = {"status": own[own["metric"] == "status"],
-             "new": own[(own["metric"] == "observer") & (own["current"] == "present")],
+             "new": own[(own["metric"] == "observer") & (own["current"] == "present")
+                        & ~own["note"].astype(str).str.contains("third-party plugin")],
              "missing": own[(own["metric"] == "observer") & (own["current"] == "missing")],
              "not in the baseline (plugins)": diff[diff["ok"] & (diff["metric"] == "observer")]}
+    bad_plugins = culprits(diff)
     parts += [f"{k}: {_where(v)}" for k, v in extra.items() if not v.empty]
+    if bad_plugins:
+        parts.append(f"plugins failing: {bad_plugins}")
     return " | ".join(parts)
 
 

@@ -30,7 +30,7 @@ import yaml
 from observers.registry import table_order
 
 from ..errors import ConfigError
-from ..io import atomic_write_text, environment, load_results
+from ..io import atomic_write_text, environment, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
 from .figures import LayeredFigure, bounds_and_radii, heat_map, step_times
@@ -373,7 +373,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
     fig_dir = page_dir / FIGURE_DIR
     runs = None
     if figures and (results_dir / "runs.csv").is_file():
-        runs = pd.read_csv(results_dir / "runs.csv")
+        runs = load_runs(results_dir)
     title = meta.get("config", {}).get("title", results_dir.name)
     sweep = is_sweep(summary)
     scenarios = [] if sweep else list(dict.fromkeys(summary["scenario"]))
@@ -408,7 +408,7 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
             body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"
                                                       for n in notes) + "</ul>")
         if figures and len(df):
-            base = fig_dir / sc
+            base = fig_dir / path_component(sc)  # a name, never a path
             if runs is not None:
                 fig, caption = bounds_figure(runs, df, sc, info, meta, base / "bounds",
                                              (bands or {}).get(sc))
@@ -435,7 +435,8 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
              "(n/a: checked in none).</p>",
              html_table(*ranking_table(summary), table_id="ranking-table")] if not sweep else []
     raw = meta.get("config", {}).get("raw")
-    env = {"created": meta.get("created", "?"), **meta.get("versions", {})}
+    env = {"run_id": meta.get("run_id", "?"), "created": meta.get("created", "?"),
+           **meta.get("versions", {})}
     now = environment()
     body += ['<h2 id="environment">Configuration and environment</h2>',
              f"<p>git commit of the run: <code>{html.escape(env.get('git') or 'unknown')}</code>"

@@ -6,11 +6,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
-
 from observers.registry import table_order
 
-from ..io import atomic_write_text, load_results
+from ..io import atomic_write_text, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
@@ -49,7 +47,7 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         summary = summary.iloc[0:0]  # no per-seed tables
     runs = None
     if figures and (results_dir / "runs.csv").is_file() and len(summary):
-        runs = pd.read_csv(results_dir / "runs.csv")
+        runs = load_runs(results_dir)
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
         df = full[full["status"] != "unsupported"]  # status rows of the scenario table only
@@ -67,7 +65,8 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
             links = []
             names = info.get("state_names") or []
             for obs in table_order(df["observer"].unique()):
-                paths = observer_bounds(runs, sc, obs, names, fig_dir / sc / obs)
+                base = fig_dir / path_component(sc) / path_component(obs)  # names, not paths
+                paths = observer_bounds(runs, sc, obs, names, base)
                 if paths is not None:
                     links.append(f"[{obs}]({paths[0].relative_to(out.parent).as_posix()})")
             if links:
@@ -75,7 +74,8 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
                           ""]
     versions = meta.get("versions", {})
     if versions:
-        parts += ["---", "Run " + meta.get("created", "") + "; " + ", ".join(
+        parts += ["---", f"Run {meta.get('run_id', '?')} of " + meta.get("created", "") + "; "
+                  + ", ".join(
             f"{k} {v}" for k, v in versions.items()), ""]
     config = freshness.config_of(meta.get("config", {}).get("name"))
     parts.append(freshness.stamp(freshness.report_command(config, out), config))

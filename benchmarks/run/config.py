@@ -11,6 +11,9 @@
     observer_options:                    # optional, per observer
       FRad-B: {variant: textbook}
     containment: exact                   # exact (LP membership) | hull (interval hull only)
+    timeout: 600                         # seconds per job (default 1800; none: no budget)
+    memory_limit: 4G                     # per job (default: 80 % of the available memory
+                                         # shared by the workers; none: no limit)
     sweep:                               # optional: a grid of runs, one tidy table
       seeds: [0, 1, 2]                   # or {count: 20} (seeds 0..19) for simulated scenarios
       sizes: [6, 12, 30]                 # substituted for {n} in scenario names (tank{n}-linear)
@@ -34,6 +37,8 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,12 +49,51 @@ import observers
 from systems import Scenario
 
 from ..errors import ConfigError
+from .executors import DEFAULT_TIMEOUT as DEFAULT_JOB_TIMEOUT
+from .executors import default_memory_limit
 from .shipped import resolve_config
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
             "containment", "description", "sweep",
-            "variants"}
+            "variants", "timeout", "memory_limit"}
+#: the per-job time budget by default (seconds), as :data:`.executors.DEFAULT_TIMEOUT`
+DEFAULT_TIMEOUT = DEFAULT_JOB_TIMEOUT
+_UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def parse_timeout(value: Any, where: str) -> float | None:
+    """A time budget in seconds: a positive number, or ``none``/``null`` for no budget."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("none", "off")):
+        return None
+    try:
+        seconds = float(value) if not isinstance(value, bool) else math.nan
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ConfigError(f"{where}: the time budget must be a positive number of seconds "
+                          f"or 'none', got {value!r}")
+    return seconds
+
+
+def parse_memory(value: Any, where: str) -> int | str | None:
+    """A memory limit: bytes as an integer or with a binary unit (``512M``, ``4G``,
+    ``1.5GiB``), ``auto`` (the default share of the available memory) or ``none``."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("none", "off")):
+        return None
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        return "auto"
+    text = str(value).strip().upper().removesuffix("IB").removesuffix("B")
+    unit = text[-1:] if text[-1:] in _UNITS and text[-1:] else ""
+    try:
+        number = float(text[:-1] if unit else text) if not isinstance(value, bool) else math.nan
+    except ValueError:
+        number = math.nan
+    size = number * _UNITS[unit]
+    if not (math.isfinite(size) and size >= 1):
+        raise ConfigError(f"{where}: the memory limit must be a size such as 512M or 4G, "
+                          f"'auto' or 'none', got {value!r}")
+    return int(size)
 SWEEP_KEYS = {"seeds", "sizes", "grid"}
 
 
@@ -81,6 +125,16 @@ class BenchConfig:
     #: per observer, the option combinations of the sweep grid as (label, options)
     variants: dict[str, list[tuple[str, dict[str, Any]]]] = field(default_factory=dict)
     base: Path | None = None
+    #: per-job time budget (seconds) and memory limit (bytes, ``"auto"``); None: no limit
+    timeout: float | None = DEFAULT_TIMEOUT
+    memory_limit: int | str | None = "auto"
+
+    def job_memory_limit(self, workers: int) -> int | None:
+        """The memory limit per job in bytes (``auto``: the default share for ``workers``
+        workers running at once, :func:`.executors.default_memory_limit`)."""
+        if self.memory_limit == "auto":
+            return default_memory_limit(workers)
+        return self.memory_limit  # type: ignore[return-value]
 
     def __post_init__(self):
         if not self.instances:  # built in code from scenario values: their names as entries
@@ -218,6 +272,15 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     for spec in _expand(scen, seeds, sizes, name):
         seed = spec.get("seed", (spec.get("simulate") or {}).get("seed"))
         instances.append(Instance(build_scenario(spec, base), spec, seed))
+    # a scenario's own options are defaults for any observer: a key no registered observer
+    # accepts is a typo (the top level's options are checked against this run's observers)
+    known = accepted_any.union(*(i.option_defaults() for i in observers.available()))
+    for inst in instances:
+        own = inst.spec.get("options") or {}
+        bad = set(own) - known if isinstance(own, dict) else set()
+        if bad:
+            raise ConfigError(f"config '{name}': scenario '{inst.scenario.name}': option(s) "
+                              f"{sorted(bad)} are accepted by no observer")
     seen = [(i.scenario.name, i.seed) for i in instances]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"config '{name}': a scenario appears twice with the same seed: "
@@ -234,6 +297,9 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
         observer_options={str(k): dict(v) for k, v in per.items()},
         containment=containment, description=str(raw.get("description", "")), raw=raw,
         instances=instances, variants=variants, base=base,
+        timeout=parse_timeout(raw.get("timeout", DEFAULT_TIMEOUT), f"config '{name}': timeout"),
+        memory_limit=parse_memory(raw.get("memory_limit", "auto"),
+                                  f"config '{name}': memory_limit"),
     )
 
 
@@ -375,7 +441,33 @@ def load_config(path: str | Path) -> BenchConfig:
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     try:
-        raw = yaml.safe_load(text)
+        raw = yaml.load(text, Loader=StrictLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
         raise _yaml_error(path, exc) from None
     return parse_config(raw, path.stem, path.parent)
+
+
+class StrictLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice in one mapping (plain YAML keeps the
+    last one silently) and reading ``1e3``, ``-2.5E-4`` as numbers (YAML 1.1, which PyYAML
+    follows, reads a float without a dot as text; YAML 1.2 and every user read a number)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                first = seen.setdefault(key, key_node.start_mark)
+            except TypeError:  # an unhashable key: SafeLoader reports it
+                continue
+            if first is not key_node.start_mark:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} appears twice in one mapping (first on line "
+                    f"{first.line + 1})", key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))

@@ -5,8 +5,16 @@ A job is a picklable value, ``fn`` a module-level function; an executor yields
 :class:`JobFailure` (the job raised, its worker process died, or it exceeded its time budget).
 One failed job never stops the others.
 
+Every executor keeps a per-job *budget* (:meth:`set_budget`): a time budget in seconds and
+a memory limit in bytes (the resident memory of the worker process running the job, watched
+from the parent every :data:`POLL_S` seconds; a ``MemoryError`` in the job counts too).  A job
+over it is stopped and reported as ``timeout`` or ``memory``.
+
 ``serial``
-    in this process, one job after the other (the default; the honest timing mode).
+    one job after the other (the default; the honest timing mode): the project's own
+    observers in this process (their time budget by ``SIGALRM``), the jobs flagged
+    ``isolate`` (third-party plugins) in one worker process, so that a plugin that ends its
+    process, hangs or leaks memory is that job's row, never the end of the run.
 ``processes``
     a local pool of ``jobs`` worker processes (``run --jobs N``).  A worker is given a chunk
     of jobs but runs and reports them one at a time, so a worker that dies is attributed to
@@ -16,10 +24,13 @@ One failed job never stops the others.
 ``dask``
     a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
     ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
-    loopback interface started for the run.  A task whose worker died (the scheduler's
-    ``KilledWorker``) may only have shared the worker with the culprit: after the other jobs,
-    each such task runs again alone on the cluster, and if its worker dies again it becomes
-    that job's ``error``.
+    loopback interface started for the run.  Each task runs its job in a child process of
+    its Dask worker (the same one-worker pool), which keeps the time budget and the memory
+    limit; where a worker may not start processes (a daemonic worker of a cluster not
+    started by us) the job runs in the task itself, without them.  A task whose worker died
+    (the scheduler's ``KilledWorker``) may only have shared the worker with the culprit:
+    after the other jobs, each such task runs again alone on the cluster, and if its worker
+    dies again it becomes that job's ``error``.
 
 Local workers are forked from a server process that preloaded the harness, every observer
 plugin and the compiled LP kernel (:mod:`benchmarks.run.workerinit`; the ``forkserver`` method,
@@ -41,22 +52,37 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 from typing import Any
+
+from systems import available_memory
 
 from ..errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
 _KILLED = object()  # a Dask task whose worker died
+#: time budget per job by default (seconds): above the slowest legitimate job (an SDP design
+#: on 30 tanks with a cold design cache takes minutes), far below "for ever"
+DEFAULT_TIMEOUT = 1800.0
+#: memory limit per job by default: this fraction of the memory available when the run
+#: starts, shared by the workers running at once
+DEFAULT_MEMORY_FRACTION = 0.8
+#: seconds between two looks at the workers' resident memory
+POLL_S = 0.2
+#: statuses of jobs stopped by their budget
+BUDGET_STATUSES = ("timeout", "memory")
 
 
 @dataclass(frozen=True)
 class JobFailure:
-    """A job that produced no result: ``status`` is ``error`` or ``timeout``."""
+    """A job that produced no result: ``status`` is ``error``, ``timeout`` or ``memory``."""
 
     status: str
     message: str
@@ -66,34 +92,159 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
+def default_memory_limit(workers: int = 1) -> int | None:
+    """The memory limit per job by default: :data:`DEFAULT_MEMORY_FRACTION` of the memory
+    available now, divided among ``workers`` (None where it is not known)."""
+    have = available_memory()
+    return None if have is None else int(DEFAULT_MEMORY_FRACTION * have / max(1, workers))
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes in the largest binary unit (``1.5 GiB``)."""
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(n) < 1024 or unit == "GiB":
+            return f"{n:.3g} {unit}" if unit != "B" else f"{int(n)} B"
+        n /= 1024
+    return f"{n:.3g} TiB"  # pragma: no cover
+
+
+def rss_bytes(pid: int) -> int | None:
+    """Resident memory of process ``pid`` (Linux ``/proc``; None elsewhere or if gone)."""
+    try:
+        with open(f"/proc/{pid}/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _timeout_message(timeout: float) -> str:
+    return f"stopped after the budget of {timeout:g} s"
+
+
+def _memory_message(limit: int, used: int | None = None) -> str:
+    used_s = f" (resident {format_bytes(used)})" if used else ""
+    return f"stopped over the memory limit of {format_bytes(limit)}{used_s}"
+
+
+class JobTimeout(BaseException):
+    """Raised in a job run in this process when its time budget is over (a BaseException, so
+    that the observer loop's ``except Exception`` does not turn it into an ``error``)."""
+
+
+@contextmanager
+def _alarm(timeout: float | None) -> Iterator[None]:
+    """Raise :class:`JobTimeout` in the block after ``timeout`` seconds (``SIGALRM``; only in
+    the main thread of a POSIX process: elsewhere no budget)."""
+    usable = (timeout is not None and hasattr(signal, "setitimer")
+              and threading.current_thread() is threading.main_thread())
+    if not usable:
+        yield
+        return
+
+    def _raise(signum, frame):
+        raise JobTimeout(_timeout_message(timeout))
+
+    old = signal.signal(signal.SIGALRM, _raise)
+    signal.setitimer(signal.ITIMER_REAL, timeout)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
 def default_jobs() -> int:
     """Worker processes by default: the number of cores."""
     return max(1, os.cpu_count() or 1)
 
 
-class SerialExecutor:
-    """Every job in this process, in order."""
+class _Budgeted:
+    """The per-job budget of an executor (see the module docstring)."""
+
+    timeout: float | None = None
+    memory_limit: int | None = None
+
+    def set_budget(self, timeout: float | None, memory_limit: int | None) -> None:
+        """Time budget (seconds) and memory limit (bytes) per job; None: no limit."""
+        if timeout is not None and not timeout > 0:
+            raise ConfigError(f"the job time budget must be positive, got {timeout!r}")
+        if memory_limit is not None and not memory_limit > 0:
+            raise ConfigError(f"the job memory limit must be positive, got {memory_limit!r}")
+        self.timeout, self.memory_limit = timeout, memory_limit
+
+
+class SerialExecutor(_Budgeted):
+    """Every job in order: in this process, or (``isolate``) in one worker process.
+
+    Parameters
+    ----------
+    timeout, memory_limit : optional
+        The per-job budget (:meth:`set_budget`).  In this process only the time budget is
+        kept (``SIGALRM`` in the main thread: it stops Python code, not a long call into
+        compiled code); an isolated job keeps both, and cannot end this process.
+    """
 
     name = "serial"
     workers = 1
 
+    def __init__(self, timeout: float | None = None, memory_limit: int | None = None):
+        self.set_budget(timeout, memory_limit)
+        self._pool: ProcessExecutor | None = None
+
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
-            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(job) or JobFailure)`` in job order (``keys``: unused here)."""
+            keys: Sequence[Any] | None = None,
+            isolate: Sequence[bool] | None = None) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` in job order (``keys``: unused here);
+        the jobs with ``isolate[i]`` true run in a worker process (one at a time)."""
         for i, job in enumerate(jobs):
+            if isolate is not None and isolate[i]:
+                if self._pool is None:
+                    self._pool = ProcessExecutor(1, self.timeout, self.memory_limit)
+                yield from ((i, out) for _, out in self._pool.map(fn, [job]))
+                continue
             try:
-                out = fn(job)
+                with _alarm(self.timeout):
+                    out = fn(job)
             except ConfigError:
                 raise
+            except JobTimeout as exc:
+                out = JobFailure("timeout", str(exc))
+            except MemoryError as exc:
+                out = JobFailure("memory", f"MemoryError: {exc}")
             except Exception as exc:
                 out = JobFailure("error", _describe(exc))
             yield i, out
 
     def close(self) -> None:
-        """Nothing to release."""
+        """End the worker process of the isolated jobs, if one was started."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
 
 
-def _worker_loop(conn, env: dict[str, str]) -> None:  # pragma: no cover - in the worker
+def _die_with_parent() -> None:  # pragma: no cover - in the worker
+    """Linux: this process is killed when its parent ends (``PR_SET_PDEATHSIG``), so that a
+    job stuck in a loop does not outlive a run that was interrupted or killed."""
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent ended before the call
+        os._exit(1)
+
+
+def _worker_loop(conn, env: dict[str, str],
+                 preload: bool = False) -> None:  # pragma: no cover - in the worker
+    _die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    if preload:  # a spawned worker: what the server would have preloaded, before any budget
+        try:
+            import benchmarks.run.workerinit  # noqa: F401
+        except Exception:
+            pass
     # the parent's environment now (the server forked from may have started with another one:
     # settings read when used, like SETOBS_CACHE_DIR, then follow the parent)
     os.environ.clear()
@@ -112,6 +263,8 @@ def _worker_loop(conn, env: dict[str, str]) -> None:  # pragma: no cover - in th
                 out = ("ok", fn(job))
             except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
                 out = ("config", str(exc))
+            except MemoryError as exc:
+                out = ("memory", _describe(exc))
             except Exception as exc:
                 out = ("raised", _describe(exc))
             try:
@@ -125,8 +278,8 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_loop, args=(child, dict(os.environ)),
-                                daemon=True)
+        self.proc = ctx.Process(target=_worker_loop, daemon=True, args=(
+            child, dict(os.environ), ctx.get_start_method() == "spawn"))
         self.proc.start()
         child.close()
         self.chunk: deque = deque()
@@ -186,9 +339,12 @@ def _exit_reason(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def _context():
+def _context(method: str | None = None):
     """``forkserver`` with the harness preloaded where available (a new worker is then a fork
-    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``."""
+    of a clean process that already imported numpy, cvxpy, ...: fast), else ``spawn``;
+    ``method`` forces one."""
+    if method is not None:
+        return mp.get_context(method)
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(["benchmarks.run.workerinit"])
@@ -196,7 +352,7 @@ def _context():
     return mp.get_context("spawn")
 
 
-class ProcessExecutor:
+class ProcessExecutor(_Budgeted):
     """A pool of ``jobs`` local worker processes, one job per worker at a time.
 
     Parameters
@@ -206,18 +362,20 @@ class ProcessExecutor:
     timeout : float, optional
         Budget in seconds per job; a job over it is stopped (its worker ended) and reported
         as ``timeout``.
+    memory_limit : int, optional
+        Bytes of resident memory a worker may hold while it runs a job; a job over it is
+        stopped (its worker ended) and reported as ``memory``.
     """
 
     name = "processes"
 
-    def __init__(self, jobs: int, timeout: float | None = None):
+    def __init__(self, jobs: int, timeout: float | None = None,
+                 memory_limit: int | None = None, start_method: str | None = None):
         if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
             raise ConfigError(f"--jobs must be an integer >= 1, got {jobs!r}")
-        if timeout is not None and not timeout > 0:
-            raise ConfigError(f"the job time budget must be positive, got {timeout!r}")
+        self.set_budget(timeout, memory_limit)
         self.workers = jobs
-        self.timeout = timeout
-        self._ctx = _context()
+        self._ctx = _context(start_method)
         self._idle: list[_Worker] = []
         if self._ctx.get_start_method() == "forkserver":
             # start the server now: it preloads the harness while the caller reads its config
@@ -225,8 +383,10 @@ class ProcessExecutor:
             forkserver.ensure_running()
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
-            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(job) or JobFailure)`` as the jobs finish.
+            keys: Sequence[Any] | None = None,
+            isolate: Sequence[bool] | None = None) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(job) or JobFailure)`` as the jobs finish (every job is isolated
+        here: ``isolate`` is not used).
 
         ``keys`` (one per job): consecutive jobs with the same key go to one worker together
         (:func:`chunks`), so that what they share is built once in that worker (a scenario,
@@ -261,10 +421,11 @@ class ProcessExecutor:
                             "error", f"job not transferable: {_describe(exc)}")
                         continue
                     busy[w.conn] = w
-                wait_s = None
+                wait_s = POLL_S if self.memory_limit is not None else None
                 running = [w.started for w in busy.values() if w.started is not None]
                 if self.timeout is not None and running:
-                    wait_s = max(0.0, min(running) + self.timeout - time.monotonic())
+                    left = max(0.0, min(running) + self.timeout - time.monotonic())
+                    wait_s = left if wait_s is None else min(wait_s, left)
                 for conn in wait(list(busy), timeout=wait_s):
                     w = busy.pop(conn)
                     try:
@@ -286,14 +447,20 @@ class ProcessExecutor:
                         self._idle.append(w)
                     if kind == "config":
                         raise ConfigError(value)
-                    yield index, value if kind == "ok" else JobFailure("error", value)
-                if self.timeout is not None:
-                    now = time.monotonic()
-                    for conn, w in list(busy.items()):
-                        if w.started is not None and now - w.started >= self.timeout:
+                    yield index, value if kind == "ok" else JobFailure(
+                        "memory" if kind == "memory" else "error", value)
+                now = time.monotonic()
+                for conn, w in list(busy.items()):
+                    if w.started is None:
+                        continue
+                    if self.timeout is not None and now - w.started >= self.timeout:
+                        del busy[conn]
+                        yield fail(w, "timeout", _timeout_message(self.timeout))
+                    elif self.memory_limit is not None:
+                        used = rss_bytes(w.proc.pid)
+                        if used is not None and used > self.memory_limit:
                             del busy[conn]
-                            yield fail(w, "timeout",
-                                       f"stopped after the budget of {self.timeout:g} s")
+                            yield fail(w, "memory", _memory_message(self.memory_limit, used))
         finally:
             for w in busy.values():
                 w.end(kill=True)
@@ -304,7 +471,40 @@ class ProcessExecutor:
             self._idle.pop().end()
 
 
-class DaskExecutor:
+@contextmanager
+def _no_sigint() -> Iterator[None]:
+    """Ignore Ctrl-C (SIGINT) in the block: processes started in it inherit that (Python keeps
+    an ignored SIGINT ignored), so they leave the interruption to this process."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+_TASK_POOLS: dict[tuple, ProcessExecutor] = {}
+
+
+def _isolated_task(fn: Callable[[Any], Any], job: Any, timeout: float | None,
+                   memory_limit: int | None) -> Any:
+    """A Dask task: ``fn(job)`` in a child process of this Dask worker with the budget (one
+    pool per worker process and budget, kept for the next tasks); ``fn(job)`` here where
+    this process may not have children (a daemonic worker).  The child is spawned, not
+    forked from a server: a direct child dies with its Dask worker (no orphan left running
+    a hung job when the cluster closes)."""
+    key = (timeout, memory_limit)
+    try:
+        pool = _TASK_POOLS.get(key) or _TASK_POOLS.setdefault(
+            key, ProcessExecutor(1, timeout, memory_limit, start_method="spawn"))
+        return next(iter(pool.map(fn, [job])))[1]
+    except AssertionError:  # "daemonic processes are not allowed to have children"
+        return fn(job)
+
+
+class DaskExecutor(_Budgeted):
     """Jobs as tasks of a Dask cluster (``distributed``).
 
     Parameters
@@ -330,29 +530,44 @@ class DaskExecutor:
             self.workers = jobs or default_jobs()
             # one task per worker thread at a time (no queued tasks on a worker that dies),
             # and a task whose worker died is not retried on another one: reported at once
+            # (non-daemonic workers: each task runs its job in a child process, with the budget)
+            # no HTTP routes (dashboard, /health, /metrics, /info): the HTTP server each Dask
+            # node starts anyway then serves nothing; workers ignore Ctrl-C (the parent
+            # handles it and closes the cluster: no page of worker tracebacks)
             with dask.config.set({"distributed.scheduler.allowed-failures": 0,
-                                  "distributed.scheduler.worker-saturation": 1.0}):
+                                  "distributed.scheduler.worker-saturation": 1.0,
+                                  "distributed.worker.daemon": False,
+                                  "distributed.scheduler.http.routes": [],
+                                  "distributed.worker.http.routes": []}), _no_sigint():
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
-                    host="127.0.0.1", dashboard_address=None, silence_logs=40)
+                    host="127.0.0.1", dashboard_address=None, silence_logs=50)
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(address, timeout="10s")
-            except (OSError, TimeoutError) as exc:
-                raise ConfigError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+            except Exception as exc:  # unreachable, or not an address at all
+                reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise ConfigError(f"cannot reach the Dask scheduler at {address}: "
+                                  f"{reason}") from None
             self.workers = max(1, sum(self.client.nthreads().values()))
         self.address = self.client.scheduler.address
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
-            keys: Sequence[Any] | None = None) -> Iterator[tuple[int, Any]]:
+            keys: Sequence[Any] | None = None,
+            isolate: Sequence[bool] | None = None) -> Iterator[tuple[int, Any]]:
         """Yield ``(index, fn(job) or JobFailure)`` as the tasks finish.
 
-        ``keys`` is not used: the scheduler places every job as a task of its own.
+        ``keys`` and ``isolate`` are not used: the scheduler places every job as a task of
+        its own, which runs it in a child process (:func:`_isolated_task`).
         """
         from distributed import as_completed
 
-        futures = {self.client.submit(fn, job, pure=False): i for i, job in enumerate(jobs)}
+        def submit(job):
+            return self.client.submit(_isolated_task, fn, job, self.timeout, self.memory_limit,
+                                      pure=False)
+
+        futures = {submit(job): i for i, job in enumerate(jobs)}
         suspects = []
         try:
             for fut in as_completed(futures):
@@ -365,7 +580,7 @@ class DaskExecutor:
             # a task may only have shared its worker with the one that killed it: run each
             # suspect again, alone on the cluster; one that kills its worker then is the cause
             for i in suspects:
-                fut = self.client.submit(fn, jobs[i], pure=False)
+                fut = submit(jobs[i])
                 futures[fut] = i
                 out = self._outcome(fut)
                 del futures[fut]

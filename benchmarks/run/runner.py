@@ -24,10 +24,11 @@ from observers.sets import ConZonotope, Interval, Zonotope
 from systems import ModelError, Scenario, available_memory
 
 from ..errors import ConfigError
-from ..io import check_output_dir, environment, write_results
+from ..io import check_output_dir, environment, write_error, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
-from ..verdicts import BenchResult, contained_column, containment_verdict
+from ..verdicts import HULL_AND_EXACT, NA, BenchResult, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
+from .consistency import INCONSISTENT, inconsistency_message, record_inflation
 from .describe import set_bounds
 from .executors import JobFailure, SerialExecutor
 from .membership import MembershipTester
@@ -50,6 +51,8 @@ class ObserverRun:
     contained: np.ndarray | None = None  # N x n, hull containment (with tolerance)
     in_set: np.ndarray | None = None  # per set: exact membership (hull with `hull`)
     decided: bool = True  # every set tested as the configuration asks (exact or hull)
+    #: the exact-membership verdict beside a hull test (containment ``hull+exact``)
+    exact_verdict: str = NA
 
     @property
     def violations(self) -> int:
@@ -159,10 +162,15 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     if not same_dim and res.status == "ok":
         res.status, res.failed_step = "error", 0
         res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
+    if isinstance(res.error, MemoryError):  # the job's memory limit (or the machine's)
+        res.status = "memory"
     run = ObserverRun(sc, info, res, res.status, res.message)
     if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
         run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
+        if containment == HULL_AND_EXACT:  # the gate: exact membership beside the hull
+            _, exact_in, exact_decided = check_containment(res, sc.x_true, sc.tolerance, True)
+            run.exact_verdict = containment_verdict(res.status, sc.N, exact_in, exact_decided)
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
@@ -203,7 +211,9 @@ def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
     ok = run.status == "ok"
     first_violation = (int(np.argmax(~run.in_set)) if run.in_set is not None
                        and run.violations else -1)
+    extra = {"contained": run.exact_verdict} if containment == HULL_AND_EXACT else {}
     return pd.DataFrame({
+        **extra,
         "scenario": sc.name,
         "observer": info.name,
         "state": np.arange(n),
@@ -268,6 +278,16 @@ class Job:
     #: a labelled variant of the config (``ESO-C[cora]``): its label and guarantee
     label: str = ""
     guaranteed: bool = True
+    #: run in a worker process even by the serial executor (a third-party plugin: a crash,
+    #: hang or leak of it must not end the run)
+    isolate: bool = False
+    #: the built scenario, sent with an isolated job of the serial executor (so that a
+    #: scenario built in code, which no worker could rebuild from its entry, still runs)
+    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
+    #: the registry entry of an isolated job's observer, registered again in a worker where
+    #: importing ``module`` does not (a plugin registered by a call, not at import)
+    info: observers.ObserverInfo | None = dataclasses.field(default=None, compare=False,
+                                                             repr=False)
 
     def inputs(self) -> tuple[Scenario, dict]:
         """The job's scenario (built once per process) and the options its observer runs with
@@ -290,9 +310,32 @@ def _key(spec: dict, base: str | None) -> str:
 
 def _scenario(job: Job) -> Scenario:
     key = scenario_key(job)
+    if job.scenario is not None:
+        _SCENARIOS.setdefault(key, job.scenario)
     if key not in _SCENARIOS:
         _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
     return _SCENARIOS[key]
+
+
+def is_project_module(module: str) -> bool:
+    """Whether ``module`` belongs to the project's ``observers`` package (not a plugin)."""
+    return module == "observers" or module.startswith("observers.")
+
+
+def isolatable(cls: type) -> bool:
+    """Whether observer class ``cls`` is a third-party plugin that a worker process can
+    import by its module and name (a class defined in ``__main__`` or inside a function, as in
+    a notebook or a test, cannot be: it runs in this process)."""
+    module, qualname = getattr(cls, "__module__", ""), getattr(cls, "__qualname__", "")
+    if is_project_module(module) or module == "__main__" or "<locals>" in qualname:
+        return False
+    try:
+        obj = importlib.import_module(module)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except Exception:
+        return False
+    return obj is cls
 
 
 def make_jobs(cfg: BenchConfig) -> list[Job]:
@@ -305,10 +348,13 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
             obs = cfg.observer_of(name)  # a labelled variant runs its observer
             per = cfg.labelled[name][1] if name in cfg.labelled else cfg.observer_options.get(
                 name, {})
+            cls = observers.get(obs).cls
             for label, opts in cfg.variants_of(obs):
-                jobs.append(Job(inst.spec, base, obs, observers.get(obs).cls.__module__,
+                jobs.append(Job(inst.spec, base, obs, cls.__module__,
                                 cfg.options, {**per, **opts}, cfg.containment, inst.seed, label,
-                                name if name != obs else "", cfg.guaranteed(name)))
+                                name if name != obs else "", cfg.guaranteed(name),
+                                isolatable(cls), info=observers.get(obs) if isolatable(cls)
+                                else None))
     return jobs
 
 
@@ -331,7 +377,13 @@ def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
 
 def execute_job(job: Job):
     """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
-    importlib.import_module(job.module)
+    if job.observer not in observers.names():  # registered here already: nothing to import
+        importlib.import_module(job.module)
+    if job.info is not None and job.observer not in observers.names():
+        i = job.info
+        observers.register(i.name, family=i.family, set_type=i.set_type,
+                           ready_for_control=i.ready_for_control, guaranteed=i.guaranteed,
+                           reference=i.reference)(i.cls)
     sc, options = job.inputs()
     run = run_observer(job.observer, sc, options, job.containment)
     if job.label:  # its rows carry the label and its own guarantee
@@ -350,11 +402,70 @@ def failed_job(job: Job, failure: JobFailure):
 
 
 def summary_columns(containment: str) -> list[str]:
-    """Columns of ``summary.csv`` (the containment column is named by the check made)."""
+    """Columns of ``summary.csv`` (the containment column is named by the check made; the
+    gate's ``hull+exact`` has both)."""
+    both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
             "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
-            "violations", "first_violation_step", "status", "failed_step", "message", "family",
-            "set_type", "timing", "guaranteed"]
+            *both, "violations", "first_violation_step", "status", "failed_step", "message",
+            "family", "set_type", "timing", "guaranteed"]
+
+
+def inconsistent_records(cfg: BenchConfig) -> dict[tuple[str, str], float]:
+    """``(scenario, seed) -> s`` of the records of ``cfg`` that contradict their linear model
+    (:func:`.consistency.record_inflation` above :data:`.consistency.INCONSISTENT`)."""
+    out = {}
+    for inst in cfg.instances:
+        sc = inst.scenario
+        s = record_inflation(sc.system, sc.u, sc.y)
+        if s is not None and s > INCONSISTENT:
+            out[(sc.name, "" if inst.seed is None else str(inst.seed))] = s
+    return out
+
+
+def mark_inconsistent(summary: pd.DataFrame, bad: dict[tuple[str, str], float],
+                      containment: str) -> pd.DataFrame:
+    """Every row of an inconsistent record: status ``inconsistent``, the reason as its
+    message, and no containment verdict (the data, not the observer, are at fault)."""
+    if not bad or summary.empty:
+        return summary
+    seed = summary["seed"].astype(object).where(summary["seed"].notna(), "").map(
+        lambda v: str(int(v)) if isinstance(v, float) else str(v))
+    summary = summary.copy()
+    for (sc, sd), s in bad.items():
+        rows = (summary["scenario"] == sc) & (seed == sd)
+        summary.loc[rows, "status"] = "inconsistent"
+        summary.loc[rows, "message"] = inconsistency_message(s)
+        for col in {contained_column(containment), "contained"} & set(summary.columns):
+            summary.loc[rows, col] = NA
+        summary.loc[rows, ["violations", "first_violation_step"]] = None
+    return summary
+
+
+def _write(out, runs_df: pd.DataFrame, summary: pd.DataFrame, meta: dict) -> None:
+    """:func:`benchmarks.io.write_results`; a write error (a full disk) is one line."""
+    try:
+        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, meta)
+    except OSError as exc:
+        raise write_error(exc, f"the results to {out} (the previous results there, if any, "
+                               "are intact)") from None
+
+
+def _run_jobs(cfg: BenchConfig, executor, jobs: list[Job], payloads: list[Job], frames: list,
+              progress: bool | None) -> None:
+    """Run ``payloads`` (the jobs, or the jobs with their scenario) on ``executor`` and put
+    each one's rows (or failure rows) into ``frames``."""
+    with progress_bar(len(jobs), cfg.name, progress) as bar:
+        # the jobs of one scenario instance go to a worker together (built once there)
+        for i, outcome in executor.map(execute_job, payloads,
+                                       keys=[scenario_key(j) for j in jobs],
+                                       isolate=[j.isolate for j in jobs]):
+            if isinstance(outcome, JobFailure):
+                outcome = failed_job(jobs[i], outcome)
+            frames[i] = outcome
+            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
+                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
+            bar.update()
 
 
 def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool | None = None,
@@ -375,25 +486,28 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     if out is not None:
         check_output_dir(out)
     check_memory(cfg)
+    own = executor is None
     executor = executor or SerialExecutor()
+    executor.set_budget(cfg.timeout, cfg.job_memory_limit(executor.workers))
     jobs = make_jobs(cfg)
+    # the serial executor sends an isolated job with its scenario (built here already)
+    payloads = [dataclasses.replace(j, scenario=_scenario(j)) if j.isolate and
+                executor.name == "serial" else j for j in jobs]
     frames: list = [None] * len(jobs)
-    with progress_bar(len(jobs), cfg.name, progress) as bar:
-        # the jobs of one scenario instance go to a worker together (built once there)
-        for i, outcome in executor.map(execute_job, jobs, keys=[scenario_key(j) for j in jobs]):
-            if isinstance(outcome, JobFailure):
-                outcome = failed_job(jobs[i], outcome)
-            frames[i] = outcome
-            bar.set_postfix_str(f"{jobs[i].spec['name']}: {jobs[i].observer} "
-                                f"{outcome[1]['status'].iloc[0]}", refresh=False)
-            bar.update()
+    bad_records = inconsistent_records(cfg)
+    try:
+        _run_jobs(cfg, executor, jobs, payloads, frames, progress)
+    finally:
+        if own:
+            executor.close()
     runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
-    summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
+    summary = pd.concat([s for _, s in frames], ignore_index=True)
+    summary = add_relative_rms(mark_inconsistent(summary, bad_records, cfg.containment))
     summary["timed"] = "serial" if executor.workers == 1 else "parallel"
     summary = summary[summary_columns(cfg.containment)]
     if out is not None:
-        write_results(out, {"runs.csv": runs_df, "summary.csv": summary}, {
+        _write(out, runs_df, summary, {
             "config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
                        "containment": cfg.containment},
             "scenarios": {sc.name: {

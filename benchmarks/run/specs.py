@@ -53,7 +53,7 @@ from .records import read_signal, signals_in
 NAMED_KWARGS = {"seed", "noise", "steps"}
 NAMED_KEYS = NAMED_KWARGS | {"options", "label"}
 INLINE_KEYS = {"name", "system", "u", "y", "x_true", "record", "simulate", "options",
-               "tolerance", "description"}
+               "tolerance", "description", "large_tolerance"}
 SYSTEM_KEYS = {"A", "B", "C", "W", "V", "X0", "dt"}
 
 
@@ -161,8 +161,11 @@ def parse_system(spec: Any, where: str) -> LinearSystem:
         raise ConfigError(f"{where}: A must be square, got shape {A.shape}")
     n = A.shape[0]
     C = _array(spec["C"], f"{where}: C", None)
-    if C.shape[1] != n and C.shape[0] == n and C.shape[1] == 1:
-        C = C.T
+    if C.shape[1] != n:  # never transposed silently: a column may be a typo of a row
+        raise ConfigError(f"{where}: C has shape {C.shape}; C must have one row per output "
+                          f"and {n} columns (one per state)"
+                          + (f"; for one output write C: [[{', '.join(['c'] * n)}]]"
+                             if C.shape == (n, 1) else ""))
     B = _array(spec["B"], f"{where}: B", None) if "B" in spec else np.zeros((n, 0))
     try:
         system = LinearSystem(
@@ -179,6 +182,25 @@ def parse_system(spec: Any, where: str) -> LinearSystem:
     except ModelError as exc:
         raise ConfigError(f"{where}: {exc}") from None
     return system
+
+
+#: the largest containment tolerance accepted without ``large_tolerance: true`` (the
+#: rounding of true states shipped with 3 decimals): a larger one switches the check off
+MAX_TOLERANCE = 1e-3
+
+
+def _tolerance(spec: dict, where: str) -> float:
+    """The containment tolerance of an inline scenario, at most :data:`MAX_TOLERANCE` unless
+    the entry says ``large_tolerance: true``."""
+    tol = _number(spec.get("tolerance", 1e-9), f"{where}: tolerance", positive=False)
+    override = spec.get("large_tolerance", False)
+    if not isinstance(override, bool):
+        raise ConfigError(f"{where}: 'large_tolerance' must be true or false")
+    if tol > MAX_TOLERANCE and not override:
+        raise ConfigError(f"{where}: tolerance {tol:g} exceeds {MAX_TOLERANCE:g}, which would "
+                          "let the containment check pass sets that miss the true state; set "
+                          "'large_tolerance: true' beside it if that is really meant")
+    return tol
 
 
 def _check_record(a: np.ndarray, what: str, cols: int, rows: int | None = None) -> np.ndarray:
@@ -275,7 +297,7 @@ def build_inline(spec: dict, base: Path | None) -> Scenario:
         name=name, system=system, u=u, y=y, x_true=x_true, options=dict(options),
         description=str(spec.get("description", "inline scenario")),
         source="config" + ("; read " + "; ".join(notes) if notes else ""),
-        tolerance=_number(spec.get("tolerance", 1e-9), f"{where}: tolerance", positive=False),
+        tolerance=_tolerance(spec, where),
         state_names=tuple(f"x{i + 1}" for i in range(system.n)),
     )
 
