@@ -194,8 +194,8 @@ class BenchResult(tuple):
     >>> r = BenchResult(pd.DataFrame(), s)
     >>> r.exit_code, r.ok, r.problems
     (3, False, ['CRASHED: o on s (at step 3)'])
-    >>> r.meaning
-    "an observer crashed (status 'error') or was stopped ('timeout', 'memory'), after the others ran"
+    >>> r.meaning.startswith("an observer crashed")
+    True
     """
 
     def __new__(cls, runs: pd.DataFrame, summary: pd.DataFrame) -> BenchResult:
