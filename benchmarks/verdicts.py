@@ -190,7 +190,7 @@ class BenchResult(tuple):
     --------
     >>> import pandas as pd
     >>> s = pd.DataFrame({"scenario": ["s"], "observer": ["o"], "status": ["error"],
-    ...                   "guaranteed": [True], "failed_step": [3]})
+    ...                   "guaranteed": [True], "failed_step": [3], "message": [""]})
     >>> r = BenchResult(pd.DataFrame(), s)
     >>> r.exit_code, r.ok, r.problems
     (3, False, ['CRASHED: o on s (at step 3)'])

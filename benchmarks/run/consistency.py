@@ -4,7 +4,7 @@ A record ``(u, y)`` of a linear system ``x_{k+1} = A x_k + B u_k + w_k``, ``y_k 
 is consistent when some ``x_0 in X0``, ``w_k in W`` and ``v_k in V`` reproduce ``y`` exactly.
 With the sets as zonotopes ``c + G xi``, ``|xi|_inf <= 1``, that is a linear feasibility
 problem in the states and the noise factors; :func:`record_inflation` solves its
-optimisation form
+optimisation form::
 
     min s  subject to  x_0 = c0 + G0 xi_0,  x_{k+1} = A x_k + B u_k + cW + GW xi_k,
                        y_k = C x_k + cV + GV eta_k,  |xi|, |eta| <= 1 + s,  s >= 0
