@@ -85,6 +85,8 @@ class Exact(LinearModelObserver):
     """
 
     OPTIONS = {"cache": Bool(True)}
+    #: A and B are checked in ``design``, after a nonlinear system is refused by name
+    REQUIRES = ("C", "W", "V", "X0")
     SCENARIO_OPTIONS = ()  # no zonotope order or reduction: nothing is reduced
 
     def design(self) -> None:

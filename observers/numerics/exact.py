@@ -544,10 +544,11 @@ class ExactHullLP:
                            "is inconsistent with the model")
         self._set_cols(lay.x, *self._loosen(lo, hi, hard))
         self._activate_outputs(y, lay)
-        if hulls is None:
+        if hulls is None:  # within the predicted hull (both sound: the tighter one counts)
             flo, fhi = self._solve_all(j, "filtered")
         else:
-            flo, fhi = np.maximum(hulls.filt_lo, lo), np.minimum(hulls.filt_hi, hi)
+            flo, fhi = hulls.filt_lo, hulls.filt_hi
+        flo, fhi = np.maximum(flo, lo), np.minimum(fhi, hi)
         self._set_cols(lay.x, *self._loosen(flo, fhi, hard))
         self._last = StepHulls(plo, phi, flo, fhi)
         self.k = j + 1
@@ -612,7 +613,7 @@ class ExactSet:
         if np.any(x < I.lo - tol) or np.any(x > I.hi + tol):
             return False
         k = self.k
-        u = np.array(self._u[:k], float).reshape(k, -1)
+        u = np.array(self._u[:k], float).reshape(k, self._model[1].shape[1])
         y = np.array(self._y[: k + 1], float)
         return consistent(*self._model, u, y, x, tol)
 
