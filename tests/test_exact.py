@@ -297,6 +297,7 @@ def test_inconsistent_later_measurement_is_reported_by_the_lp():
     res = observers.run(observers.create("Exact", s, cache=False), np.zeros((3, 0)), y)
     assert res.status == "empty" and res.failed_step == 2
     assert "step 2" in res.message and "inconsistent with the model" in res.message
+    assert "proved by a Farkas certificate" in res.message  # HiGHS's verdict checked
 
 
 def test_engine_needs_first_step():

@@ -431,29 +431,29 @@ class ExactHullLP:
         """Solve the 2n LPs of ``x_j``; sound ``(lo, hi)`` from their dual points."""
         n, R = self.n, self._active
         Mu = np.zeros((2 * n, self._nrows))
-        infeasible = []
         for o, h in enumerate(self._models):
-            h.run()
-            status = h.getModelStatus()
-            self.solves += 1
-            self.iterations += h.getInfo().simplex_iteration_count
+            status = self._run(h)
             if status not in (_OPTIMAL, _INFEASIBLE):
                 h.clearSolver()  # once more from scratch
-                h.run()
-                status = h.getModelStatus()
-                self.iterations += h.getInfo().simplex_iteration_count
+                status = self._run(h)
                 if status not in (_OPTIMAL, _INFEASIBLE) and j not in self.inexact:
                     self.inexact.append(j)
             if status == _INFEASIBLE:
-                infeasible.append(o)
-                continue
+                certified = self._farkas(j, o)
+                if not certified:  # HiGHS's verdict alone: confirm it from scratch
+                    h.clearSolver()
+                    status = self._run(h)
+                if status == _INFEASIBLE:
+                    how = ("proved by a Farkas certificate" if certified
+                           else "HiGHS finds the LP infeasible")
+                    raise EmptySet(f"step {j}: no state is consistent with the record up to "
+                                   f"y[{j}] ({stage} set; {how}): the record is inconsistent "
+                                   "with the model")
             sol = h.getSolution()
             if sol.dual_valid and R:
                 mu = np.asarray(sol.row_dual, dtype=float)[:R]
                 if np.all(np.isfinite(mu)):
                     Mu[o, :R] = -mu  # max +-x solved as min -+x: mu = -row_dual
-        if infeasible:
-            self._report_empty(j, stage, infeasible[0])
         col = self._layout[j].x + np.arange(n)
         bounds = self._dual_bounds(Mu, np.repeat(col, 2), np.tile([1.0, -1.0], n))
         lo, hi = -bounds[1::2], bounds[0::2]
@@ -484,25 +484,28 @@ class ExactHullLP:
         scale = np.abs(rterms).sum(axis=1) + np.abs(sterms).sum(axis=1) + gpart
         return total + (self._nrows + self._ncols + 4) * _EPS * 1.01 * scale + _TINY
 
-    def _report_empty(self, j: int, stage: str, o: int) -> None:
-        """Raise :class:`EmptySet` for step ``j``, saying whether a Farkas certificate from
-        HiGHS's dual ray proves the LP infeasible."""
-        certified = False
+    def _run(self, h: highspy.Highs) -> highspy.HighsModelStatus:
+        h.run()
+        self.solves += 1
+        self.iterations += h.getInfo().simplex_iteration_count
+        return h.getModelStatus()
+
+    def _farkas(self, j: int, o: int) -> bool:
+        """Whether the dual ray of model ``o`` (found infeasible) proves the LP infeasible:
+        a multiplier whose weak-duality bound of the zero objective is negative."""
         try:
-            has_ray, ray = self._models[o].getDualRay()
+            *_, has_ray, ray = self._models[o].getDualRay()  # ([status,] has_ray, values)
         except (TypeError, ValueError, RuntimeError):  # pragma: no cover - API differences
-            has_ray, ray = False, None
-        if has_ray and ray is not None and len(ray) == self._nrows:
-            ray = np.asarray(ray, float)
-            if np.all(ray[self._active :] == 0) and np.all(np.isfinite(ray)):
-                col = np.array([self._layout[j].x])
-                for mu in (ray, -ray):
-                    if self._dual_bounds(mu[None, :], col, np.zeros(1))[0] < 0.0:
-                        certified = True
-                        break
-        how = "proved by a Farkas certificate" if certified else "HiGHS finds the LP infeasible"
-        raise EmptySet(f"step {j}: no state is consistent with the record up to y[{j}] "
-                       f"({stage} set; {how}): the record is inconsistent with the model")
+            return False
+        if not has_ray or ray is None or len(ray) != self._nrows:
+            return False
+        ray = np.asarray(ray, float)
+        if not np.all(np.isfinite(ray)):
+            return False
+        ray[self._active :] = 0.0  # free rows: zero multipliers
+        col = np.array([self._layout[j].x])
+        return any(self._dual_bounds(mu[None, :], col, np.zeros(1))[0] < 0.0
+                   for mu in (ray, -ray))
 
     # -- public steps ----------------------------------------------------------------------------
     def first(self, y, hulls: StepHulls | None = None) -> StepHulls:
