@@ -126,14 +126,14 @@ class Exact(LinearModelObserver):
         if k == 0:
             self._open_cache(y)
         hulls = self._replay(k, u, y)
-        if u is not None:
-            self._u.append(u)
-        self._y.append(y)
         if hulls is None:
-            hulls = self._compute(k, u, y)
+            hulls = self._compute(k, u, y)  # may raise EmptySet: the record stays as it was
             self.computed_steps += 1
         else:
             self.cached_steps += 1
+        if u is not None:
+            self._u.append(u)
+        self._y.append(y)
         self._hulls.append(hulls)
         if self._entry is None and self._path is not None:
             self._save()
