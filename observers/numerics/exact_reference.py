@@ -181,9 +181,17 @@ def explicit_lp(A, B, C, X0, W, V, u, y, k: int, measured: int | None = None):
     return A_eq, np.concatenate(rhs), bounds, np.arange(n) + n * k
 
 
+#: linprog settings tried in turn: HiGHS's dual simplex can stop without a verdict ("Not
+#: Set") on the larger explicit LPs; then without presolve, then the interior-point method
+_RETRIES = (("highs-ds", {}), ("highs-ds", {"presolve": False}), ("highs-ipm", {}))
+
+
 def _explicit_opt(c, A_eq, b_eq, bounds) -> float:
-    res = linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs-ds",
-                  options=_OPTIONS)
+    for method, extra in _RETRIES:
+        res = linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method=method,
+                      options={**_OPTIONS, **extra})
+        if res.status in (0, 2):
+            break
     if res.status == 2:
         raise ValueError("the check LP is infeasible (record inconsistent with the model)")
     if res.status != 0:
