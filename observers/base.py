@@ -25,7 +25,12 @@ from .sets.errors import EmptySet
 @dataclass(frozen=True)
 class ObserverInfo:
     """What the registry knows about an observer class (:func:`observers.registry.register`
-    sets it as the class attribute ``info``)."""
+    sets it as the class attribute ``info``).
+
+    ``floor`` is the exact set its sets are held against (the two floors of ``Exact``):
+    ``"filtered"`` (states consistent with the record up to ``y[k]``) or ``"predicted"`` (up
+    to ``y[k-1]``); see :func:`observers.registry.register`.
+    """
 
     name: str
     cls: type
@@ -34,6 +39,7 @@ class ObserverInfo:
     ready_for_control: bool
     guaranteed: bool = True
     reference: str = ""
+    floor: str = "filtered"
 
     @property
     def timing(self) -> str:

@@ -21,14 +21,24 @@ from .errors import ObserverError, OptionError, UnknownObserver
 
 ENTRY_POINT_GROUP = "observers"
 
-#: row order of the papers' tables; other observers follow alphabetically
+#: row order of the papers' tables; other observers follow alphabetically.  ``Exact`` (the
+#: exact reference of linear records) is the first row.
 CANONICAL_ORDER = (
+    "Exact",
     "VolMin-A", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRad-C-I", "PRad-C-II",
     "PRad-D", "CZN-A", "CZN-B", "CZN-MV", "ESO-A", "ESO-B", "FRad-C", "PRad-E", "Nom-G",
     "ESO-C", "ESO-D", "Hinf-G",
 )
 
-FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic")
+FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic", "reference")
+
+#: the two exact floors an observer's sets can be held against: the set of states consistent
+#: with the record *after* ``y[k]`` (``"filtered"``) or *before* it (``"predicted"``)
+FLOORS = ("filtered", "predicted")
+
+#: floor of a family whose observers do not say: propagation and interval observers return at
+#: step k a set computed from ``y[0..k-1]`` only (ready for control), the others use ``y[k]``
+FAMILY_FLOORS = {"propagation": "predicted", "interval": "predicted"}
 
 
 _REGISTRY: dict[str, ObserverInfo] = {}
@@ -43,6 +53,7 @@ def register(
     ready_for_control: bool,
     guaranteed: bool = True,
     reference: str = "",
+    floor: str | None = None,
 ):
     """Class decorator registering an :class:`~observers.base.Observer` under ``name``.
 
@@ -50,8 +61,9 @@ def register(
     ----------
     name : str
         Public name used in configs and tables (e.g. ``"FRad-A"``).
-    family : {"strip", "propagation", "interval", "data-driven", "stochastic"}
-        Observer type, as in the papers' classification.
+    family : {"strip", "propagation", "interval", "data-driven", "stochastic", "reference"}
+        Observer type, as in the papers' classification (``"reference"``: the exact
+        reference ``Exact``).
     set_type : str
         Set representation of the estimates (``"zonotope"``, ``"ellipsoid"``, ...).
     ready_for_control : bool
@@ -60,9 +72,20 @@ def register(
         False for non-guaranteed baselines (their containment failures are counted, not bugs).
     reference : str
         Literature reference shown by ``available()``.
+    floor : {"filtered", "predicted"}, optional
+        Which exact set the observer's sets are compared with (``Exact``'s two floors): the
+        states consistent with the record up to ``y[k]`` (``"filtered"``, for observers whose
+        set of step k uses ``y[k]``: strip-based, data-driven) or up to ``y[k-1]``
+        (``"predicted"``, for observers whose set of step k is ready before ``y[k]``:
+        propagation and interval observers).  Default: ``"predicted"`` for the families
+        ``propagation`` and ``interval``, else ``"filtered"`` (:data:`FAMILY_FLOORS`).
     """
     if family not in FAMILIES:
         raise ObserverError(f"unknown observer family '{family}' (known: {', '.join(FAMILIES)})")
+    floor = FAMILY_FLOORS.get(family, "filtered") if floor is None else floor
+    if floor not in FLOORS:
+        raise ObserverError(f"unknown floor '{floor}' of observer '{name}' (known: "
+                            f"{', '.join(FLOORS)})")
 
     def decorate(cls):
         existing = _REGISTRY.get(name)
@@ -71,7 +94,8 @@ def register(
                 f"observer name '{name}' is already registered by {existing.cls.__module__}."
                 f"{existing.cls.__qualname__}"
             )
-        info = ObserverInfo(name, cls, family, set_type, ready_for_control, guaranteed, reference)
+        info = ObserverInfo(name, cls, family, set_type, ready_for_control, guaranteed, reference,
+                            floor)
         cls.name = name
         cls.info = info
         _REGISTRY[name] = info

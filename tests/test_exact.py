@@ -1,0 +1,307 @@
+"""The exact reference ``Exact``: agreement with independent LP formulations, hand-derived
+hulls, containment, the two floors, the cache, and its refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import observers
+import systems
+from observers import registry
+from observers.builtin.exact import exact_hulls
+from observers.errors import Unsupported
+from observers.numerics.exact import ExactHullLP, ExactSet
+from observers.numerics.exact_reference import dense_hulls, explicit_hulls
+from observers.sets import EmptySet, Zonotope
+
+#: agreement with the independent formulations, relative to the radius (issue 24)
+RTOL = 1e-6
+
+
+def _sets(s) -> tuple:
+    return tuple((S.c, S.G) for S in (s.X0, s.W, s.V))
+
+
+def _exact(s, u, y, cache: bool = False) -> dict[str, np.ndarray]:
+    return exact_hulls(s, u, y, cache=cache)
+
+
+def _assert_agree(got: dict, ref: dict, what: str) -> None:
+    """Every step of ``ref`` (step -> pred_lo, pred_hi, filt_lo, filt_hi) within RTOL of the
+    reference radius."""
+    for k, (plo, phi, flo, fhi) in ref.items():
+        for floor, lo, hi in (("pred", plo, phi), ("filt", flo, fhi)):
+            r = 0.5 * (hi - lo)
+            assert np.all(r > 0), (what, k, floor)
+            err = np.maximum(np.abs(got[f"{floor}_lo"][k] - lo), np.abs(got[f"{floor}_hi"][k] - hi))
+            assert np.all(err <= RTOL * r), (what, k, floor, (err / r).max())
+
+
+# -- (a) agreement with the dense LP over the noise factors, from scratch ----------------------
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "steps"), [("tank6-linear", 40), ("vehicle6d-cora", 40)])
+def test_agrees_with_the_dense_lp_at_every_step(name, steps):
+    sc = systems.scenario(name)
+    s, u, y = sc.system, sc.u[:steps], sc.y[:steps]
+    got = _exact(s, u, y)
+    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), u, y)
+    assert sorted(ref) == list(range(steps))
+    _assert_agree(got, ref, name)
+
+
+def _general_system(seed: int = 3) -> systems.LinearSystem:
+    """3 states, 2 outputs with a dense C; X0, W and V with generators that are not
+    axis-aligned (the factor columns of the formulation) next to axis-aligned ones."""
+    rng = np.random.default_rng(seed)
+    A = np.array([[0.9, 0.2, 0.0], [-0.1, 0.8, 0.3], [0.05, 0.0, 0.95]])
+    B = np.array([[1.0], [0.0], [0.5]])
+    C = np.array([[1.0, 0.5, 0.0], [0.0, 1.0, -1.0]])
+    X0 = Zonotope([0.5, -0.2, 0.1], np.hstack([np.eye(3), rng.uniform(-0.5, 0.5, (3, 2))]))
+    W = Zonotope(np.zeros(3), np.hstack([np.diag([0.02, 0.0, 0.01]),
+                                         rng.uniform(-0.03, 0.03, (3, 2))]))
+    V = Zonotope(np.zeros(2), np.array([[0.05, 0.02], [-0.01, 0.04]]))
+    return systems.LinearSystem(A, B, C, W, V, X0)
+
+
+def test_agrees_with_both_formulations_on_general_sets():
+    s = _general_system()
+    sim = systems.simulate(s, 0.3 * np.sin(np.arange(15)).reshape(-1, 1), seed=4)
+    got = _exact(s, sim.u, sim.y)
+    _assert_agree(got, dense_hulls(s.A, s.B, s.C, *_sets(s), sim.u, sim.y), "dense")
+    _assert_agree(got, explicit_hulls(s.A, s.B, s.C, *_sets(s), sim.u, sim.y), "explicit")
+
+
+def test_agrees_with_the_dense_lp_on_the_alamo_example():
+    sc = systems.scenario("alamo2d-sim")  # W is a segment: one general generator
+    s = sc.system
+    got = _exact(s, sc.u, sc.y)
+    _assert_agree(got, dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y), "alamo2d-sim")
+
+
+# -- (b) hand-derived hulls --------------------------------------------------------------------
+def test_scalar_random_walk_by_hand():
+    """x+ = x + u + w, y = x + v in one dimension: intervals are exact there, so the hulls are
+    the interval recursion F0 = X0 & S0, P_k = F_{k-1} + u + W, F_k = P_k & S_k."""
+    s = systems.LinearSystem([[1.0]], [[1.0]], [[1.0]], W=Zonotope.box([0.1]),
+                             V=Zonotope.box([0.2]), X0=Zonotope.box([1.0]))
+    u = np.array([[0.0], [0.25], [0.0]])
+    y = np.array([[0.5], [0.9], [0.7], [1.3]])
+    h = _exact(s, u[:2], y[:3])
+    # F0 = [-1, 1] & [0.3, 0.7]; P1 = [0.2, 0.8]; F1 = [0.7, 0.8]; P2 = [0.85, 1.15];
+    # F2 = [0.85, 0.9]; P3 = [0.75, 1.0]; F3 = [1.1, 1.5] & P3 = empty -> see below
+    expect_pred = [(-1.0, 1.0), (0.2, 0.8), (0.85, 1.15)]
+    expect_filt = [(0.3, 0.7), (0.7, 0.8), (0.85, 0.9)]
+    for k in range(3):
+        np.testing.assert_allclose([h["pred_lo"][k, 0], h["pred_hi"][k, 0]], expect_pred[k],
+                                   atol=1e-9)
+        np.testing.assert_allclose([h["filt_lo"][k, 0], h["filt_hi"][k, 0]], expect_filt[k],
+                                   atol=1e-9)
+    # y[3] = 1.3: S3 = [1.1, 1.5] misses P3 = [0.75, 1.0]: no consistent state at step 3
+    with pytest.raises(EmptySet, match=r"step 3.*inconsistent with the model"):
+        _exact(s, np.vstack([u, [[0.0]]]), y)
+
+
+def _double_integrator(C=((1.0, 0.0),)) -> systems.LinearSystem:
+    """x+ = [[1, 1], [0, 1]] x, no process noise, y = x_1 + v with |v| <= 0.1, X0 = [-1, 1]^2."""
+    return systems.LinearSystem([[1.0, 1.0], [0.0, 1.0]], np.zeros((2, 0)), np.array(C),
+                                W=Zonotope.box([0.0, 0.0]), V=Zonotope.box([0.1] * len(C)),
+                                X0=Zonotope.box([1.0, 1.0]))
+
+
+def test_double_integrator_by_hand():
+    """y = 0 three times: x_k = (a + k b, b) with |a| <= 0.1 (y0), |a + b| <= 0.1 (y1) and
+    |a + 2 b| <= 0.1 (y2).  Filtered hulls: step 0 [-0.1, 0.1] x [-1, 1]; step 1 x_1 = a + b
+    in [-0.1, 0.1], b in [-0.2, 0.2]; step 2 b in [-0.1, 0.1] (b = 0.1, a = -0.1 meets all).
+    Predicted: step 1 (a + b, b) over |a| <= 0.1, |b| <= 1: [-1.1, 1.1] x [-1, 1]; step 2
+    a + 2 b <= 0.3 (b = 0.2, a = -0.1) and b in [-0.2, 0.2].  An interval recursion never
+    learns b (it stays [-1, 1]): the exact set keeps the coupling."""
+    s = _double_integrator()
+    h = _exact(s, np.zeros((3, 0)), np.zeros((3, 1)))
+    np.testing.assert_allclose(h["filt_hi"], [[0.1, 1.0], [0.1, 0.2], [0.1, 0.1]], atol=1e-9)
+    np.testing.assert_allclose(h["filt_lo"], -h["filt_hi"], atol=1e-9)
+    np.testing.assert_allclose(h["pred_hi"], [[1.0, 1.0], [1.1, 1.0], [0.3, 0.2]], atol=1e-9)
+    np.testing.assert_allclose(h["pred_lo"], -h["pred_hi"], atol=1e-9)
+
+
+# -- (c) containment ---------------------------------------------------------------------------
+@pytest.mark.parametrize("noise", ["uniform", "vertex"])
+def test_simulated_trajectories_lie_in_every_hull(noise):
+    """Records simulated with noise inside the bounds (vertex noise: on the boundary): the true
+    state is in both hulls of every step, and in the set (its LP membership test)."""
+    sc = systems.scenario("vehicle6d-cora")
+    s = sc.system
+    for seed in range(3):
+        sim = systems.simulate(s, sc.u[:30], seed=seed, noise=noise)
+        obs = observers.create("Exact", s, cache=False)
+        res = observers.run(obs, sim.u, sim.y)
+        h = obs.hull_arrays()
+        x = sim.x_true
+        tol = 1e-9 * (1 + np.abs(x))
+        for floor in ("pred", "filt"):
+            assert np.all(h[f"{floor}_lo"] <= x + tol) and np.all(x <= h[f"{floor}_hi"] + tol), (
+                noise, seed, floor)
+        for k in (0, 7, 29):
+            assert res.sets[k].contains(x[k], 1e-9)
+
+
+def test_scenario_true_states_lie_in_every_hull():
+    for name in ("tank6-linear", "vehicle6d-cora"):
+        sc = systems.scenario(name)
+        h = _exact(sc.system, sc.u[:60], sc.y[:60])
+        x = sc.x_true[:60]
+        for floor in ("pred", "filt"):
+            assert np.all(h[f"{floor}_lo"] <= x + sc.tolerance), (name, floor)
+            assert np.all(x <= h[f"{floor}_hi"] + sc.tolerance), (name, floor)
+
+
+def test_contains_rejects_a_point_in_the_hull_but_not_in_the_set():
+    """Double integrator, step 1 (hand case): the hull is [-0.1, 0.1] x [-0.2, 0.2] but the
+    set is {(a + b, b): |a| <= 0.1, |a + b| <= 0.1}, so (-0.1, 0.2) (needs a = -0.3) is out
+    and (0.1, 0.2) (a = -0.1) is in."""
+    s = _double_integrator()
+    res = observers.run(observers.create("Exact", s, cache=False), np.zeros((2, 0)),
+                        np.zeros((2, 1)))
+    S = res.sets[1]
+    assert isinstance(S, ExactSet) and S.dim == 2
+    assert S.contains([0.1, 0.2], 1e-9)
+    assert not S.contains([-0.1, 0.2], 1e-9)
+    assert not S.contains([0.0, 0.5], 1e-9)  # outside the hull
+
+
+# -- (d) the two floors ------------------------------------------------------------------------
+def test_predicted_hull_contains_the_filtered_hull():
+    sc = systems.scenario("tank6-linear")
+    h = _exact(sc.system, sc.u[:40], sc.y[:40])
+    assert np.all(h["pred_lo"] <= h["filt_lo"]) and np.all(h["filt_hi"] <= h["pred_hi"])
+    assert np.any(h["pred_hi"] - h["pred_lo"] > h["filt_hi"] - h["filt_lo"] + 1e-6)
+
+
+def test_predicted_hull_is_the_prediction_of_the_exact_filtered_set():
+    """Step 1 of the double integrator: the filtered set of step 0 is the box
+    [-0.1, 0.1] x [-1, 1] (X0 cut by y0), its image under A (no noise) has the hull
+    [-1.1, 1.1] x [-1, 1]; the observer exposes it as predicted_hull() and S.predicted."""
+    s = _double_integrator()
+    obs = observers.create("Exact", s, cache=False)
+    S0 = obs.step(None, np.zeros(1))
+    np.testing.assert_allclose(S0.predicted.hi, [1.0, 1.0], atol=1e-12)  # step 0: X0
+    S1 = obs.step(np.zeros(0), np.zeros(1))
+    box = S0.interval()
+    corners = np.array([[a, b] for a in (box.lo[0], box.hi[0]) for b in (box.lo[1], box.hi[1])])
+    image = corners @ np.array(s.A).T
+    np.testing.assert_allclose(obs.predicted_hull().lo, image.min(axis=0), atol=1e-9)
+    np.testing.assert_allclose(obs.predicted_hull().hi, image.max(axis=0), atol=1e-9)
+    assert obs.predicted_hull() == S1.predicted
+
+
+def test_registry_entry_and_floors():
+    info = observers.get("Exact")
+    assert (info.family, info.guaranteed, info.floor) == ("reference", True, "filtered")
+    assert observers.names()[0] == "Exact"
+    for i in observers.available():
+        assert i.floor in registry.FLOORS
+        # the set of step k of an observer ready before y[k] cannot use y[k]
+        assert (i.floor == "predicted") == (i.family in ("propagation", "interval")), i.name
+        if i.family in ("propagation", "interval"):
+            assert i.ready_for_control, i.name
+    with pytest.raises(observers.ObserverError, match="unknown floor 'smoothed'"):
+        observers.register("Test-Floor", family="strip", set_type="zonotope",
+                           ready_for_control=False, floor="smoothed")
+
+
+@pytest.mark.parametrize("name", ["FRad-C", "PRad-E", "Nom-G", "ESO-C", "ESO-D", "Hinf-G",
+                                  "FRad-A", "FRad-B", "CZN-A", "CZN-B", "ESO-A", "ROPO"])
+def test_floor_matches_what_the_step_reads(name):
+    """Perturbing y[k] leaves the set of step k unchanged exactly for the observers held
+    against the predicted floor, and changes it for those held against the filtered one."""
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create(name, sc.system)
+    k = 4
+    y = sc.y[: k + 1].copy()
+    a = observers.run(obs, sc.u[: k + 1], y)
+    y[k] += 0.05
+    b = observers.run(obs, sc.u[: k + 1], y)
+    same = np.array_equal(a.lo[k], b.lo[k]) and np.array_equal(a.hi[k], b.hi[k])
+    assert same == (observers.get(name).floor == "predicted"), name
+
+
+# -- (e) the cache -----------------------------------------------------------------------------
+def test_cache_hit_and_miss(tmp_path, monkeypatch):
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    sc = systems.scenario("vehicle2d-cora")
+    s, u, y = sc.system, sc.u[:25], sc.y[:25]
+    obs = observers.create("Exact", s)
+    first = observers.run(obs, u, y)
+    assert (obs.computed_steps, obs.cached_steps) == (25, 0)
+    assert len(list(tmp_path.glob("Exact-*.npz"))) == 1
+    second = observers.create("Exact", s)
+    again = observers.run(second, u, y)
+    assert (second.computed_steps, second.cached_steps) == (0, 25)
+    assert second.lp_stats["solves"] == 0
+    np.testing.assert_array_equal(again.lo, first.lo)
+    np.testing.assert_array_equal(again.hi, first.hi)
+    # a record changed at step 10: steps 0-9 from the cache, the rest computed
+    y2 = y.copy()
+    y2[10] += 1e-3
+    changed = observers.create("Exact", s)
+    res = observers.run(changed, u, y2)
+    assert (changed.cached_steps, changed.computed_steps) == (10, 15)
+    fresh = _exact(s, u, y2)
+    np.testing.assert_allclose(res.lo, fresh["filt_lo"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(res.hi, fresh["filt_hi"], rtol=0, atol=1e-9)
+    # a changed first measurement misses entirely; a changed model too
+    y3 = y.copy()
+    y3[0] += 1e-3
+    other = observers.create("Exact", s)
+    observers.run(other, u, y3)
+    assert other.cached_steps == 0
+    s2 = systems.LinearSystem(s.A, s.B, s.C, W=Zonotope.box(1.5 * s.W.interval().hi), V=s.V,
+                              X0=s.X0)
+    model = observers.create("Exact", s2)
+    observers.run(model, u, y)
+    assert model.cached_steps == 0
+
+
+def test_cache_off(tmp_path, monkeypatch):
+    monkeypatch.setenv("SETOBS_CACHE_DIR", "off")
+    sc = systems.scenario("vehicle2d-cora")
+    obs = observers.create("Exact", sc.system)
+    observers.run(obs, sc.u[:5], sc.y[:5])
+    observers.run(obs, sc.u[:5], sc.y[:5])
+    assert obs.cached_steps == 0 and obs.computed_steps == 5
+
+
+# -- (f) nonlinear systems ---------------------------------------------------------------------
+def test_nonlinear_system_is_refused_in_one_line():
+    sc = systems.scenario("tank6-nonlinear-cora")
+    with pytest.raises(Unsupported, match="Exact needs a linear system") as exc:
+        observers.create("Exact", sc.system)
+    assert "\n" not in str(exc.value)
+
+
+# -- (g) inconsistent records ------------------------------------------------------------------
+def test_measurement_outside_x0_plus_v_is_reported():
+    sc = systems.scenario("vehicle6d-cora")
+    y = sc.y[:5].copy()
+    y[0, 0] = 1e3  # far outside C X0 + V
+    res = observers.run(observers.create("Exact", sc.system, cache=False), sc.u[:5], y)
+    assert res.status == "empty" and res.failed_step == 0
+    assert "inconsistent with the model" in res.message and "step 0" in res.message
+
+
+def test_inconsistent_later_measurement_is_reported_by_the_lp():
+    """y = x_1 + x_2 (not a bound on one state, so the LP itself must find the record
+    infeasible): y[2] contradicts y[0], y[1] and the dynamics."""
+    s = _double_integrator(C=((1.0, 1.0),))
+    y = np.array([[0.0], [0.0], [5.0]])
+    res = observers.run(observers.create("Exact", s, cache=False), np.zeros((3, 0)), y)
+    assert res.status == "empty" and res.failed_step == 2
+    assert "step 2" in res.message and "inconsistent with the model" in res.message
+    assert "proved by a Farkas certificate" in res.message  # HiGHS's verdict checked
+
+
+def test_engine_needs_first_step():
+    s = _double_integrator()
+    E = ExactHullLP(s.A, s.B, s.C, *_sets(s))
+    with pytest.raises(RuntimeError, match="first"):
+        E.advance(np.zeros(0), np.zeros(1))
