@@ -19,9 +19,11 @@ YES, NO, NA = "yes", "no", "n/a"
 #: guaranteed observer with ``no`` in any of them present is unsound: never the reference of
 #: eq. (9), never called tighter by ``check``, never written by ``baseline --update``.
 #: ``contained``: exact membership of the true state in every set (the gate computes it beside
-#: the hull test of its subset).  Extend this tuple with a new verdict column (e.g.
-#: ``covers_exact``) and every rule above applies to it.
-SOUNDNESS_COLUMNS: tuple[str, ...] = ("contained",)
+#: the hull test of its subset); ``covers_exact``: every set's interval hull contains the
+#: record's exact floor, the set of states consistent with the data (or, on a nonlinear
+#: record, no verified consistent state found outside it; :mod:`benchmarks.run.floor`).
+#: Extend this tuple with a new verdict column and every rule above applies to it.
+SOUNDNESS_COLUMNS: tuple[str, ...] = ("contained", "covers_exact")
 
 #: the containment mode of the regression gate: the hull test decides ``violations`` and
 #: ``contained_hull`` (as the golden files hold them); exact membership gives ``contained``
@@ -32,8 +34,10 @@ EXIT_OK, EXIT_VIOLATION, EXIT_BAD_INPUT, EXIT_CRASH, EXIT_BAD_DATA = 0, 1, 2, 3,
 
 #: the meaning of each exit code of ``run``
 EXIT_MEANINGS = {
-    EXIT_OK: "every observer ran and no guaranteed observer missed the true state",
-    EXIT_VIOLATION: "a guaranteed observer's set missed the true state (or became empty)",
+    EXIT_OK: "every observer ran and no guaranteed observer missed the true state or a state "
+             "consistent with the data",
+    EXIT_VIOLATION: "a guaranteed observer's set missed the true state or a state consistent "
+                    "with the data (or became empty)",
     EXIT_BAD_INPUT: "bad input (config, scenario, options, output folder), nothing written",
     EXIT_CRASH: "an observer crashed (status 'error') or was stopped ('timeout', 'memory'), "
                 "after the others ran",
@@ -42,8 +46,9 @@ EXIT_MEANINGS = {
 }
 
 EXIT_CODES_HELP = (
-    "exit status: 0 every observer ran and no guaranteed observer missed the true state; "
-    "1 a guaranteed observer's set missed the true state (or became empty); "
+    "exit status: 0 every observer ran and no guaranteed observer missed the true state or a "
+    "state consistent with the data; 1 a guaranteed observer's set missed the true state or a "
+    "state consistent with the data (covers_exact = no), or became empty; "
     "2 bad input (config, scenario, options, output folder), nothing written; "
     "3 an observer crashed (status 'error', its failing step in summary.csv) or was stopped "
     "over its time budget or memory limit (status 'timeout' or 'memory'), after the "
@@ -100,7 +105,8 @@ def unsound(summary: pd.DataFrame) -> pd.Series:
 
 
 def violating(summary: pd.DataFrame) -> pd.Series:
-    """Rows of guaranteed observers whose sets missed the true state (or became empty)."""
+    """Rows of guaranteed observers whose sets missed the true state or a state consistent
+    with the data (``no`` in a :data:`SOUNDNESS_COLUMNS` column), or became empty."""
     bad = (summary["status"] == "empty") | unsound(summary)
     for col in (contained_column("exact"), contained_column("hull")):
         if col in summary.columns:
@@ -111,14 +117,16 @@ def violating(summary: pd.DataFrame) -> pd.Series:
 def reference_rows(summary: pd.DataFrame) -> pd.Series:
     """Rows that may serve as the reference (the minimum) of eq. (9): successful guaranteed
     observers that violate containment on no scenario of the run (one proven unsound on one
-    record is no reference on a record without true states either)."""
+    record is no reference on a record without true states either); never the exact reference
+    ``Exact`` (family ``reference``: the floor, shown beside eq. 9 as the ``gap``)."""
     bad = violating(summary)
     keys = [c for c in ("observer", "variant") if c in summary.columns]
     who = pd.Series(list(zip(*(summary[k].astype(object).where(summary[k].notna(), "")
                                for k in keys), strict=True)), index=summary.index)
     unsound_anywhere = who.isin(set(who[bad]))
+    reference = (summary["family"] == "reference") if "family" in summary.columns else False
     return ((summary["status"] == "ok") & summary["guaranteed"].astype(bool)
-            & ~bad & ~unsound_anywhere)
+            & ~bad & ~unsound_anywhere & ~reference)
 
 
 def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
@@ -143,8 +151,9 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     lines = []
     if len(bad):
         lines.append("CONTAINMENT VIOLATIONS: " + ", ".join(
-            f"{o} on {s}" for s, o in sorted(set(zip(bad["scenario"], bad["observer"],
-                                                     strict=True)))))
+            f"{o} on {s}{_how(r)}" for s, o, r in sorted(
+                {(r.scenario, r.observer, r) for r in bad.itertuples(index=False)},
+                key=lambda t: (t[0], t[1]))))
     if len(crashed):
         lines.append("CRASHED: " + ", ".join(
             f"{r.observer} on {r.scenario} ({_where(r.failed_step, r.message)})"
@@ -159,6 +168,17 @@ def exit_code(summary: pd.DataFrame) -> tuple[int, list[str]]:
     code = (EXIT_VIOLATION if len(bad) else EXIT_BAD_DATA if len(bad_data)
             else EXIT_CRASH if len(crashed) or len(stopped) else EXIT_OK)
     return code, lines
+
+
+def _how(row) -> str:
+    """`` (misses consistent states at k steps, first at step j)`` for a row that failed the
+    exact floor, else ``""``."""
+    if str(getattr(row, "covers_exact", "")) != NO:
+        return ""
+    k, j = getattr(row, "uncovered_steps", None), getattr(row, "first_uncovered_step", None)
+    steps = f"{int(k)} step(s), " if pd.notna(k) else ""
+    first = f"first at step {int(j)}" if pd.notna(j) and int(j) >= 0 else ""
+    return f" (misses states consistent with the data: {steps}{first})"
 
 
 def _where(step, message="") -> str:

@@ -1,4 +1,4 @@
-"""The nonlinear falsifier (:mod:`benchmarks.gate.falsifier`): an unsound observer is caught
+"""The nonlinear falsifier (:mod:`benchmarks.run.falsifier`): an unsound observer is caught
 with a verified consistent state outside its hull, the built-in nonlinear observers are not,
 the verifier rejects noise beyond its bound, and on linear records the inner box found by the
 local search reaches the exact hull of an independent dense LP."""
@@ -13,7 +13,7 @@ from scipy.optimize import linprog
 
 import observers
 import systems
-from benchmarks.gate.falsifier import (
+from benchmarks.run.falsifier import (
     FACTOR_MARGIN,
     FalsifierResult,
     Trajectory,

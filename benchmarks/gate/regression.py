@@ -70,7 +70,11 @@ from ..verdicts import HULL_AND_EXACT, NO, SOUNDNESS_COLUMNS
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
 BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "guaranteed",
-                    "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread"]
+                    "rms_radius", "rel_rms", "violations", "rtol", "kernel_spread", "gap",
+                    "covers_exact"]
+#: the precision of the exact floor (its agreement with an independent LP formulation),
+#: added to an observer's tolerance where its gap is compared
+GAP_RTOL = 1e-6
 #: the time budget per job of the gate's subset, unless its configuration sets one (every job
 #: of the subset takes seconds, designs included)
 GATE_TIMEOUT = 300.0
@@ -145,7 +149,11 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
     frame = summary.copy()
     frame["rtol"] = [regression_rtol(o) for o in frame["observer"]]
     frame["kernel_spread"] = 0.0
-    verdicts = [c for c in SOUNDNESS_COLUMNS if c in frame.columns]
+    # the gap to the exact floor is gated; an upper bound (the falsifier's, on a nonlinear
+    # record) is a search's result, not a number to hold the observers to
+    frame.loc[frame["gap_kind"].astype(str) != "exact", "gap"] = float("nan")
+    verdicts = [c for c in SOUNDNESS_COLUMNS if c in frame.columns and c not in
+                BASELINE_COLUMNS]
     return frame[BASELINE_COLUMNS + verdicts], cache_note
 
 
@@ -221,6 +229,9 @@ def load_baseline(folder: str | Path) -> tuple[pd.DataFrame, dict]:
                               f"{str(exc).splitlines()[0]}") from None
         if "kernel_spread" not in df.columns:  # baselines written before it was measured
             df["kernel_spread"] = 0.0
+        for col, missing_value in (("gap", math.nan), ("covers_exact", "n/a")):
+            if col not in df.columns:  # baselines written before the exact floor existed
+                df[col] = missing_value
         missing = [c for c in BASELINE_COLUMNS if c not in df.columns]
         if missing:
             raise ConfigError(f"baseline file {path} lacks column(s) {missing}")
@@ -267,8 +278,9 @@ def _best_rtol(base: pd.DataFrame, rtols: dict[tuple[str, str], float]
 
 def _normalise(df: pd.DataFrame) -> pd.DataFrame:
     df = df.copy()
-    for col in ("rms_radius", "rel_rms", "violations", "rtol"):
+    for col in ("rms_radius", "rel_rms", "violations", "rtol", "gap"):
         df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
+    df["covers_exact"] = df["covers_exact"].fillna("n/a").astype(str)
     df["state"] = df["state"].astype(int)
     df["status"] = df["status"].astype(str)
     df["guaranteed"] = df["guaranteed"].astype(str).str.lower().isin(["true", "1"])
@@ -303,8 +315,8 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
                          note + (f"; {FAILING}{culprit}" if culprit else "")))
     for (sc, obs), col in sorted(bad_verdicts.items()):
         if (sc, obs) in bpairs:
-            rows.append(_row(sc, obs, "-", col, "-", NO, "", False,
-                             "the true state is outside one of its sets (exact membership)"))
+            rows.append(_row(sc, obs, "-", col, "-", NO, "", False, VERDICT_NOTES.get(
+                col, "a soundness verdict says no")))
     keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
     common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
     # the larger of the stored (class or measured) and the current class tolerance
@@ -342,6 +354,10 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
             same = (math.isnan(vb) and math.isnan(vc)) or vb == vc
             rows.append(_row(sc, obs, "-", "violations", vb, vc, 0.0, same,
                              "" if same else "containment changed"))
+            cb, cc = r.covers_exact_b, r.covers_exact_c
+            if cb != "n/a" or cc != "n/a":  # gated once the baseline has the exact floor
+                rows.append(_row(sc, obs, "-", "covers_exact", cb, cc, 0.0, cb == cc,
+                                 "" if cb == cc else "covering of the exact floor changed"))
         if r.status_c == "ok":
             rows.append(_row(sc, obs, label, "rms_radius", float(r.rms_radius_b),
                              float(r.rms_radius_c), rtol,
@@ -349,9 +365,21 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
             tol_rel = rtol + best.get((sc, st), rtol)
             rows.append(_row(sc, obs, label, "rel_rms", float(r.rel_rms_b), float(r.rel_rms_c),
                              tol_rel, _close(float(r.rel_rms_c), float(r.rel_rms_b), tol_rel)))
+            gb, gc = float(r.gap_b), float(r.gap_c)
+            if not math.isnan(gb):  # an upper bound (nonlinear record) moves with its search
+                tol_gap = rtol + GAP_RTOL
+                rows.append(_row(sc, obs, label, "gap", gb, gc, tol_gap,
+                                 _close(gc, gb, tol_gap)))
     return pd.DataFrame(rows, columns=["scenario", "observer", "state", "metric", "baseline",
                                        "current", "rel_diff", "tol", "ok", "note"])
 
+
+#: what a ``no`` in each soundness verdict column means, in the diff
+VERDICT_NOTES = {
+    "contained": "the true state is outside one of its sets (exact membership)",
+    "covers_exact": "a state consistent with the data lies outside one of its interval hulls "
+                    "(exact floor, or the falsifier on a nonlinear record)",
+}
 
 #: marks what went wrong with a plugin in its diff note
 FAILING = "failing: "

@@ -371,7 +371,7 @@ def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str]
 
 
 def heat_map(values: pd.DataFrame, title: str, reference: str,
-             base: Path) -> list[Path] | None:
+             base: Path, label: str = "log10 v_i") -> list[Path] | None:
     """A ratio per observer and state (``values``: observers as rows in table order, states as
     columns, e.g. the v_i of the scenario table) as a heat map with a log colour scale; the
     title names the reference of the ratios."""
@@ -392,7 +392,7 @@ def heat_map(values: pd.DataFrame, title: str, reference: str,
                 ax.text(j, i, f"{v:.3g}", ha="center", va="center", fontsize=6,
                         color="w" if np.log10(v) > mid else "k")
     cb = fig.colorbar(im, ax=ax)
-    cb.set_label("log10 v_i", fontsize=7)
+    cb.set_label(label, fontsize=7)
     width = max(int(fig.get_figwidth() * 14), 40)
     ax.set_title(textwrap.fill(title, width) + "\n" + textwrap.fill(reference, width),
                  fontsize=8, loc="left")

@@ -41,6 +41,8 @@ from .tables import (
     INTRO,
     absolute_table_caption,
     absolute_table_data,
+    gap_table_caption,
+    gap_table_data,
     relative_values,
     scenario_facts,
     scenario_notes,
@@ -84,7 +86,8 @@ nav a{margin-right:1em}
 
 #: click a header to sort (numbers by the value before any parenthesis; "-" and words last)
 SORT_JS = """
-function cellKey(td){var t=td.textContent.trim();var m=t.match(/^[-+]?\\d*\\.?\\d+(e[-+]?\\d+)?/i);
+function cellKey(td){var t=td.textContent.trim().replace(/^<=\\s*/,'');
+var m=t.match(/^[-+]?\\d*\\.?\\d+(e[-+]?\\d+)?/i);
 return m?parseFloat(m[0]):null}
 function sortTable(th){var table=th.closest('table');var body=table.tBodies[0];
 var idx=Array.prototype.indexOf.call(th.parentNode.children,th);
@@ -131,7 +134,7 @@ def inline(text: str) -> str:
 _cell = inline
 
 
-_NUMBER = re.compile(r"^\**[-+]?(\d|\.\d)")
+_NUMBER = re.compile(r"^\**(<= )?[-+]?(\d|\.\d)")
 
 
 def html_table(head: list[str], rows: list[list[str]], table_id: str = "") -> str:
@@ -180,7 +183,8 @@ def markdown_to_html(lines: list[str]) -> list[str]:
 def ranking(summary: pd.DataFrame) -> pd.DataFrame:
     """Ranking summary over the scenarios of a run: per observer the mean relative RMS per
     scenario (eq. 9 against all observers of the run), its rank in each scenario (1 = the
-    tightest), the mean rank over the scenarios where it ran, and its containment violations.
+    tightest), the mean rank over the scenarios where it ran, the mean over the linear records
+    of its mean gap to the exact floor (1 = optimal), and its containment violations.
     Observers that failed or do not apply in a scenario are not ranked there."""
     df = summary[summary["status"] != "unsupported"]
     per = (df[df["status"] == "ok"].groupby(["scenario", "observer"])["rel_rms"].mean()
@@ -194,19 +198,50 @@ def ranking(summary: pd.DataFrame) -> pd.DataFrame:
     out = out.reindex(table_order(pairs["observer"].unique()))
     out["failed"] = failed.reindex(out.index).fillna(0).astype(int)
     out["violations"] = viol.reindex(out.index)
+    if "gap" in df.columns:  # mean over the scenarios of the mean gap to the exact floor
+        exact = df[(df["status"] == "ok") & (df["gap_kind"] == "exact")]
+        gap = exact.assign(gap=pd.to_numeric(exact["gap"], errors="coerce")).groupby(
+            ["scenario", "observer"])["gap"].mean().groupby("observer").mean()
+        out["mean_gap"] = gap.reindex(out.index)
+    else:
+        out["mean_gap"] = np.nan
     return out.sort_values(["mean_rank", "mean_rel_rms"], na_position="last")
 
 
 def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """Header and rows of :func:`ranking` (each number column in one notation)."""
     rk = ranking(summary)
-    head = ["Observer", "mean rank", "mean rel. RMS", "scenarios ranked", "failed",
-            "violations"]
-    rows = [[obs, Num(r.mean_rank), Num(r.mean_rel_rms), str(int(r.ranked))
+    head = ["Observer", "mean rank", "mean rel. RMS", "mean gap (exact floor)",
+            "scenarios ranked", "failed", "violations"]
+    rows = [[obs, Num(r.mean_rank), Num(r.mean_rel_rms), Num(r.mean_gap), str(int(r.ranked))
              if pd.notna(r.ranked) else "0", str(int(r.failed)),
              MISSING if pd.isna(r.violations) else str(int(r.violations))]
             for obs, r in rk.iterrows()]
     return head, format_columns(rows)
+
+
+def gap_heat_map(df: pd.DataFrame, scenario: str, names: list[str], base: Path
+                 ) -> tuple[list[Path] | None, str]:
+    """The gap to the floor per observer and state as a heat map, and its caption; nothing
+    without a floor."""
+    if "gap" not in df.columns:
+        return None, ""
+    ok = df[(df["status"] == "ok")].assign(gap=lambda d: pd.to_numeric(d["gap"],
+                                                                       errors="coerce"))
+    mat = ok.pivot_table(index="observer", columns="state", values="gap")
+    if mat.empty or not np.isfinite(mat.to_numpy(float)).any():
+        return None, ""
+    mat = mat.reindex(table_order(mat.index))
+    mat.columns = [names[i] if i < len(names) else f"x{i + 1}" for i in mat.columns]
+    upper = ok["gap_kind"].astype(str).str.startswith("upper").any()
+    reference = ("reference: an inner box of the consistent set (falsifier), so each value is "
+                 "an upper bound of the gap" if upper else
+                 "reference: the exact consistent set of the record (Exact), filtered or "
+                 "predicted as each observer's floor")
+    paths = heat_map(mat, f"{scenario}: gap to the floor per observer and state (1 = optimal)",
+                     reference, base, label="log10 gap")
+    return paths, (f"gap of the table above per observer and state, log colour scale; "
+                   f"{reference}")
 
 
 def time_figure(df: pd.DataFrame, scenario: str, meta: dict,
@@ -285,6 +320,27 @@ def layered_figure_html(fig: LayeredFigure | None, fig_id: str, page_dir: Path,
 #: observers shown at first in the bounds figure (the tightest by average ratio; observers
 #: with a violation are always shown)
 FIRST_VIEW = 6
+
+
+def floor_bands(runs: pd.DataFrame, df: pd.DataFrame, scenario: str
+                ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The exact floors of a linear record as bands of the bounds figure (``floor_lo`` and
+    ``floor_hi`` of ``runs.csv`` on the rows of an observer held against each floor);
+    nothing for a record without an exact floor."""
+    if "floor_lo" not in runs.columns or "gap_kind" not in df.columns:
+        return {}
+    out = {}
+    for floor, label in (("filtered", "exact set (after y_k)"),
+                         ("predicted", "exact set (before y_k)")):
+        who = df[(df["floor"] == floor) & (df["gap_kind"] == "exact")]["observer"]
+        if who.empty:
+            continue
+        g = runs[(runs["scenario"] == scenario) & (runs["observer"] == who.iloc[0])]
+        lo = g.pivot_table(index="step", columns="state", values="floor_lo", dropna=False)
+        hi = g.pivot_table(index="step", columns="state", values="floor_hi", dropna=False)
+        if np.isfinite(lo.to_numpy(float)).any():
+            out[label] = (lo.to_numpy(float), hi.to_numpy(float))
+    return out
 
 
 def bounds_figure(runs: pd.DataFrame, df: pd.DataFrame, scenario: str, info: dict,
@@ -403,6 +459,11 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
             body += ["<h3>Absolute RMS radii</h3>",
                      f'<p class="caption">{inline(absolute_table_caption(df, meta))}</p>',
                      html_table(*absolute, table_id=f"absolute-{sc}")]
+        gaps = gap_table_data(df, meta) if len(df) else None
+        if gaps:
+            body += ["<h3>Gap to the exact floor</h3>",
+                     f'<p class="caption">{inline(gap_table_caption(df))}</p>',
+                     html_table(gaps[0], format_columns(gaps[1]), table_id=f"gap-{sc}")]
         notes = scenario_notes(full)
         if notes:
             body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"
@@ -410,8 +471,9 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
         if figures and len(df):
             base = fig_dir / path_component(sc)  # a name, never a path
             if runs is not None:
+                sc_bands = {**floor_bands(runs, df, sc), **(bands or {}).get(sc, {})}
                 fig, caption = bounds_figure(runs, df, sc, info, meta, base / "bounds",
-                                             (bands or {}).get(sc))
+                                             sc_bands or None)
                 body.append(layered_figure_html(fig, f"bounds-{sc}", page_dir, caption))
             rel, reference = relative_values(df, meta)
             mat = (df.assign(_rel=rel)[df["status"] == "ok"]
@@ -421,9 +483,11 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
             mat.columns = [names[i] if i < len(names) else f"x{i + 1}" for i in mat.columns]
             heat = heat_map(mat, f"{sc}: v_i per observer and state (1 = the reference)",
                             reference, base / "rel_rms_heatmap") if len(mat) else None
+            gap_heat, gap_caption = gap_heat_map(df, sc, names, base / "gap_heatmap")
             times, time_caption = time_figure(full, sc, meta, base / "step_time")
             figs = [figure_html(heat, page_dir, f"v_i of the table above, per observer and "
                                 f"state, log colour scale; {reference}"),
+                    figure_html(gap_heat, page_dir, gap_caption),
                     figure_html(times, page_dir, time_caption)]
             body.append('<div class="figures">' + "".join(f for f in figs if f) + "</div>")
     body += ['<h2 id="ranking">Ranking summary</h2>',

@@ -13,10 +13,13 @@ from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
 from .figures import observer_bounds
+from .numbers import markdown_table
 from .tables import (
     INTRO,
     absolute_table,
     absolute_table_caption,
+    gap_table_caption,
+    gap_table_data,
     scenario_facts,
     scenario_notes,
     scenario_table,
@@ -59,6 +62,9 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         abs_table = absolute_table(df, meta) if len(df) else ""
         if abs_table:
             parts += [absolute_table_caption(df, meta), "", abs_table, ""]
+        gaps = gap_table_data(df, meta) if len(df) else None
+        if gaps:
+            parts += [gap_table_caption(df), "", markdown_table(*gaps), ""]
         notes = scenario_notes(full)
         parts += [f"- {note}" for note in notes] + ([""] if notes else [])
         if runs is not None:

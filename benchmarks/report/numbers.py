@@ -122,6 +122,9 @@ class Num:
         Appended to the number.
     bold : bool
         Markdown bold (``**x**``).
+    prefix : str
+        Written before a number (not before :data:`MISSING`), e.g. ``"<= "`` for an upper
+        bound.
     """
 
     value: Any
@@ -129,6 +132,7 @@ class Num:
     note: str | None = None
     unit: str = ""
     bold: bool = False
+    prefix: str = ""
 
     def numbers(self) -> list[Any]:
         """The values that decide the column's notation."""
@@ -137,6 +141,8 @@ class Num:
     def render(self, notation: str, digits: int = DIGITS) -> str:
         """The cell text in ``notation``."""
         text = fmt(self.value, digits, self.unit, notation)
+        if self.prefix and text != MISSING:
+            text = self.prefix + text
         if self.paper is not None:
             text += f" ({fmt(self.paper, digits, notation=notation)})"
         elif self.note is not None:

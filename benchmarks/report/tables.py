@@ -48,7 +48,16 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "(unsound) violates containment and is never the reference of a ratio. `(n/a)` after "
          "the average and the time: the observer is not part of the published comparison "
          "(the paper has no row for it, e.g. ROPO, CZN, the data-driven observers), so there "
-         "is no published value to deviate from.")
+         "is no published value to deviate from. `gap`: how far an observer is from the best "
+         "any guaranteed observer could do, its RMS radius over the RMS radius of the set of "
+         "states consistent with the data (the exact floor, computed by the reference "
+         "estimator `Exact`, first row; the filtered floor after y_k for observers that use "
+         "y_k, the predicted one before it for those ready before it), averaged over the "
+         "states (per state in the table below); on a nonlinear record an upper bound "
+         "(`<=`, against an inner box of verified consistent states). `covers exact`: `yes` "
+         "if every interval hull contains the exact floor, `no` with the steps where a state "
+         "consistent with the data lies outside it (unsound, whatever the true state did), "
+         "`n/a` where nothing could prove it.")
 
 
 def _contained_col(df: pd.DataFrame) -> str:
@@ -76,6 +85,76 @@ def _status_cell(g: pd.DataFrame) -> str:
         return NA if pd.isna(verdict) else str(verdict)
     step = g["failed_step"].iloc[0]
     return f"{status}" + (f" (step {int(step)})" if pd.notna(step) else "")
+
+
+def _gap_values(g: pd.DataFrame) -> np.ndarray:
+    """The per-state gap of one observer's rows (NaN where none: no floor, a failed run)."""
+    if "gap" not in g.columns or g["status"].iloc[0] != "ok":
+        return np.full(len(g), np.nan)
+    return pd.to_numeric(g["gap"], errors="coerce").to_numpy(float)
+
+
+def _upper(g: pd.DataFrame) -> bool:
+    return "gap_kind" in g.columns and str(g["gap_kind"].iloc[0]).startswith("upper")
+
+
+def _gap_cell(g: pd.DataFrame) -> Num:
+    """The ``gap`` cell: the mean over the states (``<=`` for an upper bound)."""
+    gap = _gap_values(g)
+    avg = float(np.mean(gap)) if np.isfinite(gap).all() else None
+    return Num(avg, prefix="<= " if _upper(g) else "")
+
+
+def _covers_cell(g: pd.DataFrame) -> str:
+    """The ``covers exact`` cell (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`)."""
+    if "covers_exact" not in g.columns:
+        return NA
+    verdict = str(g["covers_exact"].iloc[0])
+    if verdict != NO:
+        return verdict if verdict in ("yes", NA) else NA
+    k, j = g["uncovered_steps"].iloc[0], g["first_uncovered_step"].iloc[0]
+    steps = f"{int(k)} steps" if pd.notna(k) else "consistent states outside"
+    first = f", first {int(j)}" if pd.notna(j) and int(j) >= 0 else ""
+    return f"**no: {steps}{first}**"
+
+
+def gap_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[Any]]] | None:
+    """Header and rows of the gap to the floor per state (observer x state, the floor it is
+    held against, the mean); ``None`` where no row has a gap (no floor)."""
+    if "gap" not in df.columns or not pd.to_numeric(df["gap"], errors="coerce").notna().any():
+        return None
+    sc = df["scenario"].iloc[0]
+    info = meta.get("scenarios", {}).get(sc, {})
+    n = int(df["state"].max()) + 1
+    names = info.get("state_names") or [f"x{i + 1}" for i in range(n)]
+    show = list(range(n)) if n <= 12 else []
+    head = ["Observer", "floor"] + [f"g{i + 1} {names[i]}" for i in show] + ["mean"]
+    rows: list[list[Any]] = []
+    for obs in table_order(df["observer"].unique()):
+        g = df[df["observer"] == obs].sort_values("state")
+        if g["status"].iloc[0] == "unsupported":
+            continue
+        gap = _gap_values(g)
+        pre = "<= " if _upper(g) else ""
+        rows.append([obs, str(g["floor"].iloc[0])] + [Num(gap[i], prefix=pre) for i in show]
+                    + [Num(float(np.mean(gap)) if np.isfinite(gap).all() else None,
+                           prefix=pre)])
+    return head, rows
+
+
+def gap_table_caption(df: pd.DataFrame) -> str:
+    """What the gap table shows and against what."""
+    upper = bool(df.get("gap_kind", pd.Series(dtype=str)).astype(str).str.startswith(
+        "upper").any())
+    if upper:
+        return ("Gap to the floor, per state: RMS radius over the RMS radius of an inner box of "
+                "the consistent set (verified consistent states found by the falsifier at the "
+                "searched steps), an upper bound of the gap to the exact set; 1 would be "
+                "optimal.")
+    return ("Gap to the exact floor, per state: RMS radius over the RMS radius of the set of "
+            "states consistent with the data (reference estimator `Exact`; `filtered`: after "
+            "y_k, `predicted`: before it); 1 is optimal: no guaranteed observer can be "
+            "tighter.")
 
 
 def paper_relative(df: pd.DataFrame, paper_names) -> pd.Series:
@@ -157,14 +236,15 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     # times of jobs that ran concurrently (``run --jobs``) are marked in the header itself
     par = " (parallel)" if timed_in_parallel(df) else ""
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show]
-            + ["avg", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained])
+            + ["avg", "gap", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained,
+               "covers exact"])
     rows: list[list[Any]] = []
     rel, _ = relative_values(df, meta)
     df = df.assign(_rel=rel, _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         if g["status"].iloc[0] == "unsupported":
-            rows.append([obs] + [Num(None)] * (len(show) + 4) + [_status_cell(g)])
+            rows.append([obs] + [Num(None)] * (len(show) + 5) + [_status_cell(g), NA])
             continue
         p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
         r = g["_rel"].to_numpy(float)
@@ -174,11 +254,13 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
         if paper and p is None and not pstat:  # not part of the published comparison
-            cells += [Num(avg, note=NA), Num(g["step_ms"].iloc[0], note=NA)]
+            cells += [Num(avg, note=NA), _gap_cell(g), Num(g["step_ms"].iloc[0], note=NA)]
         else:
             cells.append(Num(avg, p.avg if p else None) if not pstat else Num(avg, note=pstat))
+            cells.append(_gap_cell(g))
             cells.append(Num(g["step_ms"].iloc[0], p.t_ms if p else None))
-        cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _status_cell(g)]
+        cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _status_cell(g),
+                  _covers_cell(g)]
         rows.append(cells)
     return head, format_columns(rows)
 

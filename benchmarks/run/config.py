@@ -56,7 +56,7 @@ from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
             "containment", "description", "sweep",
-            "variants", "timeout", "memory_limit"}
+            "variants", "timeout", "memory_limit", "exact", "floors"}
 #: the per-job time budget by default (seconds), as :data:`.executors.DEFAULT_TIMEOUT`
 DEFAULT_TIMEOUT = DEFAULT_JOB_TIMEOUT
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
@@ -128,6 +128,11 @@ class BenchConfig:
     #: per-job time budget (seconds) and memory limit (bytes, ``"auto"``); None: no limit
     timeout: float | None = DEFAULT_TIMEOUT
     memory_limit: int | str | None = "auto"
+    #: compute every record's accuracy floor (:mod:`.floor`: the exact consistent set of a
+    #: linear record, the falsifier's inner box of a nonlinear one)
+    exact: bool = True
+    #: observer (or label) -> the floor it is held against, over its registry entry's
+    floors: dict[str, str] = field(default_factory=dict)
 
     def job_memory_limit(self, workers: int) -> int | None:
         """The memory limit per job in bytes (``auto``: the default share for ``workers``
@@ -300,7 +305,34 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
         timeout=parse_timeout(raw.get("timeout", DEFAULT_TIMEOUT), f"config '{name}': timeout"),
         memory_limit=parse_memory(raw.get("memory_limit", "auto"),
                                   f"config '{name}': memory_limit"),
+        exact=_flag(raw.get("exact", True), f"config '{name}': exact"),
+        floors=_floors(raw.get("floors"), name, names + list(labelled)),
     )
+
+
+def _flag(value: Any, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise ConfigError(f"{where} must be true or false, got {value!r}")
+    return value
+
+
+def _floors(raw: Any, name: str, known: list[str]) -> dict[str, str]:
+    """Validate ``floors``: observer (or label) -> ``filtered`` or ``predicted``."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"config '{name}': floors must be a mapping observer -> "
+                          "filtered|predicted")
+    out = {}
+    for obs, floor in raw.items():
+        if str(obs) not in known:
+            raise ConfigError(f"config '{name}': floors: {obs} is not an observer of this "
+                              "configuration")
+        if floor not in ("filtered", "predicted"):
+            raise ConfigError(f"config '{name}': floors: {obs} must be 'filtered' or "
+                              f"'predicted', got {floor!r}")
+        out[str(obs)] = floor
+    return out
 
 
 def _variants(raw: Any, name: str) -> dict[str, tuple[str, dict[str, Any], bool]]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import json
+import pickle
 import sys
 import traceback
 from dataclasses import dataclass
@@ -28,15 +29,18 @@ from ..io import check_output_dir, environment, write_error, write_results
 from ..metrics import add_relative_rms, median_ms, rms_radius
 from ..verdicts import HULL_AND_EXACT, NA, BenchResult, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
-from .consistency import INCONSISTENT, inconsistency_message, record_inflation
 from .describe import set_bounds
 from .executors import JobFailure, SerialExecutor
+from .floor import RecordFloor, compute_floor, floor_columns, observer_floor
 from .membership import MembershipTester
 from .progress import progress_bar
 from .specs import build_scenario
 
 RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
-               "radius", "x_true", "contained", "in_set"]
+               "radius", "x_true", "contained", "in_set", "floor_lo", "floor_hi"]
+#: the floor columns of ``summary.csv`` (:mod:`.floor`)
+FLOOR_COLUMNS = ["floor", "gap", "gap_kind", "covers_exact", "uncovered_steps",
+                 "first_uncovered_step"]
 
 
 @dataclass
@@ -308,13 +312,46 @@ def _key(spec: dict, base: str | None) -> str:
     return json.dumps([spec, base], sort_keys=True, default=str)
 
 
-def _scenario(job: Job) -> Scenario:
+def _scenario(job) -> Scenario:
+    """The scenario of a :class:`Job` or :class:`FloorTask`, built once per process."""
     key = scenario_key(job)
-    if job.scenario is not None:
+    if getattr(job, "scenario", None) is not None:
         _SCENARIOS.setdefault(key, job.scenario)
     if key not in _SCENARIOS:
         _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
     return _SCENARIOS[key]
+
+
+@dataclass(frozen=True)
+class FloorTask:
+    """The accuracy floor of one scenario instance (:func:`.floor.compute_floor`), run by
+    the executor before the observers' jobs (picklable like a :class:`Job`)."""
+
+    spec: dict
+    base: str | None
+    enabled: bool = True
+    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
+
+
+def floor_task(task: FloorTask) -> RecordFloor:
+    """Compute the floor of ``task``'s scenario (in this process or a worker)."""
+    return compute_floor(_scenario(task), task.enabled)
+
+
+def _picklable(sc: Scenario) -> bool:
+    """Whether ``sc`` can travel to a worker as it is (a nonlinear model's functions may be
+    local: such a scenario is rebuilt there from its configuration entry instead)."""
+    key = id(sc)
+    if key not in _PICKLABLE:
+        try:
+            pickle.dumps(sc)
+            _PICKLABLE[key] = True
+        except (pickle.PicklingError, AttributeError, TypeError):
+            _PICKLABLE[key] = False
+    return _PICKLABLE[key]
+
+
+_PICKLABLE: dict[int, bool] = {}
 
 
 def is_project_module(module: str) -> bool:
@@ -407,39 +444,67 @@ def summary_columns(containment: str) -> list[str]:
     both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
             "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
-            *both, "violations", "first_violation_step", "status", "failed_step", "message",
-            "family", "set_type", "timing", "guaranteed"]
+            *both, "violations", "first_violation_step", *FLOOR_COLUMNS, "status",
+            "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
 
 
-def inconsistent_records(cfg: BenchConfig) -> dict[tuple[str, str], float]:
-    """``(scenario, seed) -> s`` of the records of ``cfg`` that contradict their linear model
-    (:func:`.consistency.record_inflation` above :data:`.consistency.INCONSISTENT`)."""
-    out = {}
-    for inst in cfg.instances:
-        sc = inst.scenario
-        s = record_inflation(sc.system, sc.u, sc.y)
-        if s is not None and s > INCONSISTENT:
-            out[(sc.name, "" if inst.seed is None else str(inst.seed))] = s
-    return out
+def compute_floors(cfg: BenchConfig, executor, jobs: list[Job]) -> dict[str, RecordFloor]:
+    """The floor of every scenario instance of ``jobs`` (:mod:`.floor`), by the executor
+    (the exact reference of a long record takes minutes: the instances run in parallel with
+    ``--jobs``; its cache makes a second run free); keyed by :func:`scenario_key`."""
+    keys = list(dict.fromkeys(scenario_key(j) for j in jobs))
+    first = {scenario_key(j): j for j in reversed(jobs)}
+    tasks = [FloorTask(first[k].spec, first[k].base, cfg.exact,
+                       first[k].scenario if executor.name == "serial" else None) for k in keys]
+    floors: dict[str, RecordFloor] = {}
+    for i, out in executor.map(floor_task, tasks, keys=keys):
+        if isinstance(out, JobFailure):
+            out = RecordFloor("none", message=f"no floor: {out.status}: {out.message}")
+        floors[keys[i]] = out
+    return floors
 
 
-def mark_inconsistent(summary: pd.DataFrame, bad: dict[tuple[str, str], float],
-                      containment: str) -> pd.DataFrame:
-    """Every row of an inconsistent record: status ``inconsistent``, the reason as its
-    message, and no containment verdict (the data, not the observer, are at fault)."""
-    if not bad or summary.empty:
-        return summary
-    seed = summary["seed"].astype(object).where(summary["seed"].notna(), "").map(
-        lambda v: str(int(v)) if isinstance(v, float) else str(v))
-    summary = summary.copy()
-    for (sc, sd), s in bad.items():
-        rows = (summary["scenario"] == sc) & (seed == sd)
-        summary.loc[rows, "status"] = "inconsistent"
-        summary.loc[rows, "message"] = inconsistency_message(s)
-        for col in {contained_column(containment), "contained"} & set(summary.columns):
-            summary.loc[rows, col] = NA
-        summary.loc[rows, ["violations", "first_violation_step"]] = None
-    return summary
+def mark_inconsistent(summary: pd.DataFrame, message: str, containment: str) -> None:
+    """Every row of a record that no state fits (its exact floor is empty): status
+    ``inconsistent``, the reason as its message, and no containment verdict (the data, not
+    the observer, are at fault)."""
+    summary["status"] = "inconsistent"
+    summary["message"] = ("the record contradicts the model (no initial state in X0 and no "
+                          f"noise in W and V reproduce y): {message}; not a fault of this "
+                          "observer")
+    for col in {contained_column(containment), "contained"} & set(summary.columns):
+        summary[col] = NA
+    summary[["violations", "first_violation_step"]] = None
+
+
+def add_floor(cfg: BenchConfig, job: Job, floor: RecordFloor, runs: pd.DataFrame | None,
+              summary: pd.DataFrame) -> None:
+    """The floor columns of one job's rows (in place): ``floor_lo``/``floor_hi`` in its runs
+    rows, the gap and the covering verdict in its summary rows (:func:`.floor.floor_columns`)."""
+    if floor.kind == "empty":
+        mark_inconsistent(summary, floor.message, job.containment)
+    sc = _scenario(job)
+    N, n = sc.N, sc.system.n
+    which = observer_floor(job.label or job.observer, cfg.floors)
+    if runs is not None and len(runs) == N * n:
+        lo, hi = (runs[c].to_numpy(float).reshape(N, n) for c in ("lo", "hi"))
+    else:
+        lo = hi = np.full((N, n), np.nan)
+    cols = floor_columns(floor, which, lo, hi, summary["status"].iloc[0] == "ok",
+                         sc.tolerance)
+    for key, value in cols.items():
+        summary[key] = value
+    if summary["family"].iloc[0] == "reference" and floor.kind == "exact":
+        # the reference's own run read the hulls the floor had just computed (or a previous
+        # run had): its cost is the floor's, not a cache read
+        ms = 1e3 * floor.step_seconds
+        summary["step_ms"], summary["hull_ms"] = ms, 0.0 if np.isfinite(ms) else np.nan
+        if not np.isfinite(ms):
+            summary["message"] = ("exact hulls read from the cache (their cost: "
+                                  "reports/speed.md)")
+    if runs is not None:
+        flo, fhi = floor.bounds(which, N, n)
+        runs["floor_lo"], runs["floor_hi"] = flo.reshape(-1), fhi.reshape(-1)
 
 
 def _write(out, runs_df: pd.DataFrame, summary: pd.DataFrame, meta: dict) -> None:
@@ -492,18 +557,19 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     jobs = make_jobs(cfg)
     # the serial executor sends an isolated job with its scenario (built here already)
     payloads = [dataclasses.replace(j, scenario=_scenario(j)) if j.isolate and
-                executor.name == "serial" else j for j in jobs]
+                executor.name == "serial" and _picklable(_scenario(j)) else j for j in jobs]
     frames: list = [None] * len(jobs)
-    bad_records = inconsistent_records(cfg)
     try:
+        floors = compute_floors(cfg, executor, jobs)
         _run_jobs(cfg, executor, jobs, payloads, frames, progress)
     finally:
         if own:
             executor.close()
+    for job, (runs, summ) in zip(jobs, frames, strict=True):
+        add_floor(cfg, job, floors[scenario_key(job)], runs, summ)
     runs = [r for r, _ in frames if r is not None]
     runs_df = pd.concat(runs, ignore_index=True) if runs else pd.DataFrame(columns=RUN_COLUMNS)
-    summary = pd.concat([s for _, s in frames], ignore_index=True)
-    summary = add_relative_rms(mark_inconsistent(summary, bad_records, cfg.containment))
+    summary = add_relative_rms(pd.concat([s for _, s in frames], ignore_index=True))
     summary["timed"] = "serial" if executor.workers == 1 else "parallel"
     summary = summary[summary_columns(cfg.containment)]
     if out is not None:

@@ -18,9 +18,9 @@ consistent state, so
   exact hull (``gap <= ...``), since the inner box lies inside the exact hull.
 
 The search (a trust-region SLP over the whole horizon, and why) is in
-:mod:`benchmarks.gate.falsifier_slp`; :func:`falsify` drives it over the chosen steps and
+:mod:`benchmarks.run.falsifier_slp`; :func:`falsify` drives it over the chosen steps and
 checks hulls, :meth:`FalsifierResult.check` checks more hulls against a result, and
-``python -m benchmarks.gate.falsifier SCENARIO`` measures it (observers run, violations,
+``python -m benchmarks.run.falsifier SCENARIO`` measures it (observers run, violations,
 ``gap <=`` per state, cost).
 
 Verification and tolerances
@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.gate.falsifier_slp import (
+from benchmarks.run.falsifier_slp import (
     FACTOR_MARGIN,
     MAX_ITER,
     NOISE_MARGIN,
@@ -379,7 +379,7 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
 
 # -- command line: measurements -------------------------------------------------------------
 def _main(argv: Sequence[str] | None = None) -> int:
-    """``python -m benchmarks.gate.falsifier SCENARIO``: run observers on a scenario, falsify
+    """``python -m benchmarks.run.falsifier SCENARIO``: run observers on a scenario, falsify
     their hulls at steps spread over the record, print the inner box's RMS radii, the
     violations, the gap upper bounds and the cost (a measurement tool; the harness calls
     :func:`falsify`)."""
@@ -388,7 +388,7 @@ def _main(argv: Sequence[str] | None = None) -> int:
     import observers
     import systems
 
-    ap = argparse.ArgumentParser(prog="python -m benchmarks.gate.falsifier",
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.run.falsifier",
                                  description=_main.__doc__.split(":", 1)[1].strip())
     ap.add_argument("scenario")
     ap.add_argument("--observers", default="all",

@@ -1,4 +1,4 @@
-"""The search of :mod:`benchmarks.gate.falsifier`: consistent trajectories of a record that
+"""The search of :mod:`benchmarks.run.falsifier`: consistent trajectories of a record that
 push one state of one step to an extreme, verified by forward simulation.
 
 Method (and why)

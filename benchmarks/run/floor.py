@@ -1,0 +1,196 @@
+"""The accuracy floor of a record, and every observer's distance to it.
+
+No guaranteed observer can be tighter than the set of states consistent with the record (the
+model, the noise bounds and the measurements so far); every guaranteed observer must contain
+it.  This module computes that floor once per record and holds every observer's row against
+it:
+
+* **linear records**: the exact consistent set, by the reference estimator ``Exact``
+  (:func:`observers.builtin.exact.exact_hulls`: sound interval hulls of the polytope of
+  consistent states, cached on disk).  Two floors, because observers differ in what they have
+  seen: *filtered* (after ``y[k]``) and *predicted* (before ``y[k]``); an observer is held
+  against the floor of its registry entry (:attr:`observers.ObserverInfo.floor`) unless the
+  configuration says otherwise (``floors: {NAME: predicted}``);
+* **nonlinear records**: no exact set exists, so the falsifier
+  (:mod:`benchmarks.run.falsifier`) searches verified consistent trajectories that make each
+  state as large or as small as possible at :data:`FALSIFIER_STEPS` steps spread from
+  :data:`FALSIFIER_FIRST` of the record on; the extremes form an *inner* box of the filtered
+  consistent set (also inside the predicted one).
+
+Per observer row (:func:`floor_columns`):
+
+* ``gap`` per state: the RMS radius of the observer over the RMS radius of its floor, over the
+  steps where both are known (every step for a linear record: the observer's ``rms_radius``
+  divided by the floor's; the falsifier's steps for a nonlinear one, where the inner box makes
+  it an upper bound, ``gap_kind = upper``);
+* ``covers_exact``: ``no`` if at some step the observer's interval hull misses a consistent
+  state -- for a linear record, the hull does not contain the exact floor's hull up to
+  :data:`COVER_RTOL` of the floor's radius plus the scenario's containment tolerance; for a
+  nonlinear record, a verified consistent state found by the falsifier lies outside the hull
+  -- ``yes`` if every step of a complete run was checked against the exact floor and none
+  missed, ``n/a`` otherwise (no floor, a nonlinear record without a violation: nothing proves
+  that every consistent state is inside);
+* ``uncovered_steps`` and ``first_uncovered_step``.
+
+A record that no state fits (the exact floor is empty) contradicts its model: every observer's
+row of it says so (status ``inconsistent``), whatever its sets.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+import observers
+from observers.errors import ObserverError, Unsupported
+from observers.sets import SetError
+from systems import ModelError, Scenario
+
+from ..verdicts import NA, NO, YES
+
+#: steps the falsifier searches on a nonlinear record, spread from this share of it on
+FALSIFIER_STEPS, FALSIFIER_FIRST = 10, 0.2
+#: an observer's hull covers the exact hull if it misses it by at most this share of the exact
+#: radius (plus the scenario's containment tolerance): the agreement of the exact hulls with
+#: an independent LP formulation is checked to this bound
+COVER_RTOL = 1e-6
+#: the kinds of floor
+EXACT, INNER = "exact", "inner"
+#: ``gap_kind`` of a row: the gap itself, or an upper bound of it
+GAP_EXACT, GAP_UPPER = "exact", "upper bound"
+
+
+@dataclass
+class RecordFloor:
+    """The floor of one record.
+
+    ``kind`` is :data:`EXACT` (``lo``/``hi`` of both floors at every step), :data:`INNER` (the
+    falsifier's inner box of the filtered set at ``steps``, used for both floors), ``"empty"``
+    (no state fits the record: ``message`` says where) or ``"none"`` (not computed:
+    ``message`` says why).
+    """
+
+    kind: str
+    lo: dict[str, np.ndarray] | None = None
+    hi: dict[str, np.ndarray] | None = None
+    steps: np.ndarray | None = None
+    message: str = ""
+    seconds: float = 0.0
+    #: median seconds of a computed step of the exact reference (NaN: every step was read
+    #: from its cache, or no exact floor)
+    step_seconds: float = float("nan")
+
+    @property
+    def usable(self) -> bool:
+        return self.kind in (EXACT, INNER)
+
+    def bounds(self, floor: str, N: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The floor ``floor`` as N x n arrays (NaN where it is not known)."""
+        lo, hi = np.full((N, n), np.nan), np.full((N, n), np.nan)
+        if self.usable:
+            key = floor if self.kind == EXACT else "filtered"
+            rows = np.arange(N) if self.steps is None else self.steps
+            lo[rows], hi[rows] = self.lo[key][: len(rows)], self.hi[key][: len(rows)]
+        return lo, hi
+
+
+def compute_floor(sc: Scenario, enabled: bool = True) -> RecordFloor:
+    """The floor of ``sc``'s record (see the module docstring); never raises for a record it
+    cannot handle (``kind = "none"`` with the reason)."""
+    if not enabled:
+        return RecordFloor("none", message="not computed (exact: false in the configuration)")
+    t0 = time.perf_counter()
+    system = sc.system
+    try:
+        if getattr(system, "is_linear", False):
+            return _exact(sc, t0)
+        from .falsifier import falsify, spread_steps
+
+        steps = spread_steps(sc.N, FALSIFIER_STEPS, first=int(FALSIFIER_FIRST * sc.N))
+        res = falsify(system, sc, steps, keep_trajectories=False)
+        return RecordFloor(INNER, {"filtered": res.inner_lo}, {"filtered": res.inner_hi},
+                           steps=res.steps, seconds=time.perf_counter() - t0)
+    except SetError as exc:  # EmptySet: no state fits the record
+        return RecordFloor("empty", message=str(exc), seconds=time.perf_counter() - t0)
+    except (Unsupported, ModelError, ObserverError) as exc:
+        return RecordFloor("none", message=f"no floor: {exc}", seconds=time.perf_counter() - t0)
+
+
+def _exact(sc: Scenario, t0: float) -> RecordFloor:
+    """The exact floor by the reference estimator ``Exact`` (its on-disk cache included)."""
+    obs = observers.create("Exact", sc.system)
+    res = observers.run(obs, sc.u, sc.y, keep_sets=False)
+    if res.status == "empty":
+        raise SetError(res.message)
+    if res.status != "ok":
+        raise ObserverError(f"Exact: {res.status}: {res.message}")
+    h = obs.hull_arrays()
+    computed = obs.lp_stats["computed_steps"]
+    step = float(np.median(res.step_times[-computed:])) if computed else float("nan")
+    return RecordFloor(EXACT, {"filtered": h["filt_lo"], "predicted": h["pred_lo"]},
+                       {"filtered": h["filt_hi"], "predicted": h["pred_hi"]},
+                       seconds=time.perf_counter() - t0, step_seconds=step)
+
+
+def observer_floor(name: str, overrides: dict[str, str] | None = None) -> str:
+    """The floor observer ``name`` is held against (the configuration's ``floors`` entry, else
+    its registry entry's)."""
+    if overrides and name in overrides:
+        return overrides[name]
+    try:
+        return observers.get(name.split("[")[0]).floor
+    except ObserverError:
+        return "filtered"
+
+
+def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray,
+                  complete: bool, tol: float) -> dict:
+    """The floor columns of one observer row (see the module docstring).
+
+    Parameters
+    ----------
+    floor : RecordFloor
+        The record's floor.
+    which : {"filtered", "predicted"}
+        The observer's floor.
+    lo, hi : (N, n) arrays
+        The observer's interval hulls (NaN rows where it produced none).
+    complete : bool
+        Whether the run produced every step (status ok).
+    tol : float
+        The scenario's absolute containment tolerance.
+
+    Returns
+    -------
+    dict
+        ``floor``, ``gap`` (n,), ``gap_kind``, ``covers_exact``, ``uncovered_steps``,
+        ``first_uncovered_step``.
+    """
+    N, n = lo.shape
+    out = {"floor": which if floor.usable else NA, "gap": np.full(n, np.nan),
+           "gap_kind": NA, "covers_exact": NA, "uncovered_steps": None,
+           "first_uncovered_step": None}
+    if not floor.usable:
+        return out
+    flo, fhi = floor.bounds(which, N, n)
+    known = np.all(np.isfinite(flo) & np.isfinite(fhi), axis=1)
+    have = np.all(np.isfinite(lo) & np.isfinite(hi), axis=1) & known
+    if not have.any():
+        return out
+    slack = COVER_RTOL * 0.5 * (fhi - flo) + tol
+    missed = ((lo > flo + slack) | (hi < fhi - slack)).any(axis=1) & have
+    count = int(missed.sum())
+    exact = floor.kind == EXACT
+    out["covers_exact"] = NO if count else (YES if exact and complete and have.all() else NA)
+    out["uncovered_steps"] = count if exact or count else None
+    out["first_uncovered_step"] = int(np.argmax(missed)) if count else -1
+    if complete or not exact:
+        r_obs = np.sqrt(np.mean((0.5 * (hi - lo))[have] ** 2, axis=0))
+        r_floor = np.sqrt(np.mean((0.5 * (fhi - flo))[have] ** 2, axis=0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out["gap"] = np.where(r_floor > 0, r_obs / np.where(r_floor > 0, r_floor, 1.0),
+                                  np.inf)
+        out["gap_kind"] = GAP_EXACT if exact else GAP_UPPER
+    return out
