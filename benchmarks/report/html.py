@@ -39,10 +39,12 @@ from .numbers import MISSING, Num, format_columns
 from .paper import paper_rows, paper_title
 from .tables import (
     INTRO,
+    PHASE_CAPTION,
     absolute_table_caption,
     absolute_table_data,
     gap_table_caption,
     gap_table_data,
+    phase_table_data,
     relative_values,
     scenario_facts,
     scenario_notes,
@@ -464,6 +466,11 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
             body += ["<h3>Gap to the exact floor</h3>",
                      f'<p class="caption">{inline(gap_table_caption(df))}</p>',
                      html_table(gaps[0], format_columns(gaps[1]), table_id=f"gap-{sc}")]
+        phases = phase_table_data(df) if len(df) else None
+        if phases:
+            body += ["<h3>Time per phase of a step</h3>",
+                     f'<p class="caption">{inline(PHASE_CAPTION)}</p>',
+                     html_table(phases[0], format_columns(phases[1]), table_id=f"phases-{sc}")]
         notes = scenario_notes(full)
         if notes:
             body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"

@@ -16,10 +16,12 @@ from .figures import observer_bounds
 from .numbers import markdown_table
 from .tables import (
     INTRO,
+    PHASE_CAPTION,
     absolute_table,
     absolute_table_caption,
     gap_table_caption,
     gap_table_data,
+    phase_table_data,
     scenario_facts,
     scenario_notes,
     scenario_table,
@@ -65,6 +67,9 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
         gaps = gap_table_data(df, meta) if len(df) else None
         if gaps:
             parts += [gap_table_caption(df), "", markdown_table(*gaps), ""]
+        phases = phase_table_data(df) if len(df) else None
+        if phases:
+            parts += [PHASE_CAPTION, "", markdown_table(*phases), ""]
         notes = scenario_notes(full)
         parts += [f"- {note}" for note in notes] + ([""] if notes else [])
         if runs is not None:

@@ -142,6 +142,33 @@ def gap_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[A
     return head, rows
 
 
+def phase_table_data(df: pd.DataFrame) -> tuple[list[str], list[list[Any]]] | None:
+    """Header and rows of the time per phase of a step, for the observers that time their
+    phases (the numpy path of the family loops: nonlinear models, constrained zonotopes);
+    ``None`` where no observer does."""
+    phases = ["prediction_ms", "update_ms", "reduction_ms", "step_lp_ms"]
+    if not set(phases) <= set(df.columns):
+        return None
+    per = df.drop_duplicates("observer").set_index("observer")
+    timed = per[phases].apply(pd.to_numeric, errors="coerce")
+    keep = timed.notna().any(axis=1) & (per["status"] == "ok")
+    if not keep.any():
+        return None
+    head = ["Observer", "prediction", "update", "reduction", "LPs in the step",
+            "step (median)", "interval hull (median)"]
+    rows = [[obs] + [Num(timed.loc[obs, c]) for c in phases]
+            + [Num(per.loc[obs, "step_ms"]), Num(per.loc[obs, "hull_ms"])]
+            for obs in table_order(per.index[keep])]
+    return head, rows
+
+
+PHASE_CAPTION = ("Time per phase of a step, in ms: the mean over the record of the "
+                 "prediction, the measurement update, the order or constraint reduction and "
+                 "the linear programs inside a step, as the observer times them (the numpy "
+                 "path of the family loops; steps taken by a compiled kernel are not split); "
+                 "beside them the median step and the median interval hull of the returned set.")
+
+
 def gap_table_caption(df: pd.DataFrame) -> str:
     """What the gap table shows and against what."""
     upper = bool(df.get("gap_kind", pd.Series(dtype=str)).astype(str).str.startswith(

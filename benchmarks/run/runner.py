@@ -57,6 +57,9 @@ class ObserverRun:
     decided: bool = True  # every set tested as the configuration asks (exact or hull)
     #: the exact-membership verdict beside a hull test (containment ``hull+exact``)
     exact_verdict: str = NA
+    #: mean milliseconds per step of each phase the observer times (``phase_times``:
+    #: prediction, update, reduction, hull of a nonlinear or constrained-zonotope step)
+    phase_ms: dict = dataclasses.field(default_factory=dict)
 
     @property
     def violations(self) -> int:
@@ -168,7 +171,8 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
         res.message = f"its sets have dimension {res.lo.shape[1]}, the system {sc.system.n}"
     if isinstance(res.error, MemoryError):  # the job's memory limit (or the machine's)
         res.status = "memory"
-    run = ObserverRun(sc, info, res, res.status, res.message)
+    run = ObserverRun(sc, info, res, res.status, res.message,
+                      phase_ms=_phase_ms(obs, len(res.step_times)))
     if same_dim and sc.x_true is not None and len(res.sets):  # also the sets before a crash
         run.contained, run.in_set, run.decided = check_containment(
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
@@ -178,6 +182,24 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
+
+
+def _phase_ms(obs, steps: int) -> dict:
+    """Mean milliseconds per step of each phase the observer timed (its ``phase_times``, the
+    numpy path of the family loops: nothing for a step taken by a compiled kernel)."""
+    times = getattr(obs, "phase_times", None)
+    if not isinstance(times, dict) or not steps or not any(v > 0 for v in times.values()):
+        return {}
+    return {PHASES[k]: 1e3 * float(v) / steps for k, v in times.items()
+            if k in PHASES and v > 0}
+
+
+#: the phases of a step that ``summary.csv`` reports (mean milliseconds per step): an
+#: observer's ``phase_times`` key -> its column (``hull``: the LPs inside a step, e.g. the
+#: generator rescaling of a constrained-zonotope step; the interval hull of the returned set
+#: is ``hull_ms``)
+PHASES = {"prediction": "prediction_ms", "update": "update_ms", "reduction": "reduction_ms",
+          "hull": "step_lp_ms"}
 
 
 def _bounds(res: RunResult, N: int, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -226,6 +248,7 @@ def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
         "step_ms": median_ms(res.step_times) if res is not None else np.nan,
         "hull_ms": median_ms(res.hull_times) if res is not None else np.nan,
         "design_s": res.design_time if res is not None else np.nan,
+        **{col: run.phase_ms.get(col, np.nan) for col in PHASES.values()},
         contained_column(containment): verdict,
         "violations": run.violations if run.in_set is not None else None,
         "first_violation_step": first_violation if run.in_set is not None else None,
@@ -443,7 +466,8 @@ def summary_columns(containment: str) -> list[str]:
     gate's ``hull+exact`` has both)."""
     both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
-            "rel_rms", "step_ms", "hull_ms", "design_s", "timed", contained_column(containment),
+            "rel_rms", "step_ms", "hull_ms", "design_s", *PHASES.values(), "timed",
+            contained_column(containment),
             *both, "violations", "first_violation_step", *FLOOR_COLUMNS, "status",
             "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
 
