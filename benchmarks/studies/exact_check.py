@@ -41,7 +41,8 @@ def time_exact(sc) -> tuple[dict[str, np.ndarray], float, float, dict]:
 
 
 def deviation(hulls: dict[str, np.ndarray], ref: dict[int, tuple]) -> dict[str, float]:
-    """Largest |Exact - reference| / reference radius per floor over the checked steps."""
+    """Largest ``|Exact - reference|`` over the reference radius, per floor, over the checked
+    steps."""
     worst = {"predicted": 0.0, "filtered": 0.0}
     for k, r in ref.items():
         for floor, lo, hi, a, b in (("predicted", r[0], r[1], "pred_lo", "pred_hi"),

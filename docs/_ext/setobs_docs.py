@@ -263,6 +263,9 @@ def _is_package(module: str) -> bool:
 
 def api_pages(src: Path) -> None:
     mods = api_modules()
+    for stale in (src / "api").glob("*.rst"):  # pages of modules that moved or went away
+        if stale.stem not in mods and stale.stem != "index":
+            stale.unlink()
     for m in mods:
         # a package page shows its docstring only: its members are re-exports of its modules,
         # documented there (and ``systems.simulate`` is both a module and a function)
@@ -285,6 +288,10 @@ def generate(app) -> None:
     src = Path(app.srcdir)
     infos = observers.available()
     guaranteed = [i.name for i in infos if i.family != "stochastic"]
+    pages = {slug(info.name) for info in infos}
+    for stale in (src / "observers").glob("*.rst"):  # observers no longer registered
+        if stale.stem not in pages and stale.stem != "index":
+            stale.unlink()
     for info in infos:
         _write(src / "observers" / f"{slug(info.name)}.rst", observer_page(info, guaranteed))
     _write(src / "observers" / "index.rst", observers_index(infos))
