@@ -1,0 +1,112 @@
+"""The interval, ellipsoidal and zonotope-bundle families of nonlinear observers (issue 26):
+the interval contractors on hand examples, soundness properties, the observers' containment."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import observers
+import systems
+from observers.numerics.interval import ForwardBackward, contract_linear, linear_box
+from observers.numerics.relaxation import Factorable
+from observers.sets import EmptySet
+from systems.derivatives import SymbolicDerivatives
+
+
+def _contractor(h, n: int, m: int) -> ForwardBackward:
+    d = SymbolicDerivatives(lambda x, u, mm: h(x, mm), n, 0, outputs=m, what="h")
+    return ForwardBackward(Factorable(d.expressions, d.symbols[0], (), "h"), n)
+
+
+# -- interval contractors ---------------------------------------------------------------------
+def test_linear_contractor_hand_example():
+    # x1 + x2 in [3, 3.5] on [0, 2]^2: x1 in [3 - 2, 3.5 - 0] & [0, 2] = [1, 2], the same for x2
+    lo, hi = contract_linear(np.zeros(2), np.full(2, 2.0), np.array([[1.0, 1.0]]),
+                             np.array([3.0]), np.array([3.5]))
+    assert np.all(lo <= 1.0) and np.allclose(lo, 1.0, atol=1e-12)
+    assert np.all(hi >= 2.0) and np.allclose(hi, 2.0, atol=1e-12)
+
+
+def test_linear_contractor_negative_coefficient():
+    # x1 - 2 x2 in [0, 1] on [0, 4] x [0, 4]: x1 in [0, 1] + 2 [0, 4] -> [0, 4] (no change);
+    # x2 in (x1 - [0, 1]) / 2 = [-1, 4] / 2 = [-0.5, 2] -> [0, 2]
+    lo, hi = contract_linear(np.zeros(2), np.full(2, 4.0), np.array([[1.0, -2.0]]),
+                             np.array([0.0]), np.array([1.0]))
+    assert np.allclose([lo, hi], [[0, 0], [4, 2]], atol=1e-12)
+    assert hi[1] >= 2.0
+
+
+def test_linear_contractor_empty():
+    with pytest.raises(EmptySet):
+        contract_linear(np.zeros(2), np.ones(2), np.array([[1.0, 1.0]]), np.array([3.0]),
+                        np.array([4.0]))
+
+
+def test_forward_backward_hand_examples():
+    # y = x1^2 + x2 in [0, 1] on [-2, 3] x [0, 1]: x1^2 in [0, 1] - [0, 1] & [0, 9] = [0, 1],
+    # so x1 in [-1, 1]; x2 in [0, 1] - [0, 1] & [0, 1] = [0, 1]
+    fb = _contractor(lambda x, m: np.array([x[0] ** 2 + x[1]]), 2, 1)
+    lo, hi = fb.contract(np.array([-2.0, 0.0]), np.array([3.0, 1.0]), np.zeros(1), np.ones(1))
+    assert np.allclose([lo, hi], [[-1, 0], [1, 1]], atol=1e-12)
+    assert lo[0] <= -1.0 and hi[0] >= 1.0
+    # y = x1 x2 in [3, 4] on [1, 4] x [2, 3]: x1 in [3, 4] / [2, 3] = [1, 2]; then
+    # x2 in [3, 4] / [1, 2] = [1.5, 4] & [2, 3] = [2, 3]
+    fb = _contractor(lambda x, m: np.array([x[0] * x[1]]), 2, 1)
+    lo, hi = fb.contract(np.array([1.0, 2.0]), np.array([4.0, 3.0]), np.array([3.0]),
+                         np.array([4.0]))
+    assert np.allclose([lo, hi], [[1, 2], [2, 3]], atol=1e-12)
+    # y = exp(x1) in [1, e] on [-5, 5]: x1 in [0, 1]
+    fb = _contractor(lambda x, m: np.array([m.exp(x[0])]), 1, 1)
+    lo, hi = fb.contract(np.array([-5.0]), np.array([5.0]), np.array([1.0]), np.array([np.e]))
+    assert np.allclose([lo, hi], [[0], [1]], atol=1e-12) and lo[0] <= 0 and hi[0] >= 1
+    with pytest.raises(EmptySet):
+        fb.contract(np.array([-5.0]), np.array([5.0]), np.array([-2.0]), np.array([-1.0]))
+
+
+def test_contractors_keep_every_consistent_state():
+    """Sampled states of the box whose output lies in [y] stay in the contracted box."""
+    rng = np.random.default_rng(3)
+
+    def h(x, m):
+        return np.array([x[0] - m.sin(x[1] / 2), (1 - x[0]) * x[1], m.sqrt(x[0] ** 2 + 1) * x[2]])
+
+    fb = _contractor(h, 3, 3)
+    for _ in range(30):
+        lo = rng.uniform(-2, 1, 3)
+        hi = lo + rng.uniform(0.1, 2, 3)
+        X = rng.uniform(lo, hi, size=(4000, 3))
+        Y = np.array([h(x, np) for x in X])
+        x0 = X[0]
+        width = rng.uniform(0.05, 0.5, 3)
+        ylo, yhi = Y[0] - width, Y[0] + width
+        keep = np.all((Y >= ylo) & (Y <= yhi), axis=1)
+        clo, chi = fb.contract(lo, hi, ylo, yhi)
+        assert np.all((X[keep] >= clo) & (X[keep] <= chi)) and np.all(clo <= x0)
+        C = rng.normal(size=(2, 3))
+        Yl = X @ C.T
+        keep = np.all(np.abs(Yl - Yl[0]) <= width[:2], axis=1)
+        clo, chi = contract_linear(lo, hi, C, Yl[0] - width[:2], Yl[0] + width[:2])
+        assert np.all((X[keep] >= clo) & (X[keep] <= chi))
+
+
+def test_linear_box_is_the_hull_of_the_image():
+    A = np.array([[1.0, -2.0], [0.5, 3.0]])
+    lo, hi = linear_box(A, np.array([-1.0, 0.0]), np.array([1.0, 2.0]), np.array([0.1, 0.0]))
+    # A p + shift = [1 - 2 + 0.1... ]: p = (0, 1): (-2 + 0.1, 3); |A| r = (1 + 2, 0.5 + 3)
+    assert np.allclose(lo, [-1.9 - 3, 3 - 3.5]) and np.allclose(hi, [-1.9 + 3, 3 + 3.5])
+
+
+# -- observers --------------------------------------------------------------------------------
+NEW = ["INT-CP"]
+
+
+@pytest.mark.parametrize("name", NEW)
+@pytest.mark.parametrize("scenario,steps", [("rego2d-nonlinear", 40), ("vanderpol-sim", 60),
+                                            ("alamo2d-sim", 20), ("robot-range", 25)])
+def test_true_state_inside(name, scenario, steps):
+    sc = systems.scenario(scenario, seed=1, noise="vertex", steps=steps)
+    obs = observers.create(name, sc.system)
+    res = observers.run(obs, sc.u, sc.y)
+    assert res.status == "ok", res.message
+    assert all(S.contains(x, tol=1e-9) for S, x in zip(res.sets, sc.x_true, strict=True))
