@@ -98,7 +98,8 @@ def test_linear_box_is_the_hull_of_the_image():
 
 
 # -- observers --------------------------------------------------------------------------------
-NEW = ["INT-CP"]
+NEW = ["INT-CP", "ESMF"]
+DIVERGES = {("ESMF", "rego2d-nonlinear")}
 
 
 @pytest.mark.parametrize("name", NEW)
@@ -108,5 +109,32 @@ def test_true_state_inside(name, scenario, steps):
     sc = systems.scenario(scenario, seed=1, noise="vertex", steps=steps)
     obs = observers.create(name, sc.system)
     res = observers.run(obs, sc.u, sc.y)
-    assert res.status == "ok", res.message
-    assert all(S.contains(x, tol=1e-9) for S, x in zip(res.sets, sc.x_true, strict=True))
+    # ESMF's ellipsoid grows past the domain of Rego et al.'s example within 10 steps (its
+    # box, over which the remainder is bounded, is much wider than the consistent set)
+    assert res.status == ("diverged" if (name, scenario) in DIVERGES else "ok"), res.message
+    k = len(res.sets)
+    assert k > 3 and all(S.contains(x, tol=1e-9)
+                         for S, x in zip(res.sets, sc.x_true[:k], strict=True))
+
+
+# -- ESMF ---------------------------------------------------------------------------------------
+def _linear_as_nonlinear(s):
+    A, B = np.array(s.A), np.array(s.B)
+    return systems.NonlinearSystem(lambda x, u, m: A @ x + B @ u, s.n, s.nu, s.C, W=s.W, V=s.V,
+                                   X0=s.X0)
+
+
+def test_esmf_is_eso_b_on_a_linear_system():
+    """With linear f and h nothing is absorbed: every step is ESO-B's (the same formulas),
+    on a LinearSystem exactly, on the same model written as a NonlinearSystem up to the
+    rounding margins of the enclosure (absorbed remainders of ~1e-16)."""
+    sc = systems.scenario("alamo2d-sim", seed=2, steps=20)
+    eso = observers.run(observers.create("ESO-B", sc.system), sc.u, sc.y)
+    esmf = observers.run(observers.create("ESMF", sc.system, weight="obe"), sc.u, sc.y)
+    for a, b in zip(eso.sets, esmf.sets, strict=True):
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.Q, b.Q)
+    nl = observers.run(observers.create("ESMF", _linear_as_nonlinear(sc.system), weight="obe"),
+                       sc.u, sc.y)
+    for a, b in zip(eso.sets, nl.sets, strict=True):
+        assert np.allclose(a.q, b.q, rtol=1e-6, atol=1e-9)
+        assert np.allclose(a.Q, b.Q, rtol=1e-5, atol=1e-9)
