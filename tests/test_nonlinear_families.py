@@ -10,7 +10,7 @@ import observers
 import systems
 from observers.numerics.interval import ForwardBackward, contract_linear, linear_box
 from observers.numerics.relaxation import Factorable
-from observers.sets import EmptySet
+from observers.sets import EmptySet, SetError, Zonotope, ZonotopeBundle
 from systems.derivatives import SymbolicDerivatives
 
 
@@ -98,7 +98,7 @@ def test_linear_box_is_the_hull_of_the_image():
 
 
 # -- observers --------------------------------------------------------------------------------
-NEW = ["INT-CP", "ESMF"]
+NEW = ["INT-CP", "ESMF", "ZB-A"]
 DIVERGES = {("ESMF", "rego2d-nonlinear")}
 
 
@@ -138,3 +138,78 @@ def test_esmf_is_eso_b_on_a_linear_system():
     for a, b in zip(eso.sets, nl.sets, strict=True):
         assert np.allclose(a.q, b.q, rtol=1e-6, atol=1e-9)
         assert np.allclose(a.Q, b.Q, rtol=1e-5, atol=1e-9)
+
+
+# -- ZonotopeBundle -------------------------------------------------------------------------------
+def _diamonds():
+    # |x1| + |x2| <= 1 and |x1 - 1| + |x2| <= 1: their intersection is the diamond with the
+    # vertices (0, 0), (1, 0), (0.5, +-0.5)
+    D = np.array([[0.5, 0.5], [0.5, -0.5]])
+    return ZonotopeBundle([Zonotope([0.0, 0.0], D), Zonotope([1.0, 0.0], D)])
+
+
+def test_bundle_hull_is_exact_on_a_hand_example():
+    H = _diamonds().interval()
+    # the members' boxes only give [0, 1] x [-1, 1]
+    assert np.allclose(H.lo, [0.0, -0.5], atol=1e-9) and np.allclose(H.hi, [1.0, 0.5], atol=1e-9)
+    assert np.all(H.lo <= [0.0, -0.5]) and np.all(H.hi >= [1.0, 0.5])
+
+
+def test_bundle_membership_agrees_with_an_lp():
+    B = _diamonds()
+    cz = B.as_conzonotope()
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-0.5, -1.0], [1.5, 1.0], size=(60, 2))
+    for x in pts:
+        assert B.contains(x, 1e-9) == cz.contains(x, 1e-9)
+    assert B.contains([0.5, 0.49]) and not B.contains([0.5, 0.51])
+
+
+def _random_bundle(rng, n=2, k=3):
+    members = [Zonotope(rng.normal(scale=0.2, size=n), rng.normal(size=(n, n + 2)))
+               for _ in range(k)]
+    return ZonotopeBundle(members)
+
+
+def _points_in(B, rng, count=25):
+    """Points of the intersection: samples of the first member kept if in all members."""
+    pts = B.members[0].sample(count * 6, rng)
+    inside = [x for x in pts if B.contains(x, 0.0)]
+    assert len(inside) >= 5
+    return np.array(inside[:count])
+
+
+def test_bundle_operations_keep_the_points_of_the_intersection():
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        B = _random_bundle(rng)
+        X = _points_in(B, rng)
+        H = B.interval()
+        assert np.all((X >= H.lo - 1e-9) & (X <= H.hi + 1e-9))
+        M = rng.normal(size=(2, 2))
+        MB = M @ B
+        Z = Zonotope(rng.normal(size=2), rng.normal(size=(2, 2)))
+        BZ = B + Z
+        zs = Z.sample(len(X), rng)
+        C = rng.normal(size=(1, 2))
+        y = C @ X[0]
+        sigma = np.array([0.3])
+        S = B.intersect_strips(C, y, sigma)
+        R = B.reduce(1.0, "girard")
+        for i, x in enumerate(X):
+            assert MB.contains(M @ x, 1e-9)
+            assert BZ.contains(x + zs[i], 1e-9)
+            assert R.contains(x, 1e-9)
+            if abs(C @ x - y)[0] <= sigma[0]:
+                assert S.contains(x, 1e-9)
+        for Bo in (MB, BZ, S, R):
+            assert Bo.size == B.size and Bo.dim == 2
+
+
+def test_bundle_bad_input():
+    with pytest.raises(SetError, match="at least one member"):
+        ZonotopeBundle([])
+    with pytest.raises(SetError, match="different dimensions"):
+        ZonotopeBundle([Zonotope([0.0]), Zonotope([0.0, 0.0])])
+    with pytest.raises(SetError, match="gains"):
+        _diamonds().intersect_strips([[1.0, 0.0]], [0.0], [1.0], gains=[np.zeros((2, 1))])
