@@ -17,7 +17,7 @@ from ..sets import HullLP, Zonotope, ZonotopeBundle, get_reduction
 
 
 @register(
-    "ZB-A", family="strip", set_type="zonotope bundle", ready_for_control=False,
+    "ZB-A", family="strip", set_type="bundle", ready_for_control=False,
     reference="Althoff, Krogh, IEEE CDC-ECC 2011 (zonotope bundles); Alamo, Bravo, Camacho, "
               "Automatica 41(6), 2005 and Wang, Puig, Cembrano, Automatica 93, 2018 (gains)",
 )
