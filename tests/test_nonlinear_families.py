@@ -8,6 +8,7 @@ import pytest
 
 import observers
 import systems
+from observers.numerics.bundle import box_gain, sequential_frad_gain
 from observers.numerics.interval import ForwardBackward, contract_linear, linear_box
 from observers.numerics.relaxation import Factorable
 from observers.sets import EmptySet, SetError, Zonotope, ZonotopeBundle
@@ -213,3 +214,22 @@ def test_bundle_bad_input():
         ZonotopeBundle([Zonotope([0.0]), Zonotope([0.0, 0.0])])
     with pytest.raises(SetError, match="gains"):
         _diamonds().intersect_strips([[1.0, 0.0]], [0.0], [1.0], gains=[np.zeros((2, 1))])
+
+
+def test_box_gain_hand_example_and_optimality():
+    # the unit box and the strip |x1 - y| <= 0.5: row 1 of the gain is the weighted median
+    # of {1 (weight 1), 0 (weight 0.5)} = 1, row 2 of {0, 0} = 0: the member becomes the strip
+    L = box_gain(np.eye(2), np.array([[1.0, 0.0]]), np.array([0.5]))
+    assert np.allclose(L, [[1.0], [0.0]])
+    # one strip: every component of the updated hull is the least over all gains
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        G = rng.normal(size=(3, 5))
+        c, sigma = rng.normal(size=(1, 3)), np.array([rng.uniform(0.1, 1)])
+
+        def radius(L, G=G, c=c, sigma=sigma):
+            return np.abs(np.hstack([G - L @ (c @ G), L * sigma])).sum(axis=1)
+
+        best = radius(box_gain(G, c, sigma))
+        for L in [sequential_frad_gain(G, c, sigma), *rng.normal(size=(10, 3, 1))]:
+            assert np.all(best <= radius(L) + 1e-12)
