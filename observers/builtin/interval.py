@@ -8,7 +8,7 @@ from time import perf_counter
 import numpy as np
 
 from ..base import Observer
-from ..enclosures import Smooth, mean_value
+from ..enclosures import NotDerivable, Smooth, first_order, mean_value
 from ..errors import Diverged, Unsupported
 from ..families import as_zonotope
 from ..numerics.interval import (
@@ -180,7 +180,10 @@ class IntervalContractor(Observer):
                 raise
             except SetError:  # h cannot be evaluated over the box (sqrt reaching 0): skip
                 pass
-        H, d, rad = mean_value(self._h, lo, hi, np.zeros(0), self.k)
+        try:
+            H, d, rad = mean_value(self._h, lo, hi, np.zeros(0), self.k)
+        except NotDerivable:  # h given with hand-written derivatives only
+            H, d, rad = first_order(self._h, lo, hi, np.zeros(0), self.k)
         return contract_linear(lo, hi, H, down(ylo - d - rad, 2), up(yhi - d + rad, 2))
 
     def step(self, u_prev, y) -> Interval:
