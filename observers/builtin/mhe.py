@@ -25,8 +25,7 @@ from ..families import LinearModelObserver
 from ..numerics import mhe as nm
 from ..options import Choice, Integer
 from ..registry import create, register
-from ..sets import ConZonotope, Interval
-from ..sets._lp import HullLP
+from ..sets import ConZonotope, HullLP, Interval
 
 #: observers that may run alongside as the ``inner`` bound of the window's first state
 INNER = ("none", "FRad-A", "FRad-B", "CZN-A", "CZN-B")
