@@ -34,9 +34,10 @@ INNER = ("none", "FRad-A", "FRad-B", "CZN-A", "CZN-B")
 @register(
     "MHE", family="moving-horizon", set_type="interval", ready_for_control=False,
     floor="filtered",
-    reference="finite-memory set-valued observer (Shamma & Tu, IEEE TAC 44(2), 1999) with a "
-              "set as arrival cost (Rao, Rawlings & Mayne, IEEE TAC 48(2), 2003); window as "
-              "an unreduced constrained zonotope (Scott et al., Automatica 69, 2016), issue 29",
+    reference="set-valued observer (Shamma & Tu, IEEE TAC 44(2), 1999) over a window of L "
+              "steps, a set as arrival cost (Rao, Rawlings & Mayne, IEEE TAC 48(2), 2003); "
+              "window as an unreduced constrained zonotope (Scott et al., Automatica 69, "
+              "2016), issue 29",
 )
 class MHE(LinearModelObserver):
     """Moving-horizon set estimator: the exact hull of the last ``window`` steps' data.

@@ -11,10 +11,11 @@ own hull of step ``k-L`` (sound by induction), intersected, if the caller gives 
 box from another observer run alongside (the ``inner`` observer of
 :class:`observers.builtin.mhe.MHE`).
 
-This is the finite-memory set-valued observer of Shamma & Tu (IEEE TAC 44(2), 1999: the
-polytope of states consistent with bounded signals, its bounds by linear programs), with
-the information before the window summarised by a set, as the arrival cost of moving-horizon
-estimation summarises it by a penalty (Rao, Rawlings & Mayne, IEEE TAC 48(2), 2003).  The
+References: the set of states consistent with bounded signals is the polytope of the
+set-valued observer of Shamma & Tu (IEEE TAC 44(2), 1999), whose bounds are linear
+programs; here it is kept to a finite memory of L steps, the information before the window
+summarised by a set as the arrival cost of moving-horizon estimation summarises it by a
+penalty (Rao, Rawlings & Mayne, IEEE TAC 48(2), 2003).  The
 window's polytope is the constrained zonotope of the exact recursion over L steps (Scott,
 Raimondo, Marseglia & Braatz, Automatica 69, 2016, without reduction); it is kept here in the
 sparse state-space form of :mod:`observers.numerics.exact`, whose LPs are warm started.
