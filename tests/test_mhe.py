@@ -37,7 +37,8 @@ def _random_walk(a: float, b: float, steps: int, seed: int):
 def test_hand_derived_hulls_of_two_random_walks(form, window):
     # In one dimension the forward interval recursion S_k = (S_{k-1} + [-a, a]) n
     # [y_k - b, y_k + b] is the exact consistent set, so every window gives it; the unmeasured
-    # walk only grows: x2 in [-1 - k a, 1 + k a].
+    # walk only grows: x2 in [-1 - k a, 1 + k a].  Tolerance: the czn formulation enlarges
+    # the noise by a relative 1e-7 (2e-8 here).
     a, b, N = 0.05, 0.2, 30
     s, sim = _random_walk(a, b, N, seed=4)
     lo, hi = _run(s, sim.u, sim.y, window=window, formulation=form)
@@ -46,8 +47,9 @@ def test_hand_derived_hulls_of_two_random_walks(form, window):
         if k:
             x1 = x1 + [-a, a]
         x1 = np.array([max(x1[0], sim.y[k, 0] - b), min(x1[1], sim.y[k, 0] + b)])
-        np.testing.assert_allclose([lo[k, 0], hi[k, 0]], x1, atol=1e-9)
-        np.testing.assert_allclose([lo[k, 1], hi[k, 1]], [-1 - k * a, 1 + k * a], atol=1e-9)
+        np.testing.assert_allclose([lo[k, 0], hi[k, 0]], x1, rtol=0, atol=1e-7)
+        np.testing.assert_allclose([lo[k, 1], hi[k, 1]], [-1 - k * a, 1 + k * a], rtol=0,
+                                   atol=1e-7)
 
 
 def _coupled(seed: int = 1, steps: int = 30):
@@ -69,8 +71,9 @@ def test_window_over_the_whole_record_is_the_exact_hull(form):
     lo, hi = _run(s, sim.u, sim.y, window=sim.y.shape[0], formulation=form)
     r = 0.5 * (H["filt_hi"] - H["filt_lo"])
     assert np.all(r > 0)
-    assert np.abs(lo - H["filt_lo"]).max() <= 1e-7 * r.min()
-    assert np.abs(hi - H["filt_hi"]).max() <= 1e-7 * r.min()
+    rtol = 1e-7 if form == "lp" else 1e-6  # czn: the noise enlarged by a relative 1e-7
+    assert np.abs(lo - H["filt_lo"]).max() <= rtol * r.min()
+    assert np.abs(hi - H["filt_hi"]).max() <= rtol * r.min()
 
 
 def _plain_strips(s, u, y, sigma):
@@ -104,7 +107,8 @@ def test_window_one_is_at_least_as_tight_as_the_plain_strip_intersection(form):
     sim = systems.simulate(s, np.zeros((40, 1)), seed=7)
     plo, phi = _plain_strips(s, sim.u, sim.y, np.array([0.1, 0.1]))
     lo, hi = _run(s, sim.u, sim.y, window=1, formulation=form)
-    assert np.all(lo >= plo - 1e-9) and np.all(hi <= phi + 1e-9)
+    tol = 1e-7  # czn: the noise enlarged by a relative 1e-7
+    assert np.all(lo >= plo - tol) and np.all(hi <= phi + tol)
     assert np.mean(hi - lo) < np.mean(phi - plo)  # and strictly tighter on this record
 
 

@@ -29,6 +29,11 @@ from ..sets import ConZonotope, HullLP, Interval
 
 #: observers that may run alongside as the ``inner`` bound of the window's first state
 INNER = ("none", "FRad-A", "FRad-B", "CZN-A", "CZN-B")
+#: relative enlargement of the measurement noise in the constrained-zonotope formulation (as
+#: the CZN observers' ``margin``): with the noise on a vertex of V the true state lies on
+#: the boundary of the exact window, where the rounding of the constraint data (relative
+#: 1e-16) could cut it off; with it, strictly inside
+CZN_MARGIN = 1e-7
 
 
 @register(
@@ -52,7 +57,8 @@ class MHE(LinearModelObserver):
         floor on the 6-tank record and 1.02x on the 6-D vehicle).
     formulation : {"czn", "lp"}
         ``"czn"`` (default): the window as a constrained zonotope, its hull by the batched
-        dual simplex (cheapest for short windows); ``"lp"``: the sparse LPs of the exact
+        dual simplex (cheapest for short windows; the measurement noise enlarged by
+        :data:`CZN_MARGIN`, relative 1e-7, against rounding); ``"lp"``: the sparse LPs of the exact
         reference in a ring of warm-started HiGHS models (cheaper for long windows and large
         systems; every range rounded outward).
     inner : {"none", "FRad-A", "FRad-B", "CZN-A", "CZN-B"}
@@ -74,6 +80,7 @@ class MHE(LinearModelObserver):
         super().design()
         self.L = int(self.options["window"])
         self._sets = tuple((S.c, S.G) for S in (self.X0, self.W, self.V))
+        self._V_czn = (self.V.c, self.V.G * (1.0 + CZN_MARGIN))
 
     def reset(self) -> None:
         super().reset()
@@ -138,7 +145,7 @@ class MHE(LinearModelObserver):
             start = self._box(lo, hi)
         u = np.array(self._u, float).reshape(len(self._u), self.B.shape[1])
         c, G, A, b = nm.window_conzonotope(self.A, self.B, self.C, start, self._sets[1],
-                                           self._sets[2], u, np.array(self._y, float))
+                                           self._V_czn, u, np.array(self._y, float))
         I = ConZonotope(c, G, A, b).with_solver(self._solver).interval()
         return np.asarray(I.lo, float), np.asarray(I.hi, float)
 

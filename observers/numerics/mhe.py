@@ -51,8 +51,10 @@ dual points (:meth:`observers.sets.ConZonotope.interval`).  No warm start, but n
 either: for small windows (``(L + 1) m`` up to a few dozen rows) it is several times cheaper
 than the ring (measured on the 6-tank record, L = 5: about 1 ms per step against 4 ms).  Its
 matrices are computed in floating point without outward rounding (as those of every
-constrained-zonotope observer of the project): its bounds are exact for the computed set,
-whose rounding errors (relative 1e-15) are far below the containment tolerances.
+constrained-zonotope observer of the project): its bounds are sound for the computed set,
+whose rounding errors (relative 1e-15) the observer covers by enlarging the measurement
+noise by a relative 1e-7 (:data:`observers.builtin.mhe.CZN_MARGIN`, as the CZN observers'
+``margin``).
 """
 
 from __future__ import annotations
