@@ -25,7 +25,7 @@ from ..families import LinearModelObserver
 from ..numerics import mhe as nm
 from ..options import Choice, Integer
 from ..registry import create, register
-from ..sets import ConZonotope, HullLP, Interval
+from ..sets import ConZonotope, EmptySet, HullLP, Interval
 
 #: observers that may run alongside as the ``inner`` bound of the window's first state
 INNER = ("none", "FRad-A", "FRad-B", "CZN-A", "CZN-B")
@@ -142,6 +142,11 @@ class MHE(LinearModelObserver):
             prior = self._prior()
             if prior is not None:
                 lo, hi = np.maximum(lo, prior[0]), np.minimum(hi, prior[1])
+                if np.any(lo > hi):  # two sound bounds that do not meet: no state fits
+                    i = int(np.argmax(lo - hi))
+                    raise EmptySet(f"step {k}: the hulls of step {k - self.L} of MHE and of "
+                                   f"its inner observer do not meet in x{i + 1}: the record "
+                                   "is inconsistent with the model")
             start = self._box(lo, hi)
         u = np.array(self._u, float).reshape(len(self._u), self.B.shape[1])
         c, G, A, b = nm.window_conzonotope(self.A, self.B, self.C, start, self._sets[1],
