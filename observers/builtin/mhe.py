@@ -53,8 +53,8 @@ class MHE(LinearModelObserver):
     Options
     -------
     window : int
-        Window length L (transitions; 1 <= L <= 1000, default 5: within 1.1x of the exact
-        floor on the 6-tank record and 1.02x on the 6-D vehicle).
+        Window length L (transitions; 1 <= L <= 1000, default 5: 1.14x the exact
+        floor on the 6-tank record, 1.03x on the 6-D vehicle).
     formulation : {"czn", "lp"}
         ``"czn"`` (default): the window as a constrained zonotope, its hull by the batched
         dual simplex (cheapest for short windows; the measurement noise enlarged by
