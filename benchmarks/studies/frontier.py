@@ -3,8 +3,9 @@
 ``python -m benchmarks.studies.frontier`` (run by ``make bench``) runs, on
 ``tank6-linear``, ``vehicle6d-cora`` and the first :data:`STEPS_30` steps of the 30-state
 record ``tank30-linear-cora``, every setting of :data:`SETTINGS` (the zonotope order of
-FRad-A/B and VolMin-B, the constraint budget of CZN-A/B, the window L of the moving-horizon
-estimator MHE in both formulations, ...), and writes ``reports/frontier.md``, a log-log
+FRad-A/B and VolMin-B with the scenario's PCA reduction and of FRad-A with Girard's, the
+constraint budget of CZN-A/B/MV, the window L of the moving-horizon estimator MHE in both
+formulations, ...), and writes ``reports/frontier.md``, a log-log
 figure beside it and the tidy table ``results/frontier/frontier.csv``:
 
 * **gap**: the mean over the states of the observer's RMS radius over the exact floor's
@@ -62,12 +63,14 @@ SETTINGS: dict[str, list[tuple[str, str, tuple]]] = {
         ("MHE", "window", _WINDOWS), ("FRad-A", "order", _ORDERS),
         ("FRad-B", "order", _ORDERS), ("VolMin-B", "order", (5, 20, 100)),
         ("CZN-B", "max_constraints", (3, 6, 12, 24)), ("CZN-A", "max_constraints", (3, 6, 12)),
+        ("CZN-MV", "max_constraints", (3, 6, 12)), ("FRad-A[girard]", "order", (5, 20, 100)),
         ("MHE[lp]", "window", (5, 20)), ("ROPO", "basis", ("min-volume",)),
     ],
     "vehicle6d-cora": [
         ("MHE", "window", _WINDOWS), ("FRad-A", "order", _ORDERS),
         ("FRad-B", "order", _ORDERS), ("VolMin-B", "order", (5, 20, 100)),
         ("CZN-B", "max_constraints", (4, 8, 16, 32)), ("CZN-A", "max_constraints", (4, 8, 16)),
+        ("CZN-MV", "max_constraints", (4, 8, 16)), ("FRad-A[girard]", "order", (5, 20, 100)),
         ("MHE[lp]", "window", (5, 20)), ("ROPO", "basis", ("min-volume",)),
     ],
     "tank30-linear-cora": [
@@ -77,7 +80,7 @@ SETTINGS: dict[str, list[tuple[str, str, tuple]]] = {
     ],
 }
 #: fixed options of a labelled variant ``NAME[tag]``
-VARIANTS = {"MHE[lp]": {"formulation": "lp"}}
+VARIANTS = {"MHE[lp]": {"formulation": "lp"}, "FRad-A[girard]": {"reduction": "girard"}}
 COLUMNS = ["record", "steps", "observer", "knob", "value", "status", "message", "gap",
            "cost_ms", "kalman_ms", "cost_ratio", "covers_exact", "violations", "pareto"]
 
