@@ -76,6 +76,11 @@ class NomG(_OfflineGainPropagation):
     -------
     mu : float
         Decay rate in (0, 1] of the nominal error (``rho(A - L C)^2 < mu``); 1 as in CORA.
+    solver : {"newton", "clarabel"}
+        How the analytic centre is computed: ``"newton"`` (default), a damped Newton method in
+        numpy (seconds at 30 states); ``"clarabel"``, cvxpy's log-det cone with Clarabel
+        (minutes at 30 states; the gain of the project before the Newton method, 2e-5 to
+        7e-5 away from it relative to the largest entry of the gain).
     gain : array, optional
         Use this gain instead of designing one.
 
@@ -83,12 +88,14 @@ class NomG(_OfflineGainPropagation):
     normalised by ``trace(P) = n`` (see :func:`~observers.numerics.luenberger.nom_g_design`).
     """
 
-    OPTIONS = {"mu": Number(1.0, low=0, high=1, low_open=True)}
+    OPTIONS = {"mu": Number(1.0, low=0, high=1, low_open=True),
+               "solver": Choice("newton", ("newton", "clarabel"))}
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
         s = self.system
         check_modes(s, self.name, rate=np.sqrt(self.options["mu"]))
-        return nom_g_design(s.A, s.C, float(self.options["mu"])).L
+        return nom_g_design(s.A, s.C, float(self.options["mu"]), self.options["solver"]).L
 
 
 @register(

@@ -6,9 +6,10 @@
 * :func:`hinf_g_design` - H-infinity gain of Tang et al. (TAC 2019, eq. 16), Hinf-G.
 
 Each design solves its LMI with cvxpy + Clarabel (PRad-E also in closed form, through a
-Riccati equation), then re-checks the LMI on the returned numbers with numpy eigenvalues
-(:mod:`observers.numerics.lmi`) and returns a verified :class:`GainDesign`; an infeasible or failed
-design raises :class:`~observers.errors.DesignFailed`.
+Riccati equation; Nom-G by a damped Newton method in numpy), then re-checks the LMI on the
+returned numbers with numpy eigenvalues (:mod:`observers.numerics.lmi`) and returns a
+verified :class:`GainDesign`; an infeasible or failed design raises
+:class:`~observers.errors.DesignFailed`.
 
 Notation: ``E`` and ``F`` are the generator matrices of the disturbance set ``W`` (state
 space) and of the noise set ``V`` (output space), ``Y = P L``.  Nom-G and Hinf-G are
@@ -161,7 +162,7 @@ def nom_g_lmi(A, C, mu, P, Y):
     return bmat([[mu * P, M.T], [M, P]])
 
 
-def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
+def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
     """Nom-G gain: the analytic centre of the Nom-G LMI normalised by ``trace(P) = n``.
 
     The LMI ``[[mu P, *], [P A - Y C, P]] > 0`` (equivalently
@@ -173,29 +174,73 @@ def nom_g_design(A, C, mu: float = 1.0) -> GainDesign:
     concave, so the point is unique and reproducible, and it lies deep inside the feasible set
     (every eigenvalue of the LMI is kept away from zero).
 
+    ``solver="newton"`` (default) computes the centre by the damped Newton method of
+    :func:`~observers.numerics.lmi.decay_centre` (the PRad-C/D centre's method, here without
+    the ``log det P`` term), started from the steady-state Kalman gain of ``(A / sqrt(mu), C)``
+    and the ``P`` of its Stein equation (:func:`nom_g_start`): seconds at 30 states where
+    Clarabel's log-det cone (``solver="clarabel"``, the former route) takes minutes, and
+    closer to the optimum (Clarabel stops at its duality gap, 1e-8 relative).
+
     Verified in numpy: the LMI is positive definite, ``P`` too, and
     ``rho(A - L C) < sqrt(mu) <= 1``.
     """
-    import cvxpy as cp
-
     what = "Nom-G"
     if not 0.0 < mu <= 1.0:
         raise DesignFailed(f"{what}: mu must lie in (0, 1], got {mu}")
     A, C = np.asarray(A, float), np.asarray(C, float)
-    n, m = C.shape[1], C.shape[0]
-    P = cp.Variable((n, n), symmetric=True)
-    Y = cp.Variable((n, m))
-    SM = nom_g_lmi(A, C, mu, P, Y)
-    problem = cp.Problem(cp.Maximize(cp.log_det(0.5 * (SM + SM.T))), [cp.trace(P) == n])
-    lmi.solve(problem, what)
-    P, Y = lmi.sym(P.value), Y.value
+    n = C.shape[1]
+    if solver == "newton":
+        P0, Y0 = nom_g_start(A, C, mu, what)
+        P, Y = lmi.decay_centre(A, C, mu, P0, Y0, what)
+    elif solver == "clarabel":
+        P, Y = _nom_g_clarabel(A, C, mu, what)
+    else:
+        raise DesignFailed(f"{what}: unknown solver {solver!r} (use 'newton' or 'clarabel')")
+    P = lmi.sym(P)
     L = gain_from(P, Y, what)
     margin = lmi.require_pd(nom_g_lmi(A, C, mu, P, Y), f"{what} LMI")
     rho = lmi.spectral_radius(A - L @ C)
     if rho >= np.sqrt(mu):
         raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
                            f"{rho:.6g} >= sqrt(mu) = {np.sqrt(mu):.6g})")
-    return GainDesign(L, P, {"rho": rho, "mu": mu, "lmi_margin": margin})
+    return GainDesign(L, P, {"rho": rho, "mu": mu, "lmi_margin": margin, "solver": solver,
+                             "trace_P": float(np.trace(P)) / n})
+
+
+def nom_g_start(A, C, mu: float, what: str = "Nom-G") -> tuple[np.ndarray, np.ndarray]:
+    """A strictly feasible point of the Nom-G LMI with ``trace(P) = n``: the steady-state
+    Kalman gain ``L`` of ``(A / sqrt(mu), C)`` (unit weights), for which
+    ``rho(A - L C) < sqrt(mu)``, and the solution ``P`` of the Stein equation
+    ``mu P - (A - L C)' P (A - L C) = I``, scaled; ``Y = P L``."""
+    import scipy.linalg as sla
+
+    n, m = C.shape[1], C.shape[0]
+    s = np.sqrt(mu)
+    try:
+        X = sla.solve_discrete_are(A.T / s, C.T, np.eye(n), np.eye(m))
+        L = A @ X @ C.T @ np.linalg.inv(C @ X @ C.T + np.eye(m))
+        Al = A - L @ C
+        P = lmi.sym(sla.solve_discrete_lyapunov(Al.T / s, np.eye(n) / mu))
+    except (np.linalg.LinAlgError, ValueError):
+        P = None
+    if P is None or not np.all(np.isfinite(P)) or np.linalg.eigvalsh(P)[0] <= 0:
+        raise DesignFailed(f"{what}: no gain makes the nominal error decay at rate "
+                           f"{s:.6g} (a mode the outputs cannot correct is too slow)")
+    P = P * (n / np.trace(P))
+    return P, P @ L
+
+
+def _nom_g_clarabel(A, C, mu: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The Nom-G centre as a cvxpy log-det problem solved by Clarabel."""
+    import cvxpy as cp
+
+    n, m = C.shape[1], C.shape[0]
+    P = cp.Variable((n, n), symmetric=True)
+    Y = cp.Variable((n, m))
+    SM = nom_g_lmi(A, C, mu, P, Y)
+    problem = cp.Problem(cp.Maximize(cp.log_det(0.5 * (SM + SM.T))), [cp.trace(P) == n])
+    lmi.solve(problem, what)
+    return P.value, Y.value
 
 
 # -- Hinf-G -----------------------------------------------------------------------------------
