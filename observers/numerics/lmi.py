@@ -383,10 +383,13 @@ def decay_centre(
     def value(chol) -> float:
         return sum(2.0 * float(np.log(np.diag(Lc)).sum()) for Lc in chol)
 
+    hess_full = np.empty((Nf + 1, Nf + 1))  # one buffer for every iteration
+
     def derivatives(chol) -> tuple[np.ndarray, np.ndarray]:
         """Gradient and Hessian in the reduced coordinates."""
         g = np.zeros(Nf + 1)
-        Hf = np.zeros((Nf + 1, Nf + 1))
+        Hf = hess_full
+        Hf.fill(0.0)
         blocks = [(chol[0], terms)]
         if with_logdet_P:
             blocks.append((chol[1], [("P", np.eye(n), np.eye(n))]))
