@@ -528,7 +528,13 @@ def strip_update(c, G, Lam, C, y, sigma):
     m = C.shape[0]
     c_new = c + np.dot(Lam, y - np.dot(C, c))
     G_new = np.empty((n, r + m))
-    G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+    if 2 * m < n:  # G - Lam (C G): 2 m n r flops
+        G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n (as alamo_frad_strips)
+        T = -np.dot(Lam, C)
+        for a in range(n):
+            T[a, a] += 1.0
+        G_new[:, :r] = np.dot(T, G)
     for i in range(n):
         for j in range(m):
             G_new[i, r + j] = Lam[i, j] * sigma[j]
