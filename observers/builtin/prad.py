@@ -15,7 +15,15 @@ Relation to CORA and to the papers
   the vector ``max(|inf W|, |sup W|)``, ``phi``: the strip half-widths), at the ``beta`` where
   CORA's bisection ends (0.9921875; the SDP is feasible for every ``beta``, so CORA's loop,
   which moves up after each feasible solve, always ends there).  Clarabel reproduces CORA's
-  stored SDPT3 gain of the 2-D vehicle to ~2e-7.
+  stored SDPT3 gain of the 2-D vehicle to ~2e-7.  Above 12 states (option ``method``,
+  default ``auto``) the design is the SDP's largest optimal ``P`` from a Riccati equation
+  (:func:`~observers.numerics.prad.le_riccati`, milliseconds instead of minutes): the SDP's
+  weights ``E'E = 1e-6 I`` of the tank systems make Clarabel's feasibility tolerance a
+  relative violation of order 1e-4 of the inequality (tank12: ``||P^1/2 N W^-1/2|| =
+  1.0003`` instead of at most 1), which the Riccati solution meets exactly.  It also decides
+  PRad-A's ``noGain`` from 18 tanks on: a single output of the tank chain leaves modes that
+  decay more slowly than ``sqrt(beta)`` uncorrected, so no ``P > 0`` exists (the SDP returned
+  a gain only within its tolerance, and PRad-A then diverged).
 * **PRad-C** and **PRad-D** are ill-posed as CORA implements them: CORA's PRad-C
   SDP maximises ``tr P`` under constraints homogeneous in ``(P, Y, G, O)`` (unbounded: any
   feasible point can be scaled up), and its PRad-D constraint ``[[I, gamma P], [gamma P, P]]
