@@ -175,3 +175,17 @@ def test_nom_g_solver_option_is_part_of_the_design_key(monkeypatch, tmp_path):
     assert 0 < np.abs(a.L - b.L).max() < 1e-3 * np.abs(b.L).max()
     with pytest.raises(OptionError, match="solver must be one of"):
         observers.create("Nom-G", s, solver="scs")
+
+
+def test_hinf_g_riccati_route_keeps_the_least_gamma_and_the_bound():
+    s = systems.scenario("vehicle6d-cora").system
+    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    sdp = lg.hinf_g_design(A, C, E, F, 0.1, "sdp")
+    ric = lg.hinf_g_design(A, C, E, F, 0.1, "riccati")
+    assert ric.info["gamma_min"] == pytest.approx(sdp.info["gamma_min"], rel=1e-3)
+    # the H-infinity norm from (w~, v~) to e is within the bound (frequency sweep)
+    Bd = np.hstack([lg.range_factor(E), -ric.L @ lg.range_factor(F)])
+    assert _closed_loop_hinf_norm(A - ric.L @ C, Bd) <= ric.info["gamma"]
+    assert ric.info["rho"] < 1
+    with pytest.raises(DesignFailed, match="unknown method"):
+        lg.hinf_g_design(A, C, E, F, 0.1, "scs")
