@@ -155,7 +155,7 @@ def test_hinf_riccati_finds_the_least_gamma_of_the_sdp_and_a_certified_point(nam
     Q = np.eye(s.n)
     _, _, g_sdp = el.hinf_lmi(A, C, E, F, Q, "sdp")
     P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati", slack=0.0)
-    assert g == pytest.approx(g_sdp, rel=1e-3)  # Clarabel's optimum, from the other side
+    assert g == pytest.approx(g_sdp, rel=2e-3)  # Clarabel's optimum; bisection to 1e-3
     P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati")
     Ao, D = el.error_system(A, C, E, F, L)
     _, lam, _ = el.certify(Ao, D, P, g, Q, "riccati")  # the LMI verified in numpy
