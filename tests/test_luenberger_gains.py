@@ -189,3 +189,14 @@ def test_hinf_g_riccati_route_keeps_the_least_gamma_and_the_bound():
     assert ric.info["rho"] < 1
     with pytest.raises(DesignFailed, match="unknown method"):
         lg.hinf_g_design(A, C, E, F, 0.1, "scs")
+
+
+def test_nom_g_above_the_newton_limit_is_the_verified_kalman_start(monkeypatch):
+    from observers.numerics import luenberger
+
+    s = systems.scenario("vehicle6d-cora").system
+    monkeypatch.setattr(luenberger, "NEWTON_MAX_VARIABLES", 10)
+    d = luenberger.nom_g_design(s.A, s.C)
+    assert d.info["solver"] == "start" and d.info["rho"] < 1
+    P0, Y0 = luenberger.nom_g_start(s.A, s.C, 1.0)
+    np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)

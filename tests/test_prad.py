@@ -431,3 +431,19 @@ def test_le_method_auto_and_the_design_key(tmp_path, monkeypatch):
     # published noGain), found by the Riccati equation of the first such output
     with pytest.raises(DesignFailed, match="no P > 0"):
         observers.create("PRad-A", sc.system, **sc.options)
+
+
+def test_centre_above_the_newton_limit_is_the_certified_start(monkeypatch):
+    from observers.numerics import prad
+
+    A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
+    rate = cora_bisection_end()
+    monkeypatch.setattr(prad, "NEWTON_MAX_VARIABLES", 10)
+    d = prad.centre_gain(A, C, E, F, rate)
+    assert d.info["solver"] == "start"
+    P0, Y0 = prad._centre_start(A, C, rate, "test")
+    np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)
+    g = d.info["noise_weight"]
+    nw, nv = E.shape[1], F.shape[1]
+    assert verify_decay(d.P, d.L, A, C, E, F, rate * d.P, g * np.eye(nw), g * np.eye(nv),
+                        "test") >= -1e-6

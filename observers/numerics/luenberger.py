@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import DesignFailed
 from . import lmi
 from .lmi import GainDesign, bmat, gain_from, range_basis, range_factor
+from .prad import NEWTON_MAX_VARIABLES
 
 #: strictness margin of the strict LMIs (``SM <= -eps I`` stands for ``SM < 0``)
 STRICT_EPS = 1e-6
@@ -179,7 +180,10 @@ def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
     the ``log det P`` term), started from the steady-state Kalman gain of ``(A / sqrt(mu), C)``
     and the ``P`` of its Stein equation (:func:`nom_g_start`): seconds at 30 states where
     Clarabel's log-det cone (``solver="clarabel"``, the former route) takes minutes, and
-    closer to the optimum (Clarabel stops at its duality gap, 1e-8 relative).
+    closer to the optimum (Clarabel stops at its duality gap, 1e-8 relative).  Above
+    :data:`~observers.numerics.prad.NEWTON_MAX_VARIABLES` entries of ``(P, Y)`` (about 60
+    states) the gain is that starting point (``info["solver"] = "start"``: a Kalman gain,
+    strictly feasible and verified, not the centre).
 
     Verified in numpy: the LMI is positive definite, ``P`` too, and
     ``rho(A - L C) < sqrt(mu) <= 1``.
@@ -189,9 +193,13 @@ def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
         raise DesignFailed(f"{what}: mu must lie in (0, 1], got {mu}")
     A, C = np.asarray(A, float), np.asarray(C, float)
     n = C.shape[1]
+    if solver == "newton" and n * (n + C.shape[0]) > NEWTON_MAX_VARIABLES:
+        solver = "start"  # the Hessian would not fit: the strictly feasible start
     if solver == "newton":
         P0, Y0 = nom_g_start(A, C, mu, what)
         P, Y = lmi.decay_centre(A, C, mu, P0, Y0, what)
+    elif solver == "start":
+        P, Y = nom_g_start(A, C, mu, what)
     elif solver == "clarabel":
         P, Y = _nom_g_clarabel(A, C, mu, what)
     else:

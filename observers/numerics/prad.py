@@ -402,9 +402,10 @@ def wang_d_gain(
 
 
 # -- analytic centre of CORA's PRad-C/PRad-D cone (the published rows) ----------------------------
-#: largest problem (entries of P and Y) that :func:`centre_gain` solves by the numpy Newton
-#: method (its Hessian holds the square of that many floats: 400 MB); larger ones go to
-#: Clarabel
+#: largest problem (entries of P and Y) that :func:`centre_gain` and Nom-G's design solve by
+#: the numpy Newton method (its Hessian holds the square of that many floats: 400 MB, about
+#: a minute at 60 tanks); larger ones keep the Newton method's starting point (a Kalman gain,
+#: strictly feasible, not the centre)
 NEWTON_MAX_VARIABLES = 7_000
 #: Clarabel settings tried in turn by :func:`_centre_clarabel` until one converges
 CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
@@ -412,7 +413,8 @@ CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
                   {"equilibrate_enable": False})
 
 
-def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
+def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
+                solver: str = "auto") -> GainDesign:
     """Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
 
     CORA's PRad-C SDP (``Wx = beta P``, free diagonal noise weights ``Ww``, ``Wv``, objective
@@ -439,8 +441,11 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     (:func:`~observers.numerics.lmi.decay_centre`, started from the steady-state Kalman gain
     of the system slowed down by ``sqrt(rate)``; about 15 iterations, 2 s at 30 tanks against
     minutes for Clarabel's log-det cone, and more accurate: Clarabel's point is 1e-7 below the
-    optimum, 1e-4 away from it in ``L``); systems above :data:`NEWTON_MAX_VARIABLES` go to
-    Clarabel.  It weights each state by how much
+    optimum, 1e-4 away from it in ``L``).  Systems above :data:`NEWTON_MAX_VARIABLES` (more
+    than about 60 states) keep the starting point (``solver="start"``: strictly inside the
+    cone, certified in the same way, but not its centre; Clarabel's log-det cone, the route
+    before, takes far beyond the scaling study's budget there; ``solver="clarabel"`` keeps
+    it).  It weights each state by how much
     ``P`` can grow there, most on the measured states, so the gain trusts the measurements
     there, as the published PRad-C/PRad-D rows do; the noise weights of CORA's PRad-C and
     PRad-D both drop out in this limit, so the two rows get the same gain at the same rate.
@@ -454,10 +459,16 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     """
     A, C, E, F = _as_arrays(A, C, E, F)
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
-    if n * (n + m) <= NEWTON_MAX_VARIABLES:
+    if solver == "auto":
+        solver = "newton" if n * (n + m) <= NEWTON_MAX_VARIABLES else "start"
+    if solver == "newton":
         Pv, Yv = _centre_newton(A, C, rate, what)
-    else:
+    elif solver == "start":
+        Pv, Yv = _centre_start(A, C, rate, what)
+    elif solver == "clarabel":
         Pv, Yv = _centre_clarabel(A, C, rate, what)
+    else:
+        raise DesignFailed(f"{what}: unknown solver {solver!r}")
     Pv = sym(Pv)
     L = gain_from(Pv, Yv, what)
     # least common noise weight g that certifies (*) at (P, L)
@@ -472,7 +483,7 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     g = float(np.linalg.eigvalsh(K @ K.T)[-1]) * (1 + 1e-6) if Mn.size else 0.0
     verify_decay(Pv, L, A, C, E, F, rate * Pv, g * np.eye(nw), g * np.eye(nv), what)
     bound = g * (nw + nv) / ((1 - rate) * np.linalg.eigvalsh(Pv)[0])
-    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g,
+    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g, "solver": solver,
                               "radius_bound": float(np.sqrt(bound))})
 
 
