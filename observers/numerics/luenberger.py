@@ -181,7 +181,7 @@ def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
     and the ``P`` of its Stein equation (:func:`nom_g_start`): seconds at 30 states where
     Clarabel's log-det cone (``solver="clarabel"``, the former route) takes minutes, and
     closer to the optimum (Clarabel stops at its duality gap, 1e-8 relative).  Above
-    :data:`~observers.numerics.prad.NEWTON_MAX_VARIABLES` entries of ``(P, Y)`` (about 60
+    :data:`~observers.numerics.prad.NEWTON_MAX_VARIABLES` entries of ``(P, Y)`` (about 40
     states) the gain is that starting point (``info["solver"] = "start"``: a Kalman gain,
     strictly feasible and verified, not the centre).
 

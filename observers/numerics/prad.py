@@ -403,10 +403,10 @@ def wang_d_gain(
 
 # -- analytic centre of CORA's PRad-C/PRad-D cone (the published rows) ----------------------------
 #: largest problem (entries of P and Y) that :func:`centre_gain` and Nom-G's design solve by
-#: the numpy Newton method (its Hessian holds the square of that many floats: 400 MB, about
-#: a minute at 60 tanks); larger ones keep the Newton method's starting point (a Kalman gain,
-#: strictly feasible, not the centre)
-NEWTON_MAX_VARIABLES = 7_000
+#: the numpy Newton method (30 tanks: 1530, about 2 s; 60 tanks: 6360, about a minute, over
+#: the scaling study's budget); larger ones keep the Newton method's starting point (a Kalman
+#: gain, strictly feasible, not the centre)
+NEWTON_MAX_VARIABLES = 3_000
 #: Clarabel settings tried in turn by :func:`_centre_clarabel` until one converges
 CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
                   {"static_regularization_enable": False, "equilibrate_enable": False},
@@ -442,7 +442,7 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
     of the system slowed down by ``sqrt(rate)``; about 15 iterations, 2 s at 30 tanks against
     minutes for Clarabel's log-det cone, and more accurate: Clarabel's point is 1e-7 below the
     optimum, 1e-4 away from it in ``L``).  Systems above :data:`NEWTON_MAX_VARIABLES` (more
-    than about 60 states) keep the starting point (``solver="start"``: strictly inside the
+    than about 40 states) keep the starting point (``solver="start"``: strictly inside the
     cone, certified in the same way, but not its centre; Clarabel's log-det cone, the route
     before, takes far beyond the scaling study's budget there; ``solver="clarabel"`` keeps
     it).  It weights each state by how much
