@@ -13,6 +13,9 @@ and writes one Markdown table with
   (``reports/speed.json``, committed with the report, so it holds a previous commit's numbers)
   before it is overwritten with the new measurement.
 
+A second section times the exact reference (the accuracy floor) cold on the records and
+budgets of :data:`benchmarks.timing.exact_cost.EXACT_CASES`.
+
 Every time is a median over repeated runs in one process; the ratio to the Kalman step is
 measured right after the observer in the same process, so it survives a busy machine better
 than the milliseconds do.  Read the table as indicative; no test asserts on it.
@@ -31,6 +34,7 @@ from ..io import atomic_write_json, atomic_write_text, environment
 from ..report import freshness
 from ..report.numbers import MISSING, fmt
 from ..report.paper import paper_rows
+from .exact_cost import EXACT_CASES, ExactCase, measure_exact, render_exact
 from .steps import TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
@@ -226,19 +230,26 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
 
 
 def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
-                       cases: tuple[Case, ...] = CASES, progress: bool = True) -> Path:
-    """Measure :data:`CASES`, compare with ``json_path`` (the previous measurement), write the
-    Markdown report ``out`` (with the freshness stamp of :mod:`benchmarks.report.freshness`, as
-    every report) and overwrite ``json_path`` with this measurement."""
+                       cases: tuple[Case, ...] = CASES, progress: bool = True,
+                       exact_cases: tuple[ExactCase, ...] = EXACT_CASES) -> Path:
+    """Measure :data:`CASES` and the cold cost of the exact reference
+    (:mod:`benchmarks.timing.exact_cost`), compare with ``json_path`` (the previous
+    measurement), write the Markdown report ``out`` (with the freshness stamp of
+    :mod:`benchmarks.report.freshness`, as every report) and overwrite ``json_path`` with this
+    measurement."""
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
+    exact = measure_exact(exact_cases, progress)
     env = environment()
     command = "python -m benchmarks speed"
     if Path(out) != DEFAULT_REPORT or Path(json_path) != DEFAULT_JSON:
         command += f" --out {out} --json {json_path}"
-    text = render(results, previous, previous_git, env) + "\n" + freshness.stamp(command) + "\n"
+    text = render(results, previous, previous_git, env)
+    if exact:
+        text += "\n" + "\n".join(render_exact(exact)) + "\n"
+    text += "\n" + freshness.stamp(command) + "\n"
     atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]
-    atomic_write_json(json_path, {"environment": env, "results": clean})
+    atomic_write_json(json_path, {"environment": env, "results": clean, "exact": exact})
     return Path(out)

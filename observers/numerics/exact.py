@@ -103,6 +103,13 @@ LP_TOLERANCE = 1e-9
 MARGIN = 0.1
 #: steps allocated ahead at least (then an eighth of the steps done)
 CHUNK = 8
+#: simplex iterations a warm-started solve may take, at least and per active row: beyond it
+#: the solve is taken as stalled (measured: Dantzig pricing cycles for ever on some
+#: degenerate records, e.g. the audit's vertex-noise realisations of the 6-D vehicle, while a
+#: cold steepest-edge solve of the same LP takes ~600 iterations); a warm solve takes tens
+WARM_ITERATIONS = 3000
+WARM_ITERATIONS_PER_ROW = 1
+_NO_LIMIT = 2**31 - 1
 _OPTIMAL = highspy.HighsModelStatus.kOptimal
 _INFEASIBLE = highspy.HighsModelStatus.kInfeasible
 
@@ -443,10 +450,10 @@ class ExactHullLP:
         n, R = self.n, self._active
         Mu = np.zeros((2 * n, self._nrows))
         for o, h in enumerate(self._models):
-            status = self._run(h)
+            status = self._run(h, warm=True)
             if status not in (_OPTIMAL, _INFEASIBLE):
-                h.clearSolver()  # once more from scratch
-                status = self._run(h)
+                h.clearSolver()  # once more from scratch, with robust pricing
+                status = self._run(h, warm=False)
                 if status not in (_OPTIMAL, _INFEASIBLE) and j not in self.inexact:
                     self.inexact.append(j)
             if status == _INFEASIBLE:
@@ -495,7 +502,12 @@ class ExactHullLP:
         scale = np.abs(rterms).sum(axis=1) + np.abs(sterms).sum(axis=1) + gpart
         return total + (self._nrows + self._ncols + 4) * _EPS * 1.01 * scale + _TINY
 
-    def _run(self, h: highspy.Highs) -> highspy.HighsModelStatus:
+    def _run(self, h: highspy.Highs, warm: bool = True) -> highspy.HighsModelStatus:
+        """Solve ``h``: a warm solve with Dantzig pricing under an iteration cap, or a cold
+        one with steepest-edge pricing and no cap (stalls of the warm solve end there)."""
+        cap = max(WARM_ITERATIONS, WARM_ITERATIONS_PER_ROW * self._active)
+        h.setOptionValue("simplex_iteration_limit", cap if warm else _NO_LIMIT)
+        h.setOptionValue("simplex_dual_edge_weight_strategy", 0 if warm else 2)
         h.run()
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
