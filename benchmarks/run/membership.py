@@ -10,6 +10,9 @@ Per set type, cheapest test first:
 
 ``Interval``
     closed form.
+``ZonotopeBundle`` (an intersection of zonotopes)
+    every member as a zonotope (below): inside if inside every member, outside if outside
+    one (the largest member distance bounds the distance to the intersection from below).
 ``Zonotope`` ``{c + G xi : |xi|_inf <= 1}`` and ``ConZonotope`` (plus ``A xi = b``)
     1. *hull*: a point farther than ``tol`` from the interval hull is outside; the distance
        to the hull is a lower bound of the distance to the set.
@@ -37,7 +40,7 @@ from dataclasses import dataclass, field
 import highspy
 import numpy as np
 
-from observers.sets import ConZonotope, Interval, Zonotope
+from observers.sets import ConZonotope, Interval, Zonotope, ZonotopeBundle
 from observers.sets.highs import new_highs
 
 _EPS = np.finfo(float).eps
@@ -80,6 +83,8 @@ class MembershipTester:
             return self._count(Membership(d <= tol, d, "closed-form"))
         if isinstance(S, (Zonotope, ConZonotope)):
             return self._zonotopic(S, x, tol, hull)
+        if isinstance(S, ZonotopeBundle):
+            return self._bundle(S, x, tol, hull)
         if hasattr(S, "distance"):
             d = float(S.distance(x))
             return self._count(Membership(d <= tol, d, "distance"))
@@ -96,6 +101,19 @@ class MembershipTester:
         """Boolean verdict; an undecided case is settled by the set's own ``contains``."""
         m = self.test(S, x, tol, hull)
         return bool(S.contains(x, tol)) if m.inside is None else m.inside
+
+    def _bundle(self, S, x: np.ndarray, tol: float, hull) -> Membership:
+        """A zonotope bundle: the point must lie in every member (each tested as a zonotope);
+        the largest member distance is a lower bound of the distance to the intersection."""
+        if hull is not None and hull_distance(*hull, x) > tol:
+            d = hull_distance(*hull, x)
+            return self._count(Membership(False, d, "hull"))
+        verdicts = [self._zonotopic(Z, x, tol, None) for Z in S.members]
+        d = max(m.distance for m in verdicts)
+        if any(m.inside is False for m in verdicts):
+            return Membership(False, d, "members")
+        inside = None if any(m.inside is None for m in verdicts) else True
+        return Membership(inside, 0.0 if inside else d, "members")
 
     # -- zonotopes and constrained zonotopes ---------------------------------------------
     def _zonotopic(self, S, x: np.ndarray, tol: float, hull) -> Membership:

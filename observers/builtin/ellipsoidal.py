@@ -8,12 +8,16 @@ from abc import abstractmethod
 import numpy as np
 
 from ..base import Observer
+from ..enclosures import Smooth, first_order
 from ..errors import DesignFailed, Diverged
 from ..families import as_zonotope
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
     HINF_RICCATI_ABOVE,
+    ellipsoid_box,
     error_system,
+    esmf_prediction,
+    esmf_update,
     gollamudi_update_cora,
     invariant_step,
     liu_prediction,
@@ -289,3 +293,98 @@ class ESOD(InvariantSetObserver):
 
     def compute_design(self, A, C, E, F) -> dict:
         return martinez_design(A, C, E, F, what=self.name)
+
+
+@register(
+    "ESMF", family="strip", set_type="ellipsoid", ready_for_control=False,
+    reference="Scholte, Campbell, Int. J. Robust Nonlinear Control 13(15), 2003",
+)
+class ESMF(Observer):
+    """Extended set-membership filter: ESO-B's ellipsoids around a linearisation (online).
+
+    At every step ``f`` is linearised at the centre of the box of the estimate and its
+    Lagrange remainder bounded over that box with the interval Hessian
+    (:func:`observers.enclosures.first_order`); the remainder box is absorbed into the
+    disturbance ellipsoid and the prediction is Liu et al.'s.  A nonlinear output is
+    enclosed likewise over the box of the prediction, its remainder absorbed into the noise
+    ellipsoid, and the update is ESO-B's optimal bounding ellipsoid
+    (:mod:`observers.numerics.ellipsoidal`).  With a linear ``f`` and ``h`` nothing is
+    absorbed and every step is ESO-B's.
+
+    Options
+    -------
+    conversion : {"outer:norm"}
+        Zonotope-to-ellipsoid conversion of X0, W and V (outer: guaranteed).
+    weight : {"min-trace", "obe"}
+        Weight of the update (:func:`~observers.numerics.ellipsoidal.esmf_update`): the
+        ellipsoid of minimal trace (default), or ESO-B's selective bounding-ellipsoid weight
+        (every step then equals ESO-B's on a linear system).
+    """
+
+    REQUIRES = ("W", "V", "X0")
+    OPTIONS = {"conversion": Choice("outer:norm", ("outer:norm",)),
+               "weight": Choice("min-trace", ("min-trace", "obe"))}
+
+    def design(self) -> None:
+        s, mode = self.system, self.options["conversion"]
+        self.linear = bool(getattr(s, "is_linear", True))
+        if self.linear:
+            self.A = np.asarray(s.A, dtype=float)
+            self.B = np.asarray(s.B, dtype=float)
+        else:
+            self._f = Smooth(s, "f")
+        C = s.C if getattr(s, "output_is_linear", True) else getattr(s, "output_matrix", None)
+        self.C = None if C is None else np.asarray(C, dtype=float)
+        if self.C is None:
+            self._h = Smooth(s, "h")
+        X0 = Ellipsoid.from_zonotope(as_zonotope(s.X0, "X0"), mode)
+        W = Ellipsoid.from_zonotope(as_zonotope(s.W, "W"), mode)
+        V = Ellipsoid.from_zonotope(as_zonotope(s.V, "V"), mode)
+        self.QW, self.cW = np.array(W.Q), np.array(W.q)
+        self.QV, self.cV = np.array(V.Q), np.array(V.q)
+        if not np.any(self.QW):
+            raise DesignFailed(f"{self.name}: the disturbance set W is a single point (the "
+                               "ellipsoidal update loses containment to rounding)")
+        try:
+            np.linalg.cholesky(self.QV)
+        except np.linalg.LinAlgError:
+            raise DesignFailed(f"{self.name}: the noise ellipsoid of V must be "
+                               "full-dimensional") from None
+        self._start = (np.array(X0.q), np.array(X0.Q), 1.0)
+        self._zero_n = np.zeros(s.n)
+        self._zero_m = np.zeros(self.QV.shape[0])
+
+    def reset(self) -> None:
+        super().reset()
+        self._state: tuple[np.ndarray, np.ndarray, float] | None = None
+
+    def _linearise(self, fn, q, P, s2, u):
+        lo, hi = ellipsoid_box(q, s2 * P)
+        return first_order(fn, lo, hi, u, self.k)
+
+    def step(self, u_prev, y) -> Ellipsoid:
+        y = self._measurement(y)
+        if self._state is None:
+            q, P, s2 = self._start
+        else:
+            q, P, s2 = self._state
+            u = self._input(u_prev)
+            if self.linear:
+                J, d, rad = self.A, self.B @ u, self._zero_n
+            else:
+                J, d, rad = self._linearise(self._f, q, P, s2, u)
+            q, P = esmf_prediction(q, P, s2, J, d, rad, self.QW, self.cW)
+        if self.C is not None:
+            H, d, rad = self.C, self._zero_m, self._zero_m
+        else:
+            H, d, rad = self._linearise(self._h, q, P, s2, np.zeros(0))
+        q, P, s2, lam = esmf_update(q, P, s2, H, y - d - self.cV, rad, self.QV,
+                                    self.options["weight"])
+        if not (0.0 <= lam < 1.0 and s2 >= 0.0 and np.isfinite(s2) and np.all(np.isfinite(P))
+                and np.all(np.isfinite(q))):
+            raise Diverged(f"{self.name}: no valid update (weight {lam:.3g}, level "
+                           f"{s2:.3g}): the measurement is inconsistent with the estimate, or "
+                           "the update failed numerically", step=self.k)
+        self._state = (q, P, s2)
+        self.k += 1
+        return Ellipsoid._trusted(q, s2 * P)

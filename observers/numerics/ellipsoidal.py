@@ -51,7 +51,7 @@ from scipy.linalg import eigh, solve_discrete_lyapunov
 from scipy.stats import chi2
 
 from ..errors import DesignFailed
-from ..sets.ellipsoid import obe_weight, outer_sum, quadratic_update
+from ..sets.ellipsoid import min_trace_weight, obe_weight, outer_sum, quadratic_update
 from .lmi import gain_from, require_nsd, require_pd, require_psd, solve, spectral_radius, sym
 
 #: CORA's cap of the Gollamudi weight (``alpha`` in ``@ellipsoid/intersectStrip.m``)
@@ -433,3 +433,70 @@ def invariant_step(
     ``xh+ = Ao xh + B u + L y + offset`` (``offset = c_W - L c_V``) and
     ``l+ = (1 - lam) l + drive`` (``drive = gamma^2 ||wbar||^2``)."""
     return Ao @ x + B @ u + L @ y + offset, (1.0 - lam) * level + drive
+
+
+# -- ESMF: the extended set-membership filter ------------------------------------------------
+def box_shape(rad: np.ndarray) -> np.ndarray:
+    """Shape matrix of an ellipsoid centred at 0 containing the box ``[-rad, rad]``:
+    ``diag(k rad^2)`` over the ``k`` non-zero radii (``sum x_i^2 / (k rad_i^2) <= 1`` at every
+    point of the box), zero where ``rad`` is zero."""
+    rad = np.asarray(rad, dtype=float)
+    k = int(np.count_nonzero(rad))
+    return np.diag(k * rad * rad * (1.0 + 4 * np.finfo(float).eps)) if k else np.zeros(
+        (rad.size, rad.size))
+
+
+def ellipsoid_box(q: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Interval hull ``q +- sqrt(diag(Q))`` of the ellipsoid ``E(q, Q)``, widened by a
+    relative 1e-12 (the square roots and the rounding of ``Q``)."""
+    r = np.sqrt(np.maximum(np.diag(Q), 0.0)) * (1.0 + 1e-12)
+    r = np.nextafter(r + 1e-300, np.inf)
+    return np.nextafter(q - r, -np.inf), np.nextafter(q + r, np.inf)
+
+
+def absorb(Q: np.ndarray, rad: np.ndarray) -> np.ndarray:
+    """Shape of an ellipsoid containing ``E(0, Q) + [-rad, rad]``: the minimal-trace outer sum
+    with :func:`box_shape` (its weight kept inside ``[1e-9, 1 - 1e-9]``, where it can round to
+    0 or 1 when one of the two is negligible; every weight in ``(0, 1)`` gives an outer
+    ellipsoid); ``Q`` itself when ``rad`` is zero."""
+    R = box_shape(rad)
+    if not np.any(R):
+        return Q.copy()
+    p = min(max(min_trace_weight(Q, R), 1e-9), 1.0 - 1e-9)
+    return outer_sum(Q, R, p)
+
+
+def esmf_prediction(q, P, s2, J, d, rad, QW, cW):
+    """Prediction of the extended set-membership filter (Scholte & Campbell 2003): the
+    dynamics enclosed as ``f(x) in J x + d + [-rad, rad]`` over the box of the estimate, the
+    remainder box absorbed into the disturbance ellipsoid (:func:`absorb`), then the
+    ellipsoidal prediction of the linear family (:func:`liu_prediction`)."""
+    return liu_prediction(q, P, s2, J, d + cW, absorb(QW, rad))
+
+
+def esmf_update(q, P, s2, H, y_eff, rad, QV, weight: str = "obe"):
+    """Update of the extended set-membership filter: the output enclosed as
+    ``h(x) in H x + d + [-rad, rad]`` (``y_eff = y - d - c_V``), the remainder absorbed into
+    the noise ellipsoid, the outputs whitened with the widened noise shape, then the
+    ellipsoid of :func:`~observers.sets.ellipsoid.quadratic_update` with the weight of
+    ``weight``: ``"obe"`` the selective optimal-bounding-ellipsoid update of ESO-B
+    (:func:`obe_update`), ``"min-trace"`` the weight minimising the trace of the updated
+    shape ``s2+ P+`` (bounded scalar search; the set is kept if no weight shrinks it).
+    Returns ``(q, P, s2, lam)`` as :func:`obe_update` (``lam = 0``: not updated)."""
+    Qv = absorb(QV, rad)
+    T = np.linalg.inv(np.linalg.cholesky(Qv))
+    Ct, yt = T @ H, T @ y_eff
+    if weight == "obe":
+        return obe_update(q, P, s2, Ct, yt, 1.0)
+    from scipy.optimize import minimize_scalar
+
+    def size(w: float) -> float:
+        _, Pw, s2w = quadratic_update(q, P, s2, Ct, 1.0, yt, w)
+        return max(s2w, 0.0) * float(np.trace(Pw))
+
+    lam = float(minimize_scalar(size, bounds=(1e-9, 1 - 1e-9), method="bounded",
+                                options={"xatol": 1e-10}).x)
+    if size(lam) >= s2 * float(np.trace(P)):
+        return q, P, s2, 0.0
+    q, P, s2 = quadratic_update(q, P, s2, Ct, 1.0, yt, lam)
+    return q, P, s2, lam

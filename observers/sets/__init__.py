@@ -19,10 +19,13 @@ Constrained zonotopes add the exact ``intersect`` and
 ``reduce_constraints`` / ``to_zonotope`` with the named constraint eliminations ``"fold"`` and
 ``"frobenius"`` (array kernels in :mod:`observers.sets.conzono_ops`); their 2n hull LPs are
 solved together by a batched dual simplex with HiGHS as fallback, and can share one solver
-object across sets (:class:`HullLP`, ``S.with_solver(lp)``).
+object across sets (:class:`HullLP`, ``S.with_solver(lp)``).  Zonotope bundles
+(:class:`ZonotopeBundle`, intersections of zonotopes kept implicitly) apply every operation
+member by member and answer the hull and membership over the intersection by LP.
 """
 
 from ._lp import HullLP, HullLPStats
+from .bundle import ZonotopeBundle
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .errors import EmptySet, SetError
@@ -54,6 +57,7 @@ __all__ = [
     "Reduction",
     "SetError",
     "Zonotope",
+    "ZonotopeBundle",
     "get_reduction",
     "reduction_names",
     "register_reduction",

@@ -1,0 +1,235 @@
+"""Zonotope bundles: the intersection ``Z_1 & ... & Z_k`` of zonotopes, kept implicitly.
+
+After Althoff & Krogh, "Zonotope bundles for the efficient computation of reachable sets"
+(IEEE CDC-ECC 2011): a set is represented by several zonotopes whose intersection it is, and
+every operation acts on each member.  A linear map and a Minkowski sum with a zonotope
+distribute over the members as outer bounds (``M (Z_1 & Z_2) subset M Z_1 & M Z_2``,
+``(Z_1 & Z_2) + Z subset (Z_1 + Z) & (Z_2 + Z)``; exact for an invertible map), so do the
+intersection with a strip (each member with its own gain) and the order reduction (each
+member on its own).  What the intersection is worth appears in the two questions that look
+at all members at once:
+
+* the **interval hull**, by linear programs over the intersection written as a constrained
+  zonotope (``x = c_1 + G_1 xi_1`` with ``G_1 xi_1 - G_i xi_i = c_i - c_1``, Scott et al.
+  2016), every bound evaluated from a dual point (:mod:`observers.sets._lp`), hence sound,
+  and intersected with the members' own hulls;
+* **membership**, exact by one LP per member (a point is in the bundle iff it is in every
+  member).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._arrays import linear_map_matrix, matrix, vector
+from ._lp import HullLP
+from .conzonotope import ConZonotope
+from .errors import EmptySet, SetError
+from .interval import Interval
+from .reduction import Reduction, check_order, get_reduction
+from .zonotope import Zonotope
+
+
+def strip_gain(G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """F-radius-type gain of all strips ``|C x - y| <= sigma`` at once for the generators
+    ``G``: ``P C' (C P C' + diag(sigma^2))^-1`` with ``P = G G'`` (any gain gives an outer
+    bound of the intersection; this one shrinks the Frobenius norm of the generators, as the
+    gains of Alamo et al. 2005 and Wang et al. 2018); pseudo-inverse for a singular matrix."""
+    P = G @ G.T
+    S = C @ P @ C.T + np.diag(np.asarray(sigma, float) ** 2)
+    return np.linalg.lstsq(S, C @ P, rcond=None)[0].T
+
+
+class ZonotopeBundle:
+    """The intersection of the zonotopes ``members`` (all of one dimension, at least one).
+
+    Parameters
+    ----------
+    members : sequence of Zonotope or Interval
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> B = ZonotopeBundle([Zonotope([0, 0], [[1, 0], [0, 1]]),
+    ...                     Zonotope([1, 0], [[0.5, 0.5], [0.5, -0.5]])])
+    >>> B.contains([0.6, 0.0]), B.contains([0.0, 0.8])
+    (True, False)
+    """
+
+    __slots__ = ("_members", "_hull", "_solver")
+    __array_ufunc__ = None
+
+    def __init__(self, members):
+        members = [Zonotope.from_interval(Z) if isinstance(Z, Interval) else Z
+                   for Z in members]
+        if not members:
+            raise SetError("a zonotope bundle needs at least one member")
+        for Z in members:
+            if not isinstance(Z, Zonotope):
+                raise SetError(f"bundle members must be zonotopes, got {type(Z).__name__}")
+        if len({Z.dim for Z in members}) != 1:
+            raise SetError("bundle members have different dimensions: "
+                           f"{sorted({Z.dim for Z in members})}")
+        self._members = tuple(members)
+        self._hull: Interval | None = None
+        self._solver: HullLP | None = None
+
+    @classmethod
+    def _trusted(cls, members, solver: HullLP | None = None) -> ZonotopeBundle:
+        """Build from zonotopes of one dimension without checks (hot loops)."""
+        obj = object.__new__(cls)
+        obj._members, obj._hull, obj._solver = tuple(members), None, solver
+        return obj
+
+    def with_solver(self, solver: HullLP) -> ZonotopeBundle:
+        """The same set, computing its hull LPs with the shared solver ``solver``."""
+        if not isinstance(solver, HullLP):
+            raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
+        return ZonotopeBundle._trusted(self._members, solver)
+
+    # -- data -----------------------------------------------------------------------------
+    @property
+    def members(self) -> tuple[Zonotope, ...]:
+        """The zonotopes whose intersection the set is."""
+        return self._members
+
+    @property
+    def dim(self) -> int:
+        """Dimension n of the ambient space."""
+        return self._members[0].dim
+
+    @property
+    def size(self) -> int:
+        """Number of members."""
+        return len(self._members)
+
+    def center(self) -> np.ndarray:
+        """Midpoint of the interval hull."""
+        return self.interval().center()
+
+    # -- operations (member by member) --------------------------------------------------------
+    def __rmatmul__(self, M) -> ZonotopeBundle:
+        M = linear_map_matrix(M, self.dim)
+        return ZonotopeBundle._trusted([M @ Z for Z in self._members], self._solver)
+
+    def __add__(self, other) -> ZonotopeBundle:
+        if isinstance(other, ZonotopeBundle):
+            raise SetError("the Minkowski sum of two bundles is not a bundle operation "
+                           "(add a zonotope)")
+        if isinstance(other, Interval):
+            other = Zonotope.from_interval(other)
+        if isinstance(other, Zonotope):
+            if other.dim != self.dim:
+                raise SetError(f"cannot add a zonotope of dimension {other.dim} to a bundle "
+                               f"of dimension {self.dim}")
+        elif hasattr(other, "interval") and not isinstance(other, np.ndarray):
+            return NotImplemented
+        else:
+            other = vector(other, "translation vector", dim=self.dim)
+        return ZonotopeBundle._trusted([Z + other for Z in self._members], self._solver)
+
+    __radd__ = __add__
+
+    def intersect_strips(self, C, y, sigma, gains=None) -> ZonotopeBundle:
+        """Outer bound of the intersection with the strips ``|C x - y| <= sigma``: each member
+        ``(c, G)`` becomes ``c + L (y - C c)`` with generators ``[(I - L C) G, L diag(sigma)]``
+        (the family of Alamo et al. 2005, Property 3, valid for every gain ``L``); ``gains``
+        is one n x m gain per member, default :func:`strip_gain` of each member."""
+        C = matrix(C, "strip matrix", cols=self.dim)
+        m = C.shape[0]
+        y = vector(y, "strip centres", dim=m)
+        sigma = vector(sigma, "strip half-widths", dim=m)
+        if np.any(sigma < 0):
+            raise SetError("strip half-widths must be non-negative")
+        if gains is None:
+            gains = [strip_gain(Z.G, C, sigma) for Z in self._members]
+        if len(gains) != self.size:
+            raise SetError(f"{len(gains)} gains for {self.size} bundle members")
+        out = []
+        for Z, L in zip(self._members, gains, strict=True):
+            L = matrix(L, "strip gain", rows=self.dim, cols=m)
+            c = Z.c + L @ (y - C @ Z.c)
+            out.append(Zonotope._trusted(c, np.hstack([Z.G - L @ (C @ Z.G), L * sigma])))
+        return ZonotopeBundle._trusted(out, self._solver)
+
+    def reduce(self, order: float, method: str | Reduction = "girard") -> ZonotopeBundle:
+        """Every member reduced to order at most ``order`` with the named strategy."""
+        check_order(order)
+        strategy = get_reduction(method)
+        return ZonotopeBundle._trusted(
+            [Zonotope._trusted(Z.c.copy(), strategy.reduce(Z.G, order)) for Z in self._members],
+            self._solver)
+
+    # -- questions about the intersection -------------------------------------------------------
+    def as_conzonotope(self) -> ConZonotope:
+        """The intersection as a constrained zonotope in the factors of all members:
+        ``c_1 + [G_1, 0, ...] xi`` with ``G_1 xi_1 - G_i xi_i = c_i - c_1`` (i >= 2)."""
+        Z1 = self._members[0]
+        n, k = self.dim, self.size
+        widths = [Z.num_generators for Z in self._members]
+        r = sum(widths)
+        G = np.zeros((n, r))
+        G[:, : widths[0]] = Z1.G
+        A = np.zeros(((k - 1) * n, r))
+        b = np.zeros((k - 1) * n)
+        start = widths[0]
+        for i, Z in enumerate(self._members[1:]):
+            rows = slice(i * n, (i + 1) * n)
+            A[rows, : widths[0]] = Z1.G
+            A[rows, start : start + widths[i + 1]] = -Z.G
+            b[rows] = Z.c - Z1.c
+            start += widths[i + 1]
+        return ConZonotope._trusted(Z1.c.copy(), G, A, b, self._solver)
+
+    def _member_box(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.max([Z.interval().lo for Z in self._members], axis=0)
+        hi = np.min([Z.interval().hi for Z in self._members], axis=0)
+        return lo, hi
+
+    def interval(self) -> Interval:
+        """Interval hull of the intersection by LP (bounds from dual points, sound), within
+        the intersection of the members' hulls; :class:`EmptySet` if those are disjoint.
+        Where the LP reports the intersection empty (which rounding can fake on a thin
+        intersection) the members' hulls are kept."""
+        if self._hull is not None:
+            return self._hull
+        lo, hi = self._member_box()
+        if np.any(lo > hi):
+            raise EmptySet("the members of the zonotope bundle do not intersect")
+        if self.size > 1:
+            try:
+                H = self.as_conzonotope().interval()
+                lo, hi = np.maximum(lo, H.lo), np.minimum(hi, H.hi)
+            except EmptySet:
+                pass
+            if np.any(lo > hi):  # two sound bounds crossed: the intersection is empty
+                raise EmptySet("the members of the zonotope bundle do not intersect")
+        self._hull = Interval(lo, hi)
+        return self._hull
+
+    def support(self, d) -> float | np.ndarray:
+        """Sound upper bound of ``max d'x`` over the intersection: the least of the members'
+        support values and the LP bound over the intersection."""
+        best = np.min([np.asarray(Z.support(d), float) for Z in self._members], axis=0)
+        if self.size > 1:
+            try:
+                best = np.minimum(best, np.asarray(self.as_conzonotope().support(d), float))
+            except EmptySet:
+                pass
+        return best if np.ndim(best) else float(best)
+
+    def contains(self, x, tol: float = 0.0) -> bool:
+        """Exact membership up to ``tol`` (infinity norm) in every member (one LP each)."""
+        x = vector(x, "point", dim=self.dim)
+        return all(Z.contains(x, tol) for Z in self._members)
+
+    # -- value semantics --------------------------------------------------------------------
+    def __eq__(self, other) -> bool:
+        return isinstance(other, ZonotopeBundle) and self._members == other._members
+
+    def __hash__(self) -> int:
+        return hash(self._members)
+
+    def __repr__(self) -> str:
+        gens = ", ".join(str(Z.num_generators) for Z in self._members)
+        return f"ZonotopeBundle(dim={self.dim}, members={self.size}, generators=[{gens}])"
