@@ -16,7 +16,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-quick report reports check baseline history audit audit-short speed scaling clean
+.PHONY: help install test lint docs bench bench-quick report reports check baseline history audit audit-short speed scaling frontier clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -26,7 +26,7 @@ help:  ## list the targets
 	@echo "code: observers/ (sets, family loops, plugins builtin/X.py + numerics/X.py), systems/ (models,"
 	@echo "scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner -> executors),"
 	@echo "report/ (tables, markdown, html, figures, numbers), gate/ (regression, kernels, policy, audit,"
-	@echo "history), timing/ (steps, speed), studies/ (scaling, alanwar2022); cli.py parses and prints"
+	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, alanwar2022); cli.py parses and prints"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
@@ -47,7 +47,7 @@ docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_bu
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: serial times) -> results/, reports/; speed.md, scaling.md, index.html
+bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: serial times) -> results/, reports/; speed.md, scaling.md, frontier.md, index.html
 	$(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS)
 	@for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
@@ -57,6 +57,7 @@ bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: se
 	done
 	$(PY) -m benchmarks speed
 	$(MAKE) scaling
+	$(MAKE) frontier
 	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
 
@@ -69,6 +70,9 @@ bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the 
 
 scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
 	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
+
+frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)
+	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier
 
 check: $(STAMP)  ## CI gate: committed reports fresh (content hashes), regression subset vs results/baseline/
 	$(PY) -m benchmarks check --reports reports

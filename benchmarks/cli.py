@@ -118,7 +118,7 @@ def _cmd_time(args) -> int:
     if args.json is not None:
         check_output_file(args.json, "--json")  # before the timing, not after it
     sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup,
-                                             args.steps)
+                                             args.steps, args.steady)
     print(timing.format_table(sc, args.repeat, warmup, rows))
     if args.json:
         atomic_write_json(args.json, timing.to_json(sc, args.repeat, warmup, rows))
@@ -342,6 +342,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "min(5, N // 10))")
     ti.add_argument("--steps", type=int, metavar="M",
                     help="run only the first M steps of the record (default: all)")
+    ti.add_argument("--steady", action="store_true",
+                    help="time only the steady state: the steps from which the set size "
+                         "(generators, constraints) stays constant")
     ti.add_argument("--json", metavar="F", help="also write every number to this JSON file")
     ti.set_defaults(func=_cmd_time)
     de = sub.add_parser("designs", help="compute the offline designs of configs in parallel "

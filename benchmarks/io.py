@@ -386,7 +386,7 @@ def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
                               f"(run {meta['run_id']}); re-run `python -m benchmarks run`")
         if name == "summary.csv":
             try:
-                summary = pd.read_csv(io.BytesIO(data))
+                summary = pd.read_csv(io.BytesIO(data), dtype={"run_id": str})
             except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
                 raise ConfigError(f"{path} is not readable CSV: "
                                   f"{str(exc).splitlines()[0]}") from None
@@ -430,7 +430,7 @@ def load_runs(folder: str | Path) -> pd.DataFrame:
     with its columns checked (a missing column, text in a numeric one: one line)."""
     path = Path(folder) / "runs.csv"
     try:
-        runs = pd.read_csv(path)
+        runs = pd.read_csv(path, dtype={"run_id": str})
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path} is not readable CSV: {str(exc).splitlines()[0]}") from None
     check_columns(runs, path, RUNS_REQUIRED, RUNS_NUMERIC)

@@ -11,6 +11,16 @@ import pandas as pd
 
 from .verdicts import reference_rows
 
+#: the phases of a step that ``summary.csv`` reports (mean milliseconds per step): an
+#: observer's ``phase_times`` key -> its column (``hull``: the LPs inside a step, e.g. the
+#: generator rescaling of a constrained-zonotope step; the interval hull of the returned set
+#: is ``hull_ms``)
+PHASE_COLUMNS = {"prediction": "prediction_ms", "update": "update_ms",
+                 "reduction": "reduction_ms", "hull": "step_lp_ms"}
+#: the columns of ``summary.csv`` that are measured times (or say how they were timed): they
+#: differ between two runs of the same configuration, every other column must not
+TIMING_COLUMNS = ("step_ms", "hull_ms", "design_s", *PHASE_COLUMNS.values(), "timed")
+
 
 def rms_radius(radius: np.ndarray) -> np.ndarray:
     """RMS over time of the interval radius, per state (``radius`` is N x n)."""

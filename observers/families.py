@@ -66,12 +66,18 @@ def strip_update(
 
     For any gain ``Lam`` (n x m) this is the parameterised family of Alamo et al. (2005,
     Property 3) and Le et al. (2013):
-    ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]``.
+    ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]`` (computed as
+    ``G - Lam (C G)`` when ``2 m < n``, else with ``I - Lam C`` formed first: fewer flops).
     """
     c_new = c + Lam @ (y - C @ c)
-    r = G.shape[1]
-    G_new = np.empty((G.shape[0], r + Lam.shape[1]))  # one allocation, no hstack copy
-    np.subtract(G, Lam @ (C @ G), out=G_new[:, :r])
+    n, r = G.shape
+    G_new = np.empty((n, r + Lam.shape[1]))  # one allocation, no hstack copy
+    if 2 * Lam.shape[1] < n:  # G - Lam (C G): 2 m n r flops
+        np.subtract(G, Lam @ (C @ G), out=G_new[:, :r])
+    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n
+        T = -(Lam @ C)
+        T[np.diag_indices(n)] += 1.0
+        np.matmul(T, G, out=G_new[:, :r])
     np.multiply(Lam, sigma, out=G_new[:, r:])
     return c_new, G_new
 

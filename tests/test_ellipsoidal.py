@@ -143,3 +143,35 @@ def test_larger_alpha_and_gaussian_noise_stay_guaranteed():
 @pytest.mark.parametrize("name", ["ESO-A", "ESO-B"])
 def test_true_state_inside_every_set_on_cora_tank30(name):
     _containment(systems.scenario("tank30-linear-cora"), name)
+
+
+# -- the H-infinity gains from the Riccati equation (above 30 states, issue 30) ----------------
+@pytest.mark.parametrize("name", ["vehicle6d-cora", "tank12-linear"])
+def test_hinf_riccati_finds_the_least_gamma_of_the_sdp_and_a_certified_point(name):
+    from observers.numerics import ellipsoidal as el
+
+    s = systems.scenario(name).system
+    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    Q = np.eye(s.n)
+    _, _, g_sdp = el.hinf_lmi(A, C, E, F, Q, "sdp")
+    P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati", slack=0.0)
+    assert g == pytest.approx(g_sdp, rel=2e-3)  # Clarabel's optimum; bisection to 1e-3
+    P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati")
+    Ao, D = el.error_system(A, C, E, F, L)
+    _, lam, _ = el.certify(Ao, D, P, g, Q, "riccati")  # the LMI verified in numpy
+    assert 0 < lam <= 1
+
+
+def test_eso_d_with_riccati_gains_contains_the_truth(monkeypatch, tmp_path):
+    from observers.builtin import ellipsoidal as builtin
+    from observers.numerics import ellipsoidal as el
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(el, "HINF_RICCATI_ABOVE", 0)
+    monkeypatch.setattr(builtin, "HINF_RICCATI_ABOVE", 0)
+    sc = systems.scenario("vehicle6d-cora")
+    obs = observers.create("ESO-D", sc.system)
+    assert obs.design_params()["hinf"] == "riccati"
+    res = observers.run(obs, sc.u, sc.y)
+    assert res.status == "ok"
+    assert np.all(res.lo <= sc.x_true + 1e-9) and np.all(sc.x_true <= res.hi + 1e-9)

@@ -305,3 +305,26 @@ def test_engine_needs_first_step():
     E = ExactHullLP(s.A, s.B, s.C, *_sets(s))
     with pytest.raises(RuntimeError, match="first"):
         E.advance(np.zeros(0), np.zeros(1))
+
+
+def test_a_stalled_warm_solve_is_finished_cold(monkeypatch):
+    """Bug: the warm-started Dantzig simplex cycled for ever on a degenerate LP of the
+    audit's vertex-noise realisations (vehicle6d-sim, seed 2, step 97), hanging the audit.
+    Warm solves now stop at an iteration cap and the LP is solved again from scratch with
+    steepest-edge pricing.  Forcing every warm solve to stall must give the same hulls as
+    the dense reference, with no step marked inexact."""
+    import observers.numerics.exact as engine
+
+    monkeypatch.setattr(engine, "WARM_ITERATIONS", 1)
+    monkeypatch.setattr(engine, "WARM_ITERATIONS_PER_ROW", 0)
+    s = _general_system()
+    sc = systems.simulate(s, 0.3 * np.cos(np.arange(12)).reshape(-1, 1), seed=5)
+    lp = ExactHullLP(s.A, s.B, s.C, *_sets(s))
+    got = {"pred_lo": [], "pred_hi": [], "filt_lo": [], "filt_hi": []}
+    for k in range(12):
+        h = lp.first(sc.y[0]) if k == 0 else lp.advance(sc.u[k - 1], sc.y[k])
+        for key in got:
+            got[key].append(getattr(h, key))
+    assert lp.inexact == []
+    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y)
+    _assert_agree({k: np.array(v) for k, v in got.items()}, ref, "cold fallback")

@@ -117,6 +117,14 @@ def test_floor_columns_on_a_hand_example():
     close = floor_columns(floor, "filtered", lo, hi * (1 - 1e-8), True, 0.0)
     assert close["covers_exact"] == YES
     # a run cut short: nothing proves the rest, so n/a (and no gap)
+    # a thin floor far from the origin (a degenerate record): its sound bounds may exceed the
+    # exact hull by ~1e-7 of the magnitude, so a miss of 5e-7 * 14 is not flagged, 1e-5 is
+    thin_lo, thin_hi = np.array([[14.0 - 1e-8]]), np.array([[14.0 + 1e-8]])
+    thin = RecordFloor(EXACT, {"filtered": thin_lo}, {"filtered": thin_hi})
+    ok = floor_columns(thin, "filtered", thin_lo + 5e-7 * 14, thin_hi, True, 0.0)
+    assert ok["covers_exact"] == YES
+    assert floor_columns(thin, "filtered", thin_lo + 1e-5 * 14, thin_hi, True,
+                         0.0)["covers_exact"] == NO
     cut = floor_columns(floor, "filtered", np.array([[-1.0], [np.nan]]),
                         np.array([[1.0], [np.nan]]), False, 0.0)
     assert cut["covers_exact"] == "n/a" and np.isnan(cut["gap"]).all()

@@ -14,6 +14,7 @@ import yaml
 from benchmarks import load_config, write_report
 from benchmarks.cli import main
 from benchmarks.errors import ConfigError
+from benchmarks.metrics import TIMING_COLUMNS
 from benchmarks.run.executors import (
     JobFailure,
     ProcessExecutor,
@@ -26,7 +27,7 @@ from benchmarks.verdicts import EXIT_CRASH
 from observers import registry
 from observers.offline import cached_design
 
-TIMING = ["step_ms", "hull_ms", "design_s", "timed"]
+TIMING = list(TIMING_COLUMNS)
 RUN_ID = ["run_id"]  # the identifier of each run's generation of result files
 SWEEP = {
     "name": "sweep",

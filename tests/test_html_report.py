@@ -49,7 +49,7 @@ def test_html_has_the_markdown_cells_and_figures(results):
             assert "| " + " | ".join(cells) + " |" in md  # the Markdown renders these cells
             assert "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>" in plain
         assert f'id="table-{sc}"' in page
-        for name in ("bounds", "rel_rms_heatmap", "step_time"):
+        for name in ("bounds", "rel_rms_heatmap", "gap_heatmap", "step_time"):
             for ext in ("png", "pdf"):
                 assert (results / "html_figures" / sc / f"{name}.{ext}").stat().st_size > 1000
                 assert f'href="html_figures/{sc}/{name}.{ext}" download' in page
@@ -60,7 +60,12 @@ def test_html_has_the_markdown_cells_and_figures(results):
     svg = svg[:svg.index("</svg>")]
     for i in range(1, 7):
         assert f"x{i}: bounds" in svg and f"x{i}: interval radius (log scale)" in svg
-    assert len(set(re.findall(r'<g class="layer (layer-\d+)"', svg))) == len(OBSERVERS) + 1
+    # + the two exact floors (after and before y_k, drawn as bands) + the true state
+    assert len(set(re.findall(r'<g class="layer (layer-\d+)"', svg))) == len(OBSERVERS) + 3
+    legend = page[page.index('data-figure="bounds-tank6-linear"'):]
+    names = re.findall(r'data-name="([^"]+)"', legend[:legend.index("</div>")])
+    assert sorted(names) == sorted([*OBSERVERS, "exact set (after y_k)",
+                                    "exact set (before y_k)", "true state"])
     # every table and figure names its reference; no "paper's" time where none is published
     assert "among the observers compared in Althoff, ARCH 2021, Table 3" in page
     assert "among all guaranteed observers of this run" in page  # alamo2d: no paper table
@@ -185,7 +190,8 @@ def test_page_in_headless_chromium(browser, results):
     tables = browser.find_elements(By.CSS_SELECTOR, "table.sortable")
     assert len(tables) >= 5  # 2 scenario tables, 2 absolute tables, ranking, environment
     images = browser.find_elements(By.CSS_SELECTOR, "figure img")
-    assert len(images) == 4  # heat map and times of two scenarios; the bounds are inline SVG
+    # relative-RMS heat map, gap heat map and times of two scenarios; bounds are inline SVG
+    assert len(images) == 6
     for img in images:  # every figure loaded from the file system and decoded
         assert browser.execute_script("return arguments[0].complete && "
                                       "arguments[0].naturalWidth", img) > 100

@@ -24,7 +24,7 @@ PACKAGES = ("observers", "systems", "benchmarks")
 FLOOR = {"errors", "io", "metrics", "verdicts"}
 #: the wings of ``benchmarks/`` and the other wings each may import (besides the floor)
 WINGS = {"run": set(), "report": set(), "gate": {"run", "report"},
-         "timing": {"run", "report"}, "studies": {"run", "report"}}
+         "timing": {"run", "report"}, "studies": {"run", "report", "timing"}}
 
 
 def module_name(path: Path) -> str:

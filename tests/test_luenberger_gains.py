@@ -133,3 +133,70 @@ def test_prad_e_beta_below_the_slowest_unobservable_mode_is_no_gain():
 def test_bad_options_are_one_line_errors(name, options, message):
     with pytest.raises(OptionError, match=message):
         observers.create(name, systems.vehicle(2), **options)
+
+
+# -- Nom-G by the damped Newton method (issue 30) ---------------------------------------------
+def test_decay_centre_of_a_hand_solved_scalar_problem():
+    from observers.numerics.lmi import decay_centre
+
+    # n = m = 1, tr P = 1 pins p = 1; det D = rate - (a - y h)^2 is largest at y = a / h
+    P, Y = decay_centre(np.array([[0.5]]), np.array([[2.0]]), 0.9, np.array([[1.0]]),
+                        np.array([[0.1]]), "test")
+    assert P[0, 0] == pytest.approx(1.0, abs=1e-12)
+    assert Y[0, 0] == pytest.approx(0.25, abs=1e-10)
+    with pytest.raises(DesignFailed, match="infeasible"):  # |a - y h| = 1.5 > sqrt(0.9)
+        decay_centre(np.array([[0.5]]), np.array([[2.0]]), 0.9, np.array([[1.0]]),
+                     np.array([[1.0]]), "test")
+
+
+@pytest.mark.parametrize("name", ["vehicle2d-cora", "vehicle6d-cora"])
+def test_nom_g_newton_is_the_centre_that_clarabel_approaches(name):
+    s = systems.scenario(name).system
+    A, C = s.A, s.C
+
+    def objective(d):
+        D = lg.nom_g_lmi(A, C, 1.0, d.P, d.P @ d.L)
+        return np.linalg.slogdet(0.5 * (D + D.T))[1]
+
+    newton = lg.nom_g_design(A, C)
+    clarabel = lg.nom_g_design(A, C, solver="clarabel")
+    assert np.trace(newton.P) == pytest.approx(s.n, rel=1e-12)
+    # the same point up to Clarabel's accuracy, and the Newton point is not worse
+    assert objective(newton) >= objective(clarabel) - 1e-9
+    np.testing.assert_allclose(newton.L, clarabel.L, atol=1e-3 * np.abs(clarabel.L).max())
+
+
+def test_nom_g_solver_option_is_part_of_the_design_key(monkeypatch, tmp_path):
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    s = systems.vehicle(2)
+    a = observers.create("Nom-G", s)
+    b = observers.create("Nom-G", s, solver="clarabel")
+    assert len(list(tmp_path.glob("Nom-G-*.npz"))) == 2
+    assert 0 < np.abs(a.L - b.L).max() < 1e-3 * np.abs(b.L).max()
+    with pytest.raises(OptionError, match="solver must be one of"):
+        observers.create("Nom-G", s, solver="scs")
+
+
+def test_hinf_g_riccati_route_keeps_the_least_gamma_and_the_bound():
+    s = systems.scenario("vehicle6d-cora").system
+    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    sdp = lg.hinf_g_design(A, C, E, F, 0.1, "sdp")
+    ric = lg.hinf_g_design(A, C, E, F, 0.1, "riccati")
+    assert ric.info["gamma_min"] == pytest.approx(sdp.info["gamma_min"], rel=1e-3)
+    # the H-infinity norm from (w~, v~) to e is within the bound (frequency sweep)
+    Bd = np.hstack([lg.range_factor(E), -ric.L @ lg.range_factor(F)])
+    assert _closed_loop_hinf_norm(A - ric.L @ C, Bd) <= ric.info["gamma"]
+    assert ric.info["rho"] < 1
+    with pytest.raises(DesignFailed, match="unknown method"):
+        lg.hinf_g_design(A, C, E, F, 0.1, "scs")
+
+
+def test_nom_g_above_the_newton_limit_is_the_verified_kalman_start(monkeypatch):
+    from observers.numerics import luenberger
+
+    s = systems.scenario("vehicle6d-cora").system
+    monkeypatch.setattr(luenberger, "NEWTON_MAX_VARIABLES", 10)
+    d = luenberger.nom_g_design(s.A, s.C)
+    assert d.info["solver"] == "start" and d.info["rho"] < 1
+    P0, Y0 = luenberger.nom_g_start(s.A, s.C, 1.0)
+    np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)

@@ -361,3 +361,89 @@ def test_max_gamma_at_coras_alpha_meets_the_automatica_d_average():
     centre = observers.create("PRad-D", sc.system, **sc.options)
     vc = rms_radius(observers.run(centre, sc.u, sc.y).radius) / smallest
     assert vc.mean() < 0.75 * published.mean()
+
+
+# -- the Riccati route of the Le et al. design (PRad-A/B above 12 states, issue 30) ------------
+def test_le_riccati_of_a_hand_solved_scalar_system():
+    from observers.numerics.prad import le_riccati
+
+    # a^2 / beta = 1.5, unit weights: Xp = 1.5 X + 1, X = Xp / (Xp + 1) gives
+    # Xp^2 - 1.5 Xp - 1 = 0, Xp = 2, X = 2/3, P = 1.5, Lam = Xp / (Xp + 1) = 2/3
+    one = np.array([[1.0]])
+    P, Y = le_riccati(np.array([[np.sqrt(0.75)]]), one, one, one, 0.5)
+    assert P[0, 0] == pytest.approx(1.5, rel=1e-12)
+    assert Y[0, 0] / P[0, 0] == pytest.approx(2 / 3, rel=1e-12)
+    # the inequality holds with equality: no larger P is feasible
+    L = Y / P
+    N = np.hstack([(1 - L) * np.sqrt(0.75), 1 - L, L])
+    W = np.diag([0.5 * P[0, 0], 1.0, 1.0])
+    assert (N / np.sqrt(np.diag(W))) @ (N / np.sqrt(np.diag(W))).T * P[0, 0] == \
+        pytest.approx(1.0, rel=1e-12)
+    # an unstable mode that the output cannot see: no P > 0 at any rate
+    with pytest.raises(DesignFailed, match="no P > 0"):
+        le_riccati(np.diag([0.5, 1.01]), np.array([[1.0, 0.0]]), np.eye(2), one, 0.99)
+
+
+def test_le_riccati_is_the_sdp_optimum_where_it_is_unique(vehicle2d):
+    A, C, E, F = _arrays(vehicle2d.system)
+    eps = cora_epsilon(vehicle2d.system.W, np.abs(F).sum(axis=1))
+    sdp = le_gain(A, C, E, F, eps, method="sdp")
+    ric = le_gain(A, C, E, F, eps, method="riccati")
+    assert ric.info["tau"] >= sdp.info["tau"] * (1 - 1e-6)  # the largest P: tau not smaller
+    np.testing.assert_allclose(ric.L, sdp.L, rtol=1e-4, atol=1e-6 * np.abs(sdp.L).max())
+
+
+def test_le_riccati_satisfies_the_scaled_inequality_that_the_sdp_only_nearly_meets():
+    from observers.numerics.lmi import bmat
+
+    s = systems.scenario("tank12-linear").system
+    A, C, E, F = _arrays(s)
+    beta = cora_bisection_end()
+    eps = cora_epsilon(s.W, np.abs(F).sum(axis=1))
+
+    def scaled_norm(d):
+        """|| P^1/2 N W^-1/2 ||_2, at most 1 exactly when (*) holds (Schur complement)."""
+        L, P = d.L, d.P
+        N = np.hstack([(np.eye(s.n) - L @ C) @ A, (np.eye(s.n) - L @ C) @ E, L @ F])
+        W = bmat([[beta * P, None, None], [None, E.T @ E, None], [None, None, F.T @ F]])
+        Wi = np.linalg.inv(np.linalg.cholesky(W))
+        return np.linalg.norm(np.linalg.cholesky(P).T @ N @ Wi.T, 2)
+
+    assert scaled_norm(le_gain(A, C, E, F, eps, method="riccati")) <= 1 + 1e-9
+    # the SDP passes the unscaled numpy check (absolute tolerance), but E'E = 1e-6 I makes
+    # its solver tolerance a relative violation of order 1e-4 in the scaled inequality
+    assert scaled_norm(le_gain(A, C, E, F, eps, method="sdp")) > 1 + 1e-5
+
+
+def test_le_method_auto_and_the_design_key(tmp_path, monkeypatch):
+    from observers.numerics.prad import RICCATI_ABOVE, le_method
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    assert le_method(RICCATI_ABOVE, np.eye(2)) == "sdp"
+    assert le_method(RICCATI_ABOVE + 1, np.eye(2)) == "riccati"
+    assert le_method(RICCATI_ABOVE + 1, np.ones((2, 1))) == "sdp"  # V not full-dimensional
+    small = observers.create("PRad-B", systems.scenario("vehicle2d-cora").system)
+    assert "method" not in small.design_params()  # an SDP design keeps its former key
+    sc = systems.scenario("tank18-linear")
+    big = observers.create("PRad-B", sc.system, **sc.options)
+    assert big.design_params()["method"] == "riccati"
+    # PRad-A at 18 tanks: a single output cannot correct every slow mode, so no P > 0 (the
+    # published noGain), found by the Riccati equation of the first such output
+    with pytest.raises(DesignFailed, match="no P > 0"):
+        observers.create("PRad-A", sc.system, **sc.options)
+
+
+def test_centre_above_the_newton_limit_is_the_certified_start(monkeypatch):
+    from observers.numerics import prad
+
+    A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
+    rate = cora_bisection_end()
+    monkeypatch.setattr(prad, "NEWTON_MAX_VARIABLES", 10)
+    d = prad.centre_gain(A, C, E, F, rate)
+    assert d.info["solver"] == "start"
+    P0, Y0 = prad._centre_start(A, C, rate, "test")
+    np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)
+    g = d.info["noise_weight"]
+    nw, nv = E.shape[1], F.shape[1]
+    assert verify_decay(d.P, d.L, A, C, E, F, rate * d.P, g * np.eye(nw), g * np.eye(nv),
+                        "test") >= -1e-6

@@ -84,15 +84,27 @@ def plugins():
 # -- honest signals ------------------------------------------------------------------------
 def test_record_without_true_states_says_na_not_ok(tmp_path, capsys, plugins):
     """CORA's record has no true states: a plugin with sets of half the size cannot be
-    checked, so its row says n/a (not ok), and the report's column too."""
-    cfg = write_cfg(tmp_path, ["FRad-A", "Test-Half"], ["vehicle2d-cora"])
+    checked against the truth, so its `contained` says n/a (not ok), and the report's column
+    too.  Without the exact floor (``exact: false``) nothing else checks it and the run
+    passes; with it (the default), the floor catches it: `covers_exact` no, exit 1."""
+    cfg = write_cfg(tmp_path, ["FRad-A", "Test-Half"], ["vehicle2d-cora"], exact=False)
     out = tmp_path / "r"
     assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 0
     s = literal(out / "summary.csv")
     assert set(s["contained"]) == {"n/a"} and "contained_all" not in s.columns
+    assert set(s["covers_exact"]) == {"n/a"}
     assert main(["report", str(out), "--no-figures"]) == 0
     rows = [ln for ln in (out / "report.md").read_text().splitlines() if "Test-Half" in ln]
     assert rows and all(ln.rstrip(" |").endswith("n/a") for ln in rows[:1])
+    cfg = write_cfg(tmp_path, ["FRad-A", "Test-Half"], ["vehicle2d-cora"], name="floor.yaml")
+    out = tmp_path / "floor"
+    assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 1
+    s = literal(out / "summary.csv").set_index("observer")
+    assert set(s.loc["Test-Half", "covers_exact"]) == {"no"}
+    assert set(s.loc["FRad-A", "covers_exact"]) == {"yes"}
+    assert set(s["contained"]) == {"n/a"}
+    assert "Test-Half on vehicle2d-cora (misses states consistent with the data" in \
+        capsys.readouterr().err
 
 
 def test_contained_is_one_verdict_from_the_exact_test(tmp_path, capsys, plugins):

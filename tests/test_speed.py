@@ -14,9 +14,11 @@ import re
 import numpy as np
 import pytest
 
+import systems
 from benchmarks.cli import main
 from benchmarks.report import freshness
 from benchmarks.timing import speed
+from benchmarks.timing.exact_cost import ExactCase
 from benchmarks.timing.steps import first_steps
 from observers.families import strip_update
 from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
@@ -113,8 +115,14 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
     out, js = tmp_path / "speed.md", tmp_path / "speed.json"
     js.write_text(json.dumps({"environment": {"git": "abc1234"}, "results": [
         {"case": "FRad-A, 2-D vehicle, ms", "observer": "FRad-A", "value": 2.0}]}))
-    speed.write_speed_report(out, js, cases, progress=False)
+    speed.write_speed_report(out, js, cases, progress=False,
+                             exact_cases=(ExactCase("alamo2d", 1e9),))
     text = out.read_text()
+    # the exact reference's cold cost: every step of the record, solved to optimality
+    exact = [ln.split("|") for ln in text.splitlines() if ln.startswith("| alamo2d |")]
+    assert len(exact) == 1 and exact[0][3].strip() == str(systems.scenario("alamo2d").N)
+    assert exact[0][7].strip() == "yes" and exact[0][11].strip() == "none"
+    assert json.loads(js.read_text())["exact"][0]["status"] == "ok"
     assert "commit `abc1234`" in text
     rows = {ln.split("|")[1].strip() + "/" + ln.split("|")[2].strip(): ln.split("|")
             for ln in text.splitlines() if ln.startswith("| FRad-A, 2-D")}

@@ -41,9 +41,9 @@ def test_time_prints_every_observer_and_writes_the_json(tmp_path, capsys):
     assert set(rows) == {"FRad-A", "CZN-A"}
     for fields in rows.values():
         assert fields[1] == "ok"
-        # step med, step p90, hull med, step+hull, steps, design s, KF step, ratio
+        # step med, step p90, hull med, step+hull, steps, from, design s, KF step, ratio
         values = [float(x) for x in fields[2:]]
-        assert len(values) == 8
+        assert len(values) == 9 and int(fields[7]) == 6
         assert all(math.isfinite(v) and v > 0 for v in values), fields
         assert int(fields[6]) == 100 - 5  # one run of 100 steps, 5 warm-up steps dropped
     assert "hull LPs of CZN-A per run" in out
@@ -123,3 +123,36 @@ def test_hull_lp_stats_count_the_lps_of_an_interval_hull():
     assert lp.stats.solves == 4  # 2n LPs
     with pytest.raises(AttributeError):
         lp.stats.solves = 0  # a read-only snapshot
+
+
+# -- steady-state timing (issue 30) ------------------------------------------------------------
+def test_steady_from_finds_where_the_set_size_stops_changing():
+    from benchmarks.timing.steps import steady_from
+
+    grow = [(10, 0), (20, 0), (30, 0), (30, 0), (30, 0), (30, 0)]
+    assert steady_from(grow) == (2, True)
+    assert steady_from(grow[:4]) == (2, False)  # two steps at the final size: not steady
+    assert steady_from([(4, 2), (8, 4), (8, 4), (8, 4)]) == (1, True)  # constraints count
+    assert steady_from([(), (), ()]) == (0, True)  # intervals: steady from the start
+    assert steady_from([]) == (0, False)
+
+
+def test_steady_timing_starts_where_the_zonotope_reaches_its_order(capsys):
+    from benchmarks.run.config import merge_options
+    from benchmarks.timing.steps import set_size, time_observer
+
+    sc = systems.scenario("vehicle2d-cora")
+    # order 2 in 2-D: 4 generators; each step adds 2 (W) and 1 (the strip)
+    opts = dict(merge_options("FRad-A", sc), order=2)
+    sizes = []
+    obs = __import__("observers").create("FRad-A", sc.system, **opts)
+    for k in range(10):
+        sizes.append(set_size(obs.step(sc.u[k - 1] if k else None, sc.y[k])))
+    first = next(k for k in range(10) if all(s == sizes[-1] for s in sizes[k:]))
+    row = time_observer("FRad-A", sc, opts, repeat=2, warmup=0, steady=True)
+    assert row.status == "ok" and row.steady is True
+    assert row.first_timed == first + 1
+    assert row.timed_steps == 2 * (sc.N - first)  # the probe run is not timed
+    assert main(["time", "FRad-A", "--scenario", "vehicle2d-cora", "--repeat", "1",
+                 "--steady", "--steps", "3", "--warmup", "0"]) == 0
+    assert "(growing)" in capsys.readouterr().out  # FRad-A's order 100 is not reached

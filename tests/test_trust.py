@@ -114,10 +114,28 @@ def test_sets_scaled_to_095_are_not_called_tighter_nor_enshrined(tmp_path, monke
     golden = (tmp_path / "baseline" / "alamo2d-sim.csv").read_text()
     _patch_frad(monkeypatch, lambda Z: Zonotope(Z.c, 0.95 * Z.G))
     capsys.readouterr()
+    # the exact floor of the gated record catches it in the check itself ...
     assert _gate(tmp_path, "check", gate_subset) == 1
     last = capsys.readouterr().err.splitlines()[-1]
-    assert "tighter: none" in last and "containment: FRad-A (audit --short)" in last
+    assert "tighter: none" in last and "containment: FRad-A (alamo2d-sim)" in last
     assert _gate(tmp_path, "baseline", gate_subset, "--update") == 1
+    assert (tmp_path / "baseline" / "alamo2d-sim.csv").read_text() == golden
+    # ... and without the floor, the short audit that a tighter observer must pass
+    no_floor = _cfg(tmp_path, ["FRad-A"], name="subset", steps=40, exact=False)
+    assert no_floor == gate_subset  # the same file, rewritten: the baseline's config changed
+    monkeypatch.undo()
+    assert _gate(tmp_path, "baseline", no_floor, "--update") == 0
+    golden = (tmp_path / "baseline" / "alamo2d-sim.csv").read_text()
+    from benchmarks.gate import policy
+
+    monkeypatch.setattr(policy, "PROOF_SCENARIOS", ("alamo2d-sim",))
+    monkeypatch.setattr(policy.soundness, "default_jobs", lambda: 1)
+    _patch_frad(monkeypatch, lambda Z: Zonotope(Z.c, 0.95 * Z.G))
+    capsys.readouterr()
+    assert _gate(tmp_path, "check", no_floor) == 1
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert "tighter: none" in last and "containment: FRad-A (audit --short)" in last
+    assert _gate(tmp_path, "baseline", no_floor, "--update") == 1
     assert "FRad-A got tighter but fails the short soundness audit" in capsys.readouterr().err
     assert (tmp_path / "baseline" / "alamo2d-sim.csv").read_text() == golden
 
@@ -526,6 +544,22 @@ def test_check_runs_to_its_last_line_and_names_the_misbehaving_plugins(tmp_path,
     last = cap.err.strip().splitlines()[-1]
     assert last.startswith("check FAILED") and "plugins failing: " in last, last
     for name, what in [("Test-Hang", "status timeout"), ("Test-Exit", "status error"),
-                       ("Test-Leak", "status memory"), ("Test-Lie", "unsound (contained: no)")]:
+                       ("Test-Leak", "status memory"),
+                       ("Test-Lie", "unsound (contained: no, covers_exact: no)")]:
         assert f"{name} on alamo2d-sim: {what}" in last, (name, last)
     assert "FRad-A" not in last.split("plugins failing: ")[1]
+
+
+@pytest.mark.parametrize("run_id", ["4233509498e4", "012345678901"])
+def test_a_run_id_that_reads_as_a_number_is_still_its_run(tmp_path, monkeypatch, run_id):
+    """Bug: ``pd.read_csv`` parsed the hex run id ``4233509498e4`` as the float 4.23e13 (and
+    ``012345678901`` as an integer without its zero), so ``report`` refused a fresh result
+    set as "not from run ..." about once in 200 runs."""
+    from benchmarks import io as bio
+
+    monkeypatch.setattr(bio, "new_run_id", lambda: run_id)
+    out = tmp_path / "res"
+    assert main(["run", "--observer", "FRad-A", "--scenario", "alamo2d", "--out", str(out),
+                 "--no-progress"]) == 0
+    assert main(["report", str(out), "--no-figures"]) == 0
+    assert f"Run {run_id} of " in (out / "report.md").read_text()

@@ -171,3 +171,42 @@ def test_volmin_a_refusal_names_subset_counts_beyond_the_float_range():
         observers.create("VolMin-A", sc.system, **sc.options)
     exponent = int(str(info.value).split(" generator subsets")[0].split("e+")[-1])
     assert exponent > 308  # beyond float: the count is printed exactly in scientific notation
+
+
+# -- scoring from the Gram matrix (issue 30) ---------------------------------------------------
+@pytest.mark.parametrize(("n", "r"), [(2, 5), (3, 8), (4, 12), (6, 40)])
+def test_gram_scores_match_direct_determinants(n, r):
+    from observers.numerics.volmin import bravo_scores_gram, null_basis
+
+    rng = np.random.default_rng(100 + n * 10 + r)
+    G = rng.normal(size=(n, r))
+    G[:, 1] = 0.0
+    c = rng.normal(size=n)
+    got = bravo_scores_gram(G, G @ G.T, c, 0.3, null_basis(c))
+    want = _direct_scores(G, c, 0.3)
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-12 * abs(want).max())
+    assert np.argmin(got) == np.argmin(want)
+
+
+@pytest.mark.parametrize("j", [0, 1, 4])
+def test_gram_update_is_the_gram_matrix_of_the_candidate(j):
+    from observers.numerics.volmin import gram_update
+
+    rng = np.random.default_rng(j)
+    G, c = rng.normal(size=(3, 6)), rng.normal(size=3)
+    _, Gj = bravo_update(np.zeros(3), G, c, 0.5, 0.4, j)
+    np.testing.assert_allclose(gram_update(G @ G.T, G, c, 0.4, j), Gj @ Gj.T, atol=1e-12)
+
+
+def test_compiled_gram_choice_and_update_are_twins_of_numpy():
+    from observers.numerics.volmin import bravo_scores_gram, gram_update, null_basis
+    from observers.sets import _step_jit
+
+    rng = np.random.default_rng(7)
+    for _ in range(8):
+        G, c = rng.normal(size=(4, 30)), rng.normal(size=4)
+        M, B = G @ G.T, null_basis(c)
+        j = _step_jit.bravo_choice_gram(G, M, c, 0.2, B, ZERO_PROJECTION)
+        assert j == int(np.argmin(bravo_scores_gram(G, M, c, 0.2, B)))
+        np.testing.assert_allclose(_step_jit.gram_update(M, G, c, 0.2, j),
+                                   gram_update(M, G, c, 0.2, j), atol=1e-12)

@@ -280,7 +280,7 @@ def _normalise(df: pd.DataFrame) -> pd.DataFrame:
     df = df.copy()
     for col in ("rms_radius", "rel_rms", "violations", "rtol", "gap"):
         df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
-    df["covers_exact"] = df["covers_exact"].fillna("n/a").astype(str)
+    df["covers_exact"] = df["covers_exact"].astype(object).fillna("n/a").astype(str)
     df["state"] = df["state"].astype(int)
     df["status"] = df["status"].astype(str)
     df["guaranteed"] = df["guaranteed"].astype(str).str.lower().isin(["true", "1"])
@@ -299,7 +299,9 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
     for sc, obs in sorted(bpairs - cpairs):
         rows.append(_row(sc, obs, "-", "observer", "present", "missing", "", False,
                          "in the baseline but not run now (removed or unregistered?)"))
-    bad_verdicts = {(s, o): c for s, o, c in unsound_pairs(cur)}
+    bad_verdicts: dict[tuple[str, str], list[str]] = {}
+    for s_, o, c in unsound_pairs(cur):
+        bad_verdicts.setdefault((s_, o), []).append(c)
     cur_status = dict(zip(zip(cur["scenario"], cur["observer"], strict=True), cur["status"],
                           strict=True))
     for sc, obs in sorted(cpairs - bpairs):
@@ -313,10 +315,10 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
         rows.append(_row(sc, obs, "-", "observer", "absent", "present", "",
                          plugin and not strict and not culprit,
                          note + (f"; {FAILING}{culprit}" if culprit else "")))
-    for (sc, obs), col in sorted(bad_verdicts.items()):
+    for (sc, obs), cols in sorted(bad_verdicts.items()):
         if (sc, obs) in bpairs:
-            rows.append(_row(sc, obs, "-", col, "-", NO, "", False, VERDICT_NOTES.get(
-                col, "a soundness verdict says no")))
+            rows += [_row(sc, obs, "-", col, "-", NO, "", False, VERDICT_NOTES.get(
+                col, "a soundness verdict says no")) for col in cols]
     keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
     common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
     # the larger of the stored (class or measured) and the current class tolerance
@@ -385,11 +387,12 @@ VERDICT_NOTES = {
 FAILING = "failing: "
 
 
-def _culprit(status: str, bad_verdict: str | None) -> str:
-    """What is wrong with a run (``""`` if nothing): its status, or an unsound verdict."""
+def _culprit(status: str, bad_verdicts: list[str] | None) -> str:
+    """What is wrong with a run (``""`` if nothing): its status, or its unsound verdicts."""
     if status not in ("ok", "noGain", "unsupported"):
         return f"status {status}"
-    return f"unsound ({bad_verdict}: no)" if bad_verdict else ""
+    return (f"unsound ({', '.join(f'{c}: no' for c in bad_verdicts)})" if bad_verdicts
+            else "")
 
 
 def culprits(diff: pd.DataFrame) -> str:

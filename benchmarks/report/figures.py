@@ -10,6 +10,8 @@ imports matplotlib.
 * :func:`bounds_and_radii` -- every state's bounds and radius (log scale) over time, every
   observer a layer the HTML page shows or hides (inline SVG, :class:`LayeredFigure`), extra
   bands optional (``bands={"exact": (lo, hi)}``);
+* :func:`frontier` -- gap to the exact floor against cost per setting, Pareto front
+  (frontier study);
 * :func:`heat_map` -- a ratio per observer and state with its reference (HTML report);
 * :func:`step_times` -- per-step times on a log scale beside the papers' (HTML report);
 * :func:`history` -- the golden summaries over the commits (``setobs-bench history``);
@@ -476,6 +478,42 @@ def scaling(df: pd.DataFrame, variants: Sequence[str], realtime_ms: float,
         ax.set_ylabel("step + hull time per step [ms]")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, ncol=2, loc="lower right")
+    fig.tight_layout()
+    return save_figure(fig, base, dpi=110)
+
+
+def frontier(df: pd.DataFrame, base: Path) -> list[Path]:
+    """Log-log plot of the gap to the exact floor against the cost (ratio to a Kalman step),
+    one panel per record: each observer's settings joined in knob order and labelled with
+    the knob's value, the Pareto front as a black staircase."""
+    records = list(dict.fromkeys(df["record"]))
+    fig, axes = plt.subplots(1, max(1, len(records)), figsize=(6 * max(1, len(records)), 5),
+                             squeeze=False)
+    colors = plt.get_cmap("tab10").colors
+    for ax, record in zip(axes[0], records, strict=False):
+        g = df[(df["record"] == record) & (df["status"] == "ok")]
+        for k, name in enumerate(dict.fromkeys(g["observer"])):
+            h = g[g["observer"] == name]
+            ax.loglog(h["cost_ratio"], h["gap"], marker="osD^v<>"[k % 7], ms=5,
+                      color=colors[k % 10], label=name, linewidth=1)
+            for r in h.itertuples(index=False):
+                ax.annotate(str(r.value), (r.cost_ratio, r.gap), fontsize=6,
+                            xytext=(3, 3), textcoords="offset points", color=colors[k % 10])
+        f = g[g["pareto"].astype(bool)].sort_values("cost_ratio")
+        if len(f):
+            ax.step(f["cost_ratio"], f["gap"], where="post", color="k", linewidth=1.5,
+                    alpha=0.6, label="Pareto front")
+            ax.scatter(f["cost_ratio"], f["gap"], s=60, facecolors="none", edgecolors="k")
+        if not len(g):
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.text(0.5, 0.5, "no setting ran (see the report)", ha="center",
+                    transform=ax.transAxes)
+        ax.set_title(record)
+        ax.set_xlabel("cost per step (step + hull) / Kalman step")
+        ax.set_ylabel("gap to the exact floor (1 = optimal)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     return save_figure(fig, base, dpi=110)
 

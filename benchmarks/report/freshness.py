@@ -101,6 +101,8 @@ def default_command(path: Path, root: Path = ROOT) -> str:
         return "python -m benchmarks speed"
     if path.stem == "scaling":
         return f"python -m benchmarks.studies.scaling --out {path} --results results/scaling"
+    if path.stem == "frontier":
+        return f"python -m benchmarks.studies.frontier --out {path} --results results/frontier"
     return report_command(config_of(path.stem, root), path)
 
 

@@ -26,7 +26,7 @@ import pandas as pd
 
 from observers.registry import table_order
 
-from ..metrics import timed_in_parallel
+from ..metrics import PHASE_COLUMNS, timed_in_parallel
 from ..verdicts import NA, NO, contained_column, reference_rows, violating
 from .numbers import Num, fmt, format_columns, markdown_table, text_table
 from .paper import PaperRow, paper_rows, paper_status, paper_title
@@ -146,7 +146,7 @@ def phase_table_data(df: pd.DataFrame) -> tuple[list[str], list[list[Any]]] | No
     """Header and rows of the time per phase of a step, for the observers that time their
     phases (the numpy path of the family loops: nonlinear models, constrained zonotopes);
     ``None`` where no observer does."""
-    phases = ["prediction_ms", "update_ms", "reduction_ms", "step_lp_ms"]
+    phases = list(PHASE_COLUMNS.values())
     if not set(phases) <= set(df.columns):
         return None
     per = df.drop_duplicates("observer").set_index("observer")

@@ -229,7 +229,8 @@ def parse_config(raw: Any, name: str, base: Path | None = None) -> BenchConfig:
     obs = raw.get("observers", "all")
     try:
         if obs == "all":
-            names = [i.name for i in observers.available() if i.family != "stochastic"]
+            names = [i.name for i in observers.available()
+                     if i.family not in observers.registry.OUTSIDE_ALL]
         elif isinstance(obs, list) and obs:
             names = [observers.get(str(o)).name for o in obs]
         else:

@@ -26,7 +26,7 @@ from systems import ModelError, Scenario, available_memory
 
 from ..errors import ConfigError
 from ..io import check_output_dir, environment, write_error, write_results
-from ..metrics import add_relative_rms, median_ms, rms_radius
+from ..metrics import PHASE_COLUMNS, add_relative_rms, median_ms, rms_radius
 from ..verdicts import HULL_AND_EXACT, NA, BenchResult, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
 from .describe import set_bounds
@@ -190,16 +190,10 @@ def _phase_ms(obs, steps: int) -> dict:
     times = getattr(obs, "phase_times", None)
     if not isinstance(times, dict) or not steps or not any(v > 0 for v in times.values()):
         return {}
-    return {PHASES[k]: 1e3 * float(v) / steps for k, v in times.items()
-            if k in PHASES and v > 0}
+    return {PHASE_COLUMNS[k]: 1e3 * float(v) / steps for k, v in times.items()
+            if k in PHASE_COLUMNS and v > 0}
 
 
-#: the phases of a step that ``summary.csv`` reports (mean milliseconds per step): an
-#: observer's ``phase_times`` key -> its column (``hull``: the LPs inside a step, e.g. the
-#: generator rescaling of a constrained-zonotope step; the interval hull of the returned set
-#: is ``hull_ms``)
-PHASES = {"prediction": "prediction_ms", "update": "update_ms", "reduction": "reduction_ms",
-          "hull": "step_lp_ms"}
 
 
 def _bounds(res: RunResult, N: int, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -248,7 +242,7 @@ def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
         "step_ms": median_ms(res.step_times) if res is not None else np.nan,
         "hull_ms": median_ms(res.hull_times) if res is not None else np.nan,
         "design_s": res.design_time if res is not None else np.nan,
-        **{col: run.phase_ms.get(col, np.nan) for col in PHASES.values()},
+        **{col: run.phase_ms.get(col, np.nan) for col in PHASE_COLUMNS.values()},
         contained_column(containment): verdict,
         "violations": run.violations if run.in_set is not None else None,
         "first_violation_step": first_violation if run.in_set is not None else None,
@@ -466,7 +460,7 @@ def summary_columns(containment: str) -> list[str]:
     gate's ``hull+exact`` has both)."""
     both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
-            "rel_rms", "step_ms", "hull_ms", "design_s", *PHASES.values(), "timed",
+            "rel_rms", "step_ms", "hull_ms", "design_s", *PHASE_COLUMNS.values(), "timed",
             contained_column(containment),
             *both, "violations", "first_violation_step", *FLOOR_COLUMNS, "status",
             "failed_step", "message", "family", "set_type", "timing", "guaranteed"]

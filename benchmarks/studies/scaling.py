@@ -65,10 +65,11 @@ COLUMNS = ["variant", "n", "observer", "set_type", "status", "message", "design_
 
 
 def default_observers() -> list[str]:
-    """Every registered observer except the stochastic, data-driven and reference families
-    (the exact reference is timed in reports/speed.md)."""
+    """Every registered observer except the stochastic, data-driven, reference and
+    moving-horizon families (the exact reference is timed in reports/speed.md, the
+    moving-horizon estimators in the frontier study, reports/frontier.md)."""
     return [i.name for i in observers.available()
-            if i.family not in ("stochastic", "data-driven", "reference")]
+            if i.family not in ("stochastic", "data-driven", "reference", "moving-horizon")]
 
 
 def design_only(job: Job) -> dict:

@@ -1,14 +1,18 @@
 """Per-step timing of observers against a plain Kalman filter step.
 
 ``python -m benchmarks time NAME... --scenario S [--repeat N] [--warmup K] [--steps M]
-[--json F]``
+[--steady] [--json F]``
 
 Each observer is designed once (the offline design is not part of the step times; its
 duration is reported separately as ``design_s``), then run ``repeat`` times over the
 scenario's record by :func:`observers.run`, which times every ``step()`` and every interval
 hull (``RunResult.step_times``, ``RunResult.hull_times``).  The first ``warmup`` steps of each
 run are dropped (default :func:`benchmarks.metrics.warmup_steps`, as in ``summary.csv``); the
-statistics are over the remaining steps of all runs together.
+statistics are over the remaining steps of all runs together.  ``--steady`` times the steady
+state only: a zonotope observer's set grows by its new generators every step until the order
+reduction caps it, and its steps get dearer until then; the timed steps start where the set
+size (generators, and constraints of a constrained zonotope) stops changing
+(:func:`steady_from`), and the table says from which step and whether it was reached.
 
 Reference: right after the observer, in the same process and on the same record, a plain
 numpy Kalman filter (:func:`kalman_step_times`) is timed the same way; ``ratio`` is the
@@ -83,6 +87,14 @@ class TimingRow:
         Per run (median over the runs): ``solves``, ``iterations``, ``fallbacks`` (LPs handed
         to HiGHS) and ``iterations_per_solve`` of the hull LPs; ``None`` if the observer has
         none.
+    first_timed : int
+        The first timed step (1-based): the warm-up plus one, or with ``steady=True`` the
+        first step of the steady state (:func:`steady_from`).
+    steady : bool or None
+        With ``steady=True``: whether the run reached its steady state (the size of the
+        estimated set constant over at least :data:`MIN_STEADY_STEPS` steps up to the end
+        of the run; if not, the timed steps are the last ones, still growing); ``None``
+        without.
     """
 
     observer: str
@@ -97,6 +109,59 @@ class TimingRow:
     kalman_ms_median: float = math.nan
     ratio: float = math.nan
     hull_lp: dict[str, float] | None = None
+    first_timed: int = 0
+    steady: bool | None = None
+
+
+#: fewest steps at the final set size for a run to count as steady (:func:`steady_from`)
+MIN_STEADY_STEPS = 3
+
+
+def set_size(S: Any) -> tuple[int, ...]:
+    """The size of an estimated set: its number of generators and, for a constrained set,
+    of constraints (``()`` for a set without generators, e.g. an interval or ellipsoid)."""
+    G = getattr(S, "G", None)
+    if G is None or np.ndim(G) != 2:
+        return ()
+    A = getattr(S, "A", None)
+    rows = A.shape[0] if A is not None and np.ndim(A) == 2 and A.shape[1] == G.shape[1] else 0
+    return (G.shape[1], rows)
+
+
+def steady_from(sizes: list[tuple[int, ...]]) -> tuple[int, bool]:
+    """The first step (0-based) from which the set size stays at its final value, and
+    whether the run is steady (at least :data:`MIN_STEADY_STEPS` steps at that size).
+
+    A zonotope observer adds generators every step until its order reduction caps them (the
+    step cost grows until then); a constrained zonotope also its constraints.  Timing only
+    the steps from here on gives the cost of the observer in operation, not of its start."""
+    if not sizes:
+        return 0, False
+    k = len(sizes) - 1
+    while k > 0 and sizes[k - 1] == sizes[-1]:
+        k -= 1
+    return k, len(sizes) - k >= MIN_STEADY_STEPS
+
+
+class _Sizes:
+    """An observer that records the size of every set it returns (:func:`set_size`)."""
+
+    def __init__(self, obs: Any) -> None:
+        self.obs = obs
+        self.sizes: list[tuple[int, ...]] = []
+        for attr in ("name", "design_time", "system"):
+            if hasattr(obs, attr):
+                setattr(self, attr, getattr(obs, attr))
+
+    def reset(self) -> None:
+        self.sizes = []
+        if callable(getattr(self.obs, "reset", None)):
+            self.obs.reset()
+
+    def step(self, u_prev: Any, y: Any) -> Any:
+        S = self.obs.step(u_prev, y)
+        self.sizes.append(set_size(S))
+        return S
 
 
 def kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -164,10 +229,16 @@ def _kalman_median_ms(sc: Scenario, repeat: int, warmup: int) -> float:
     return float(np.median(t) * 1e3) if t.size else math.nan
 
 
-def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: int
-                  ) -> TimingRow:
+def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: int,
+                  steady: bool = False) -> TimingRow:
     """Design ``name`` once, run it ``repeat`` times over ``sc``'s record, then time the
     Kalman filter on the same record; failures become the row's status.
+
+    With ``steady=True`` only the steps of the steady state are timed (:func:`steady_from`,
+    at least ``warmup`` steps dropped): with ``repeat`` 1 the one run records the set sizes
+    (the recording is inside the timed step, well below a microsecond: meant for the large
+    systems); with ``repeat`` above 1 an untimed first run finds the steady state and the
+    ``repeat`` runs that follow are timed from there.
 
     Parameters
     ----------
@@ -190,15 +261,24 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
     if obs is None:
         return TimingRow(name, status, message)
     steps, hulls, lp_runs = [], [], []
-    for _ in range(repeat):
+    reached: bool | None = None
+    # steady state: a probe run records the set sizes (timed itself when it is the only run)
+    runs = ([_Sizes(obs)] + [obs] * (repeat if repeat > 1 else 0)) if steady else [obs] * repeat
+    for runner in runs:
         try:
-            res = observers.run(obs, sc.u, sc.y, keep_sets=False)
+            res = observers.run(runner, sc.u, sc.y, keep_sets=False)
         except Exception as exc:  # a plugin bug must not end the table
             print(f"warning: {name} failed on {sc.name}: {exc}", file=sys.stderr)
             return TimingRow(name, "error", f"{type(exc).__name__}: {exc}",
                              design_s=obs.design_time)
         if res.status != "ok":
             return TimingRow(name, res.status, res.message, design_s=obs.design_time)
+        if isinstance(runner, _Sizes):
+            k, reached = steady_from(runner.sizes)
+            if reached:  # else the steps after the warm-up, all still growing
+                warmup = min(max(warmup, k), sc.N - 1)
+            if repeat > 1:
+                continue  # the probe run is not timed
         steps.append(res.step_times[warmup:])
         hulls.append(res.hull_times[warmup:])
         stats = getattr(obs, "hull_stats", None)
@@ -210,7 +290,8 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
     row = TimingRow(
         name, "ok", "", step_median, float(np.percentile(step, 90)), float(np.median(hull)),
         float(np.median(step + hull)), int(step.size), obs.design_time, kalman,
-        step_median / kalman if kalman > 0 else math.nan)
+        step_median / kalman if kalman > 0 else math.nan, first_timed=warmup + 1,
+        steady=reached)
     if lp_runs:
         row.hull_lp = {
             "solves": float(np.median([s.solves for s in lp_runs])),
@@ -257,7 +338,7 @@ def resolve_warmup(sc: Scenario, warmup: int | None) -> int:
 
 
 def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT,
-                   warmup: int | None = None, steps: int | None = None
+                   warmup: int | None = None, steps: int | None = None, steady: bool = False
                    ) -> tuple[Scenario, int, list[TimingRow]]:
     """Time every observer of ``names`` on ``scenario`` (see the module docstring).
 
@@ -273,6 +354,8 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
         Steps dropped at the start of every run (default :func:`warmup_steps`).
     steps : int or None
         Run only the first ``steps`` steps of the record (default: all of them).
+    steady : bool
+        Time only the steady state of every observer (see :func:`time_observer`).
 
     Returns
     -------
@@ -295,7 +378,7 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
         observers.get(name)  # unknown names fail before anything runs
     sc = first_steps(systems.scenario(scenario), steps)
     warmup = resolve_warmup(sc, warmup)
-    rows = [time_observer(name, sc, merge_options(name, sc), repeat, warmup)
+    rows = [time_observer(name, sc, merge_options(name, sc), repeat, warmup, steady)
             for name in names]
     return sc, warmup, rows
 
@@ -303,15 +386,19 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
 def format_table(sc: Scenario, repeat: int, warmup: int, rows: list[TimingRow]) -> str:
     """The plain-text table of ``python -m benchmarks time``."""
     head = ["observer", "status", "step med", "step p90", "hull med", "step+hull", "steps",
-            "design s", "KF step", "ratio"]
+            "from", "design s", "KF step", "ratio"]
     body = [[r.observer, r.status, fmt(r.step_ms_median), fmt(r.step_ms_p90),
              fmt(r.hull_ms_median), fmt(r.step_hull_ms_median), str(r.timed_steps),
+             str(r.first_timed) + ("" if r.steady is None else " (steady)" if r.steady
+                                   else " (growing)"),
              fmt(r.design_s), fmt(r.kalman_ms_median), fmt(r.ratio)] for r in rows]
+    steady = any(r.steady is not None for r in rows)
     lines = [
-        f"{sc.name}: {repeat} run(s) of {sc.N} steps per observer, the first {warmup} step(s) "
-        "of each run not timed",
+        f"{sc.name}: {repeat} run(s) of {sc.N} steps per observer, "
+        + ("timed from the step in 'from' (the steady state; an untimed probe run first when "
+           "repeat > 1)" if steady else f"the first {warmup} step(s) of each run not timed"),
         "times in ms (median, 90th percentile) over the timed steps of all runs; design in s",
-        text_table(head, body, right=[False, False] + [True] * 8),
+        text_table(head, body, right=[False, False] + [True] * 9),
         "KF step: plain numpy Kalman filter step (covariance form; Q = E E'/3, R = F F'/3 "
         "from the",
         "generators of W and V), timed after each observer on the same record; "

@@ -13,6 +13,7 @@ from ..errors import DesignFailed, Diverged
 from ..families import as_zonotope
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
+    HINF_RICCATI_ABOVE,
     ellipsoid_box,
     error_system,
     esmf_prediction,
@@ -199,7 +200,13 @@ class InvariantSetObserver(Observer):
         """Solve the offline design; returns ``L, P, Q, gamma2, lam``."""
 
     def design_params(self) -> dict:
-        return dict(self.options)
+        """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
+        equation (above :data:`~observers.numerics.ellipsoidal.HINF_RICCATI_ABOVE` states; the
+        smaller designs keep their former cache key)."""
+        params = dict(self.options)
+        if self.system.n > HINF_RICCATI_ABOVE:
+            params["hinf"] = "riccati"
+        return params
 
     def design(self) -> None:
         s = self.system

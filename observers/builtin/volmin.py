@@ -31,8 +31,9 @@ from ..families import Linearised, PerStripObserver, StripBasedObserver
 from ..kernels import StepKernel
 from ..numerics.volmin import (
     ZERO_PROJECTION,
-    bravo_choice,
+    bravo_scores_gram,
     bravo_update,
+    gram_update,
     null_basis,
     subset_count,
     volume_lp_gain,
@@ -101,7 +102,12 @@ class VolMinB(Linearised, StripBasedObserver):
         return {"bases": np.stack(self._bases), "zero_projection": ZERO_PROJECTION}
 
     def intersect(self, c, G, y):
+        """Strip after strip, the candidates scored from the Gram matrix ``G G'``, formed
+        once per step and updated in ``O(n^2)`` per strip (:func:`bravo_scores_gram`,
+        :func:`gram_update`)."""
+        M = G @ G.T
         for i, row in enumerate(self.C):
-            j = bravo_choice(G, row, self.sigma[i], self._bases[i])
+            j = int(np.argmin(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i])))
+            M = gram_update(M, G, row, self.sigma[i], j)
             c, G = bravo_update(c, G, row, y[i], self.sigma[i], j)
         return c, G

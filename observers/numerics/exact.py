@@ -103,6 +103,13 @@ LP_TOLERANCE = 1e-9
 MARGIN = 0.1
 #: steps allocated ahead at least (then an eighth of the steps done)
 CHUNK = 8
+#: simplex iterations a warm-started solve may take, at least and per active row: beyond it
+#: the solve is taken as stalled (measured: Dantzig pricing cycles for ever on some
+#: degenerate records, e.g. the audit's vertex-noise realisations of the 6-D vehicle, while a
+#: cold steepest-edge solve of the same LP takes ~600 iterations); a warm solve takes tens
+WARM_ITERATIONS = 3000
+WARM_ITERATIONS_PER_ROW = 1
+_NO_LIMIT = 2**31 - 1
 _OPTIMAL = highspy.HighsModelStatus.kOptimal
 _INFEASIBLE = highspy.HighsModelStatus.kInfeasible
 
@@ -233,6 +240,7 @@ class ExactHullLP:
         self._cu = np.zeros(0)
         self._rl = np.zeros(0)  # row ranges of the active rows (0 for free rows)
         self._ru = np.zeros(0)
+        self._free = np.zeros(0, bool)  # rows without constraint (zero multipliers)
         self._active = 0  # rows [0, active) are active, the others free
         self._coo: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._MT: sp.csr_matrix | None = None
@@ -267,17 +275,41 @@ class ExactHullLP:
         """Rows of the current LP."""
         return self._active
 
+    def _block(self, lay: _Layout, first: bool, prev: int | None, outputs: bool = True
+               ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+        """Nonzeros (rows, columns, values) of one step's block: the X0 rows of step 0
+        (``first``) or the dynamics rows linking ``x_j`` to the states at column ``prev``, and
+        (``outputs``) the output rows."""
+        n, W = self.n, self.W
+        Cm = self.C[self._meas_rows]
+        Fm = self.V.G_gen[self._meas_rows][:, self._nu_used]
+        rC, cC = np.nonzero(Cm)
+        rF, cF = np.nonzero(Fm)
+        ri: list[np.ndarray] = []
+        ci: list[np.ndarray] = []
+        vals: list[np.ndarray] = []
+        row, col = lay.rows, lay.x
+        if first and lay.nrows:  # x_0 - G0^ xi
+            r2, c2 = np.nonzero(self.X0.G_gen)
+            ri += [np.arange(n) + row, r2 + row]
+            ci += [np.arange(n) + col, c2 + lay.fac]
+            vals += [np.ones(n), -self.X0.G_gen[r2, c2]]
+        elif not first:  # x_j - A x_{j-1} - E^ omega_{j-1}
+            rA, cA = np.nonzero(self.A)
+            rE, cE = np.nonzero(W.G_gen)
+            ri += [np.arange(n) + row, rA + row, rE + row]
+            ci += [np.arange(n) + col, cA + prev, cE + lay.fac]
+            vals += [np.ones(n), -self.A[rA, cA], -W.G_gen[rE, cE]]
+        if outputs:  # C x_j + F^ nu_j
+            ri += [rC + lay.meas, rF + lay.meas]
+            ci += [cC + col, cF + lay.nu]
+            vals += [Cm[rC, cC], Fm[rF, cF]]
+        return ri, ci, vals
+
     def _allocate(self, steps: int) -> None:
         """Append the blocks of ``steps`` more steps to every model: columns fixed at 0 and
         free rows (activated by bounds when their step comes)."""
-        n, W, V = self.n, self.W, self.V
-        mrows, nu_used = self._meas_rows, self._nu_used
-        Cm = self.C[mrows]
-        Fm = V.G_gen[mrows][:, nu_used]
-        rA, cA = np.nonzero(self.A)
-        rE, cE = np.nonzero(W.G_gen)
-        rC, cC = np.nonzero(Cm)
-        rF, cF = np.nonzero(Fm)
+        n, W = self.n, self.W
         col, row = self._ncols, self._nrows
         ri, ci, vals = [], [], []
         for _ in range(steps):
@@ -285,24 +317,21 @@ class ExactHullLP:
             first = j == 0
             nfac = self.X0.general if first else W.general
             nrows = (n if self.X0.general else 0) if first else n
-            lay = _Layout(x=col, fac=col + n, nfac=nfac, nu=col + n + nfac, nnu=nu_used.size,
-                          rows=row, nrows=nrows, meas=row + nrows, nmeas=mrows.size)
-            if first and nrows:  # x_0 - G0^ xi
-                r2, c2 = np.nonzero(self.X0.G_gen)
-                ri += [np.arange(n) + row, r2 + row]
-                ci += [np.arange(n) + col, c2 + lay.fac]
-                vals += [np.ones(n), -self.X0.G_gen[r2, c2]]
-            elif not first:  # x_j - A x_{j-1} - E^ omega_{j-1}
-                prev = self._layout[j - 1].x
-                ri += [np.arange(n) + row, rA + row, rE + row]
-                ci += [np.arange(n) + col, cA + prev, cE + lay.fac]
-                vals += [np.ones(n), -self.A[rA, cA], -W.G_gen[rE, cE]]
-            ri += [rC + lay.meas, rF + lay.meas]  # C x_j + F^ nu_j
-            ci += [cC + col, cF + lay.nu]
-            vals += [Cm[rC, cC], Fm[rF, cF]]
+            lay = _Layout(x=col, fac=col + n, nfac=nfac, nu=col + n + nfac,
+                          nnu=self._nu_used.size, rows=row, nrows=nrows, meas=row + nrows,
+                          nmeas=self._meas_rows.size)
+            r_, c_, v_ = self._block(lay, first, None if first else self._layout[j - 1].x)
+            ri += r_
+            ci += c_
+            vals += v_
             self._layout.append(lay)
             col = lay.nu + lay.nnu
             row = lay.meas + lay.nmeas
+        self._append(col, row, ri, ci, vals)
+
+    def _append(self, col: int, row: int, ri: list, ci: list, vals: list) -> None:
+        """Append columns up to ``col`` (fixed at 0) and free rows up to ``row`` with the
+        nonzeros ``(ri, ci, vals)`` to every model and to the transposed mirror."""
         ri, ci, vals = (np.concatenate(a) if a else np.zeros(0) for a in (ri, ci, vals))
         ri, ci = ri.astype(np.int64), ci.astype(np.int64)
         new_cols, new_rows = col - self._ncols, row - self._nrows
@@ -320,6 +349,7 @@ class ExactHullLP:
         self._cu = np.concatenate([self._cu, zeros])
         self._rl = np.concatenate([self._rl, np.zeros(new_rows)])
         self._ru = np.concatenate([self._ru, np.zeros(new_rows)])
+        self._free = np.concatenate([self._free, np.ones(new_rows, bool)])
         self._coo.append((ri, ci, vals))
         self._ncols, self._nrows = col, row
         R, Cc, Vv = (np.concatenate(a) for a in zip(*self._coo, strict=True))
@@ -330,6 +360,10 @@ class ExactHullLP:
     def _ensure(self, j: int) -> _Layout:
         if j >= len(self._layout):
             self._allocate(max(CHUNK, j // 8))
+        return self._layout[j]
+
+    def _lay(self, j: int) -> _Layout:
+        """The columns and rows of step j (allocated)."""
         return self._layout[j]
 
     def _set_cols(self, first: int, lo: np.ndarray, hi: np.ndarray) -> None:
@@ -349,16 +383,29 @@ class ExactHullLP:
         idx = np.arange(first, first + lo.size, dtype=np.int32)
         for h in self._models:
             h.changeRowsBounds(lo.size, idx, lo, hi)
+        self._free[first : first + lo.size] = False
         self._active = max(self._active, first + lo.size)
 
+    def _free_rows(self, first: int, count: int) -> None:
+        """Make rows ``first .. first + count - 1`` free (no constraint, zero multipliers)."""
+        if count == 0:
+            return
+        self._rl[first : first + count] = 0.0
+        self._ru[first : first + count] = 0.0
+        self._free[first : first + count] = True
+        idx = np.arange(first, first + count, dtype=np.int32)
+        inf = np.full(count, np.inf)
+        for h in self._models:
+            h.changeRowsBounds(count, idx, -inf, inf)
+
     def _state_bounds(self, j: int) -> tuple[np.ndarray, np.ndarray]:
-        x = self._layout[j].x
+        x = self._lay(j).x
         return self._cl[x : x + self.n].copy(), self._cu[x : x + self.n].copy()
 
     def _move_objective(self, j: int) -> None:
         """Objective ``max +x_{j,i}`` in model ``2 i`` and ``max -x_{j,i}`` in ``2 i + 1``."""
-        prev = self._layout[j - 1].x if j > 0 else None
-        cur = self._layout[j].x
+        prev = self._lay(j - 1).x if j > 0 else None
+        cur = self._lay(j).x
         for o, h in enumerate(self._models):
             i, minus = divmod(o, 2)
             if prev is not None:
@@ -443,10 +490,10 @@ class ExactHullLP:
         n, R = self.n, self._active
         Mu = np.zeros((2 * n, self._nrows))
         for o, h in enumerate(self._models):
-            status = self._run(h)
+            status = self._run(h, warm=True)
             if status not in (_OPTIMAL, _INFEASIBLE):
-                h.clearSolver()  # once more from scratch
-                status = self._run(h)
+                h.clearSolver()  # once more from scratch, with robust pricing
+                status = self._run(h, warm=False)
                 if status not in (_OPTIMAL, _INFEASIBLE) and j not in self.inexact:
                     self.inexact.append(j)
             if status == _INFEASIBLE:
@@ -465,7 +512,8 @@ class ExactHullLP:
                 mu = np.asarray(sol.row_dual, dtype=float)[:R]
                 if np.all(np.isfinite(mu)):
                     Mu[o, :R] = -mu  # max +-x solved as min -+x: mu = -row_dual
-        col = self._layout[j].x + np.arange(n)
+        Mu[:, self._free] = 0.0  # free rows: zero multipliers
+        col = self._lay(j).x + np.arange(n)
         bounds = self._dual_bounds(Mu, np.repeat(col, 2), np.tile([1.0, -1.0], n))
         lo, hi = -bounds[1::2], bounds[0::2]
         clo, chi = self._state_bounds(j)
@@ -495,7 +543,12 @@ class ExactHullLP:
         scale = np.abs(rterms).sum(axis=1) + np.abs(sterms).sum(axis=1) + gpart
         return total + (self._nrows + self._ncols + 4) * _EPS * 1.01 * scale + _TINY
 
-    def _run(self, h: highspy.Highs) -> highspy.HighsModelStatus:
+    def _run(self, h: highspy.Highs, warm: bool = True) -> highspy.HighsModelStatus:
+        """Solve ``h``: a warm solve with Dantzig pricing under an iteration cap, or a cold
+        one with steepest-edge pricing and no cap (stalls of the warm solve end there)."""
+        cap = max(WARM_ITERATIONS, WARM_ITERATIONS_PER_ROW * self._active)
+        h.setOptionValue("simplex_iteration_limit", cap if warm else _NO_LIMIT)
+        h.setOptionValue("simplex_dual_edge_weight_strategy", 0 if warm else 2)
         h.run()
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
@@ -513,8 +566,8 @@ class ExactHullLP:
         ray = np.asarray(ray, float)
         if not np.all(np.isfinite(ray)):
             return False
-        ray[self._active :] = 0.0  # free rows: zero multipliers
-        col = np.array([self._layout[j].x])
+        ray[self._free] = 0.0  # free rows: zero multipliers
+        col = np.array([self._lay(j).x])
         return any(self._dual_bounds(mu[None, :], col, np.zeros(1))[0] < 0.0
                    for mu in (ray, -ray))
 
@@ -529,14 +582,21 @@ class ExactHullLP:
         self._move_objective(0)
         return self._filter(0, np.asarray(y, float).reshape(-1), plo, phi, plo, phi, hulls)
 
-    def advance(self, u, y, hulls: StepHulls | None = None) -> StepHulls:
-        """Step k: predict with ``u_{k-1}``, then filter with ``y_k``."""
+    def advance(self, u, y, hulls: StepHulls | None = None, predicted: bool = True
+                ) -> StepHulls:
+        """Step k: predict with ``u_{k-1}``, then filter with ``y_k``.
+
+        ``predicted=False`` skips the LPs of the predicted hull: the returned predicted
+        hull is then the interval prediction of the bounds of ``x_{k-1}`` (sound, looser),
+        and a step costs half the LPs."""
         if self.k == 0:
             raise RuntimeError("advance() needs first() before it")
         j = self.k
         ilo, ihi = self._activate_prediction(j, np.asarray(u, float).reshape(-1))
         self._move_objective(j)
-        if hulls is None:
+        if hulls is None and not predicted:
+            plo, phi = ilo, ihi
+        elif hulls is None:
             plo, phi = self._solve_all(j, "predicted")
         else:
             plo, phi = np.maximum(hulls.pred_lo, ilo), np.minimum(hulls.pred_hi, ihi)
@@ -547,7 +607,7 @@ class ExactHullLP:
                 hlo: np.ndarray, hhi: np.ndarray, hulls: StepHulls | None) -> StepHulls:
         """Add ``y_j`` to the predicted LP of step j (bounds ``[plo, phi]``; ``[hlo, hhi]``:
         bounds that encode constraints, X0 for step 0) and solve the filtered LPs."""
-        lay = self._layout[j]
+        lay = self._lay(j)
         olo, ohi = self._output_bounds(y, j)
         hard = (np.maximum(hlo, olo), np.minimum(hhi, ohi))
         lo, hi = np.maximum(plo, hard[0]), np.minimum(phi, hard[1])

@@ -1,4 +1,4 @@
-"""The LMI toolbox of the offline designs: solve with cvxpy + Clarabel, then verify in numpy.
+"""The LMI toolbox of the offline designs: solve (cvxpy + Clarabel, or Newton), verify in numpy.
 
 Every offline gain of the project (PRad-A..E, Nom-G, Hinf-G, ESO-C/D) is designed with the
 pieces of this module, so that each step is written once:
@@ -9,6 +9,8 @@ pieces of this module, so that each step is written once:
 * :func:`require_psd`, :func:`require_pd`, :func:`require_nsd` check the inequalities on the
   *returned numbers* with ``numpy.linalg.eigvalsh``: a solver's "optimal" status is not enough;
 * :func:`cora_bisection_end` replays where CORA's bisections on a decay rate stop;
+* :func:`analytic_centre` and :func:`decay_centre` (the same damped Newton method with a
+  Hessian assembled from the structure of the decay LMI) compute analytic centres in numpy;
 * :class:`GainDesign` is what every design returns.
 """
 
@@ -287,6 +289,178 @@ def analytic_centre(
         else:  # no progress at rounding level: accept a point that is already near the optimum
             if decrement < 1e-8:
                 return x
+            break
+        x, f, chol = x + t * step, f_t, chol_t
+    raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")
+
+
+# -- analytic centre of the decay cone, with a structured Hessian --------------------------------
+def _decay_terms(A: np.ndarray, H: np.ndarray, rate: float) -> list[tuple[str, np.ndarray,
+                                                                          np.ndarray]]:
+    """The decay matrix ``D(P, Y) = [[rate P, M'], [M, P]]``, ``M = P A - Y H``, as a sum of
+    terms ``L' Z R`` (``Z`` one of ``P``, ``Y``, ``Y'``): ``(kind, L, R)`` per term."""
+    n = A.shape[0]
+    J1 = np.hstack([np.eye(n), np.zeros((n, n))])
+    J2 = np.hstack([np.zeros((n, n)), np.eye(n)])
+    return [("P", J1, rate * J1), ("P", J2, J2), ("P", J2, A @ J1), ("P", A @ J1, J2),
+            ("Y", J2, -H @ J1), ("Yt", -H @ J1, J2)]
+
+
+def decay_matrix(A: np.ndarray, H: np.ndarray, rate: float, P: np.ndarray,
+                 Y: np.ndarray) -> np.ndarray:
+    """``[[rate P, M'], [M, P]]`` with ``M = P A - Y H`` (symmetrised), in numpy."""
+    M = P @ A - Y @ H
+    return sym(np.block([[rate * P, M.T], [M, P]]))
+
+
+def decay_centre(
+    A: np.ndarray,
+    H: np.ndarray,
+    rate: float,
+    P0: np.ndarray,
+    Y0: np.ndarray,
+    what: str,
+    with_logdet_P: bool = False,
+    tol: float = 1e-13,
+    max_iter: int = 200,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic centre of the decay cone: maximise ``log det D(P, Y) [+ log det P]`` subject to
+    ``tr P = tr P0`` by damped Newton, ``D(P, Y) = [[rate P, M'], [M, P]]``, ``M = P A - Y H``.
+
+    The problem of :func:`analytic_centre` for the LMIs of Nom-G (``H = C``) and of the
+    PRad-C/D centre (``H = C A``, ``with_logdet_P``), with the gradient and the Hessian
+    assembled from the structure of ``D`` instead of from a basis of matrices.  Writing ``D``
+    as a sum of terms ``L_t' Z_t R_t`` (``Z_t`` is ``P``, ``Y`` or ``Y'``) and ``S = D^-1``,
+
+    * the gradient of ``log det D`` in ``Z_t`` is ``L_t S R_t'``, and
+    * the Hessian is ``-tr(S dD S dD) = -sum_{t,u} tr(dZ_t (R_t S L_u') dZ_u (R_u S L_t'))``,
+      whose coefficient of ``dZ_t[i, j] dZ_u[k, l]`` is ``(R_t S L_u')[j, k] (R_u S L_t')[l, i]``
+      (one outer product per pair of terms),
+
+    so an iteration costs ``O(n^4)`` operations and an ``(n^2/2 + n m)``-dimensional linear
+    solve, against ``O(n^6)`` for the basis form.  The damped Newton iteration (backtracking
+    on the Armijo condition and on positive definiteness, by Cholesky factorisations) is that
+    of :func:`analytic_centre` (Boyd & Vandenberghe, Convex Optimization, Secs. 9.5-9.6 and
+    10.2: the objective is self-concordant, so it converges from any strictly feasible start,
+    quadratically near the optimum).  ``(P0, Y0)`` must be strictly feasible.
+
+    Returns ``(P, Y)``; raises :class:`DesignFailed` if the start is infeasible or the
+    iteration does not converge.
+    """
+    import scipy.linalg as sla
+
+    A, H = np.asarray(A, float), np.asarray(H, float)
+    n, m = A.shape[0], H.shape[0]
+    terms = _decay_terms(A, H, rate)
+    nP2 = n * n
+    Nf = nP2 + n * m  # full coordinates: P row-major, then Y row-major
+    # where each kind of term sits in the full coordinates (``Yt``: Y, read transposed)
+    where = {"P": (slice(0, nP2), False), "Y": (slice(nP2, Nf), False),
+             "Yt": (slice(nP2, Nf), True)}
+    iu = np.triu_indices(n)
+    nP = iu[0].size
+    # reduced coordinates: upper triangle of P (symmetric basis E_ij + E_ji), then Y; a dummy
+    # full coordinate Nf (always zero) stands for the missing transpose of a diagonal entry
+    first = np.concatenate([iu[0] * n + iu[1], nP2 + np.arange(n * m)])
+    second = np.concatenate([np.where(iu[0] == iu[1], Nf, iu[1] * n + iu[0]),
+                             np.full(n * m, Nf)])
+
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        P = np.zeros((n, n))
+        P[iu] = x[:nP]
+        return P + np.triu(P, 1).T, x[nP:].reshape(n, m)
+
+    def factors(x: np.ndarray):
+        P, Y = unpack(x)
+        try:
+            out = [np.linalg.cholesky(decay_matrix(A, H, rate, P, Y))]
+            if with_logdet_P:
+                out.append(np.linalg.cholesky(P))
+        except np.linalg.LinAlgError:
+            return None
+        return out
+
+    def value(chol) -> float:
+        return sum(2.0 * float(np.log(np.diag(Lc)).sum()) for Lc in chol)
+
+    hess_full = np.empty((Nf + 1, Nf + 1))  # one buffer for every iteration
+
+    def derivatives(chol) -> tuple[np.ndarray, np.ndarray]:
+        """Gradient and Hessian in the reduced coordinates."""
+        g = np.zeros(Nf + 1)
+        Hf = hess_full
+        Hf.fill(0.0)
+        blocks = [(chol[0], terms)]
+        if with_logdet_P:
+            blocks.append((chol[1], [("P", np.eye(n), np.eye(n))]))
+        for Lc, ts in blocks:
+            Li = np.linalg.inv(Lc)
+            S = Li.T @ Li
+            for kt, Lt, Rt in ts:
+                st, tt = where[kt]
+                G = Lt @ S @ Rt.T
+                g[st] += (G.T if tt else G).ravel()
+            kinds = sorted({t[0] for t in ts})
+            for kt in kinds:
+                st, tt = where[kt]
+                for ku in kinds:
+                    su, tu = where[ku]
+                    pairs = [(Rt @ S @ Lu.T, Ru @ S @ Lt.T)
+                             for k1, Lt, Rt in ts if k1 == kt for k2, Lu, Ru in ts if k2 == ku]
+                    # sum over the pairs of M[j, k] N[l, i]: one matrix product
+                    J, K = pairs[0][0].shape
+                    Lq, Iq = pairs[0][1].shape
+                    Ms = np.stack([M.ravel() for M, _ in pairs])
+                    Ns = np.stack([Nm.ravel() for _, Nm in pairs])
+                    C4 = (Ms.T @ Ns).reshape(J, K, Lq, Iq).transpose(3, 0, 1, 2)
+                    if tt:  # dZ_t = dY': entry (i, j) is Y[j, i]
+                        C4 = C4.transpose(1, 0, 2, 3)
+                    if tu:
+                        C4 = C4.transpose(0, 1, 3, 2)
+                    Hf[st, su] -= C4.reshape(C4.shape[0] * C4.shape[1], -1)
+        Hf[Nf, :] = 0.0
+        Hf[:, Nf] = 0.0
+        g[Nf] = 0.0
+        gr = g[first] + g[second]
+        Hf[:, first] += Hf[:, second]  # columns, then rows, folded in place
+        Hr = Hf[first][:, first]
+        Hr += Hf[second][:, first]
+        return gr, Hr
+
+    P0 = sym(P0)
+    x = np.concatenate([P0[iu], np.asarray(Y0, float).ravel()])
+    a = np.concatenate([(iu[0] == iu[1]).astype(float), np.zeros(n * m)])
+    chol = factors(x)
+    if chol is None:
+        raise DesignFailed(f"{what}: the starting point of the analytic centre is infeasible")
+    f = value(chol)
+    for _ in range(max_iter):
+        g, Hr = derivatives(chol)
+        # Newton step on the hyperplane a' x = const: with K = -H (positive definite),
+        # step = K^-1 (g - nu a), nu chosen so that a' step = 0
+        try:
+            Kc = sla.cho_factor(-Hr, overwrite_a=True)
+        except np.linalg.LinAlgError:
+            break
+        del Hr
+        zg, za = sla.cho_solve(Kc, np.column_stack([g, a])).T
+        step = zg - (a @ zg) / (a @ za) * za
+        decrement = float(g @ step)
+        if not np.isfinite(decrement):
+            break
+        if decrement < tol:  # one last full step: quadratic convergence from here
+            return unpack(x + step if factors(x + step) is not None else x)
+        t = 1.0
+        while t > 1e-12:
+            chol_t = factors(x + t * step)
+            if chol_t is not None:
+                f_t = value(chol_t)
+                if f_t >= f + 0.25 * t * decrement:
+                    break
+            t *= 0.5
+        else:
+            if decrement < 1e-8:
+                return unpack(x)
             break
         x, f, chol = x + t * step, f_t, chol_t
     raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")

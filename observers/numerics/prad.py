@@ -28,9 +28,9 @@ import numpy as np
 from ..errors import DesignFailed
 from .lmi import (
     GainDesign,
-    analytic_centre,
     bmat,
     cora_bisection_end,
+    decay_centre,
     gain_from,
     min_eig,
     psd_constraint,
@@ -138,8 +138,24 @@ def _variables(n: int, m: int):
 
 
 # -- PRad-B (and PRad-A per output): Le et al., ISIC 2013 ----------------------------------------
+#: the Le et al. design (PRad-A/B) takes the Riccati route above this many states when its
+#: ``method`` is ``"auto"`` (the published rows at 6 states keep the SDP's gain)
+RICCATI_ABOVE = 12
+
+
+def le_method(n: int, F, method: str = "auto") -> str:
+    """The route of :func:`le_gain` for ``method`` on a system of ``n`` states with noise
+    generators ``F``: ``"auto"`` is ``"riccati"`` above :data:`RICCATI_ABOVE` states when the
+    noise set is full-dimensional (``F`` of full row rank), else ``"sdp"``."""
+    if method != "auto":
+        return method
+    F = np.atleast_2d(np.asarray(F, dtype=float))
+    full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
+    return "riccati" if n > RICCATI_ABOVE and full else "sdp"
+
+
 def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B",
-            solver: str | None = None) -> GainDesign:
+            solver: str | None = None, method: str = "sdp") -> GainDesign:
     """P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
 
     Weights ``Wx = beta P``, ``Ww = E'E``, ``Wv = F'F`` (fixed, which pins the scale of P);
@@ -149,23 +165,86 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
     (:func:`cora_bisection_end`: 0.9921875).  ``epsilon`` only scales ``tau``; it is kept for
     fidelity (CORA: ``norm(W) + phi'phi``).  A solution with singular P (``tau = 0``, no
     P-radius contraction possible) fails the verification.
-    """
-    import cvxpy as cp
 
+    ``method="sdp"`` solves the SDP with cvxpy (``solver``: a strategy of
+    :data:`~observers.numerics.lmi.SOLVERS`); ``method="riccati"`` returns the optimal point
+    of :func:`le_riccati` (one Riccati equation: milliseconds where the SDP takes minutes),
+    ``"auto"`` chooses by :func:`le_method`.  Both are optimal; where the optimum is not
+    unique (it pins only the smallest eigenvalue of P) the SDP returns the limit of Clarabel's
+    central path and the Riccati route the largest optimal ``P``, so the gains differ.
+    """
     A, C, E, F = _as_arrays(A, C, E, F)
     n, m = C.shape[1], C.shape[0]
     beta = cora_bisection_end(0.0, 1.0, beta_tol)
-    P, Y = _variables(n, m)
-    tau = cp.Variable()
+    method = le_method(n, F, method)
     Ww, Wv = E.T @ E, F.T @ F
-    cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
-            (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
-    solve(cp.Problem(cp.Maximize(tau), cons), f"{what} (beta={beta})", solver)
-    Pv = sym(P.value)
-    L = gain_from(Pv, Y.value, what)
+    if method == "riccati":
+        Pv, Yv = le_riccati(A, C, E, F, beta, what)
+    elif method == "sdp":
+        import cvxpy as cp
+
+        P, Y = _variables(n, m)
+        tau = cp.Variable()
+        cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
+                (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
+        solve(cp.Problem(cp.Maximize(tau), cons), f"{what} (beta={beta})", solver)
+        Pv, Yv = sym(P.value), Y.value
+    else:
+        raise DesignFailed(f"{what}: unknown method {method!r} (use 'auto', 'sdp' or 'riccati')")
+    L = gain_from(Pv, Yv, what)
     verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
     tau = float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)
-    return GainDesign(L, Pv, {"rate": beta, "tau": tau})
+    return GainDesign(L, Pv, {"rate": beta, "tau": tau, "method": method})
+
+
+def le_riccati(A, C, E, F, beta: float, what: str = "PRad-B") -> tuple[np.ndarray, np.ndarray]:
+    """The largest ``P`` (Loewner order) satisfying (*) with ``Wx = beta P``, ``Ww = E'E``,
+    ``Wv = F'F``, and its ``Y``, from one discrete Riccati equation.
+
+    With ``Y = P Lam`` the off-diagonal block of (*) is ``P N``, ``N = [(I - Lam C) A,
+    (I - Lam C) E, Lam F]``, and the Schur complement of the weights (after replacing ``E``
+    and ``F`` by full-column-rank factors with the same ``E E'``, ``F F'``, an orthogonal
+    congruence) turns (*) into, with ``X = P^-1``,
+
+        X >= (I - Lam C) Xp (I - Lam C)' + Lam Q_F Lam',   Xp = A X A' / beta + Q_E,
+
+    ``Q_E``, ``Q_F`` the orthogonal projectors on the ranges of ``E`` and ``F``.  The right
+    side is smallest at ``Lam = Xp C' (C Xp C' + Q_F)^-1`` (a Kalman filter update) and is
+    monotone in ``X``, so every feasible ``X`` lies above the stabilising solution ``X*`` of
+    the filter Riccati equation of ``(A / sqrt(beta), C)`` with weights ``Q_E``, ``Q_F``
+    (the iteration of the minimised right side from a feasible ``X`` decreases to ``X*``).
+    Hence ``P* = X*^-1`` is the largest feasible ``P``: it maximises ``tau`` (the smallest
+    eigenvalue of P) of :func:`le_gain`, as in the PRad-E case of
+    :func:`~observers.numerics.luenberger.prad_e_design`.  Needs a full-dimensional noise set
+    (``Q_F = I``); if the Riccati equation has no stabilising solution (a mode the outputs
+    cannot correct decays more slowly than ``sqrt(beta)``) there is no ``P > 0``: the design
+    fails (:class:`~observers.errors.DesignFailed`), which is the table's ``noGain``.
+    """
+    from scipy.linalg import solve_discrete_are
+
+    from .lmi import range_basis
+
+    A, C, E, F = _as_arrays(A, C, E, F)
+    m = C.shape[0]
+    QE, QF = range_basis(E), range_basis(F)
+    if QF.shape[1] < m:
+        raise DesignFailed(f"{what}: the Riccati route needs a noise set V of full dimension "
+                           f"{m} (its generators span {QF.shape[1]}); use the SDP")
+    try:
+        Xp = solve_discrete_are(A.T / np.sqrt(beta), C.T, QE @ QE.T, np.eye(m))
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius inequality at rate "
+                           f"{beta} (the Riccati equation has no stabilising solution: "
+                           f"{exc})") from None
+    Xp = sym(Xp)
+    Lam = Xp @ C.T @ np.linalg.inv(C @ Xp @ C.T + np.eye(m))
+    X = sym(Xp - Lam @ C @ Xp)
+    lam = np.linalg.eigvalsh(X)
+    if not np.all(np.isfinite(lam)) or lam[0] <= 1e-12 * max(1.0, lam[-1]):
+        raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius inequality at rate "
+                           f"{beta} (the least solution X = P^-1 is singular)")
+    P = sym(np.linalg.inv(X))
+    return P, P @ Lam
 
 
 # -- PRad-C-I, PRad-C-II (Wang et al. 2018), PRad-D (Wang et al. 2019) -----------------------------
@@ -323,17 +402,19 @@ def wang_d_gain(
 
 
 # -- analytic centre of CORA's PRad-C/PRad-D cone (the published rows) ----------------------------
-#: largest problem (variables x entries of the LMI matrix) that :func:`centre_gain` solves by
-#: the numpy Newton method (its basis array holds that many floats: 128 MB); larger ones go to
-#: Clarabel
-NEWTON_MAX_ENTRIES = 16_000_000
+#: largest problem (entries of P and Y) that :func:`centre_gain` and Nom-G's design solve by
+#: the numpy Newton method (30 tanks: 1530, about 2 s; 60 tanks: 6360, about a minute, over
+#: the scaling study's budget); larger ones keep the Newton method's starting point (a Kalman
+#: gain, strictly feasible, not the centre)
+NEWTON_MAX_VARIABLES = 3_000
 #: Clarabel settings tried in turn by :func:`_centre_clarabel` until one converges
 CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
                   {"static_regularization_enable": False, "equilibrate_enable": False},
                   {"equilibrate_enable": False})
 
 
-def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
+def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
+                solver: str = "auto") -> GainDesign:
     """Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
 
     CORA's PRad-C SDP (``Wx = beta P``, free diagonal noise weights ``Ww``, ``Wv``, objective
@@ -357,11 +438,14 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
 
     which is what this function solves (strictly concave in ``P`` and, when ``C A`` has full
     row rank, in ``Y``: a unique optimum).  It is solved by a damped Newton method in numpy
-    (:func:`~observers.numerics.lmi.analytic_centre`, started from the steady-state Kalman gain
-    of the system slowed down by ``sqrt(rate)``; about 15 iterations, 20 s at 30 tanks against
+    (:func:`~observers.numerics.lmi.decay_centre`, started from the steady-state Kalman gain
+    of the system slowed down by ``sqrt(rate)``; about 15 iterations, 2 s at 30 tanks against
     minutes for Clarabel's log-det cone, and more accurate: Clarabel's point is 1e-7 below the
-    optimum, 1e-4 away from it in ``L``); systems above :data:`NEWTON_MAX_ENTRIES` go to
-    Clarabel.  It weights each state by how much
+    optimum, 1e-4 away from it in ``L``).  Systems above :data:`NEWTON_MAX_VARIABLES` (more
+    than about 40 states) keep the starting point (``solver="start"``: strictly inside the
+    cone, certified in the same way, but not its centre; Clarabel's log-det cone, the route
+    before, takes far beyond the scaling study's budget there; ``solver="clarabel"`` keeps
+    it).  It weights each state by how much
     ``P`` can grow there, most on the measured states, so the gain trusts the measurements
     there, as the published PRad-C/PRad-D rows do; the noise weights of CORA's PRad-C and
     PRad-D both drop out in this limit, so the two rows get the same gain at the same rate.
@@ -375,11 +459,16 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     """
     A, C, E, F = _as_arrays(A, C, E, F)
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
-    N = n * (n + 1) // 2 + n * m
-    if N * (2 * n) ** 2 <= NEWTON_MAX_ENTRIES:
+    if solver == "auto":
+        solver = "newton" if n * (n + m) <= NEWTON_MAX_VARIABLES else "start"
+    if solver == "newton":
         Pv, Yv = _centre_newton(A, C, rate, what)
-    else:
+    elif solver == "start":
+        Pv, Yv = _centre_start(A, C, rate, what)
+    elif solver == "clarabel":
         Pv, Yv = _centre_clarabel(A, C, rate, what)
+    else:
+        raise DesignFailed(f"{what}: unknown solver {solver!r}")
     Pv = sym(Pv)
     L = gain_from(Pv, Yv, what)
     # least common noise weight g that certifies (*) at (P, L)
@@ -394,7 +483,7 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C") -> GainDesign:
     g = float(np.linalg.eigvalsh(K @ K.T)[-1]) * (1 + 1e-6) if Mn.size else 0.0
     verify_decay(Pv, L, A, C, E, F, rate * Pv, g * np.eye(nw), g * np.eye(nv), what)
     bound = g * (nw + nv) / ((1 - rate) * np.linalg.eigvalsh(Pv)[0])
-    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g,
+    return GainDesign(L, Pv, {"rate": rate, "noise_weight": g, "solver": solver,
                               "radius_bound": float(np.sqrt(bound))})
 
 
@@ -424,33 +513,10 @@ def _centre_start(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]
 
 
 def _centre_newton(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """The centre by :func:`~observers.numerics.lmi.analytic_centre` (numpy Newton) on the
-    variables ``(P, Y)``: the upper triangle of P, then Y column by column."""
-    n, m = C.shape[1], C.shape[0]
-    H = C @ A
-    iu = np.triu_indices(n)
-    nP = iu[0].size
-    N = nP + n * m
-    D = np.zeros((N, 2 * n, 2 * n))
-    Pb = np.zeros((N, n, n))
-    for k, (i, j) in enumerate(zip(*iu, strict=True)):
-        Pb[k, i, j] = Pb[k, j, i] = 1.0
-    for k in range(n * m):
-        i, j = k % n, k // n
-        D[nP + k, n + i, :n] = -H[j]  # block (2,1): -E_ij C A
-    D[:nP, :n, :n] = rate * Pb[:nP]
-    D[:nP, n:, :n] = Pb[:nP] @ A
-    D[:nP, n:, n:] = Pb[:nP]
-    D[:, :n, n:] = np.swapaxes(D[:, n:, :n], 1, 2)
+    """The centre by :func:`~observers.numerics.lmi.decay_centre` (numpy Newton with the
+    structured Hessian; ``H = C A`` and the ``log det P`` term), from :func:`_centre_start`."""
     P0, Y0 = _centre_start(A, C, rate, what)
-    x0 = np.concatenate([P0[iu], Y0.ravel(order="F")])
-    trace = np.zeros(N)
-    trace[:nP] = (iu[0] == iu[1])
-    x = analytic_centre([D, Pb], x0, trace, what)
-    P = np.zeros((n, n))
-    P[iu] = x[:nP]
-    P = P + np.triu(P, 1).T
-    return P, x[nP:].reshape((n, m), order="F")
+    return decay_centre(A, C @ A, rate, P0, Y0, what, with_logdet_P=True)
 
 
 def _centre_clarabel(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:

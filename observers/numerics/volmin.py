@@ -29,6 +29,11 @@ adjugate form (valid for singular ``S0`` too) then gives all scores at once:
 
 at a cost of O(n^2 r) per strip instead of r determinants of n x r products.  It is also
 more accurate than forming ``T_j T_j'``, which cancels badly when ``|a_j|`` is small.
+VolMin-B's step uses the same scores from the Gram matrix ``G G'`` (:func:`bravo_scores_gram`,
+one ``n x n`` by ``n x r`` product per strip instead of about four), formed once per step and
+carried from strip to strip by a rank-two update (:func:`gram_update`); measured on the
+regression records and on 12 and 30 tanks, it chooses the same candidates as
+:func:`bravo_scores` at every strip (identical hulls).
 """
 
 from __future__ import annotations
@@ -115,6 +120,64 @@ def bravo_scores(
     av = a[valid]
     scores[1:][valid] = scale * (det_S0 + (q / av**2) * quad[valid])
     return scores
+
+
+def bravo_scores_gram(
+    G: np.ndarray, M: np.ndarray, c_row: np.ndarray, sigma: float, basis: np.ndarray
+) -> np.ndarray:
+    """:func:`bravo_scores` from the Gram matrix ``M = G G'`` (kept up to date across the
+    strips of a step by :func:`gram_update`), at ``n^2 r`` flops per strip instead of about
+    ``4 n^2 r``.
+
+    With ``u = M c'``, ``q = c M c' = a'a`` and the basis ``B`` of :func:`bravo_scores`,
+    ``S0 = Gt Gt' = B' (M - u u' / q) B`` and ``t_j = B' (g_j - u a_j / q)``, so with
+    ``K = B adj(S0) B'``::
+
+        t_j' adj(S0) t_j = g_j' K g_j - 2 (a_j / q) g_j' K u + (a_j / q)^2 u' K u,
+
+    one product ``K G`` for all candidates; and ``det(G G') = q det(S0) / ||c||^2`` (the
+    determinant of ``M`` in the coordinates ``[c; B']``).  The same scores as
+    :func:`bravo_scores` up to rounding (the choice can differ only between candidates whose
+    scores tie to rounding).
+    """
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    r = G.shape[1]
+    a = c_row @ G
+    u = M @ c_row
+    q = float(c_row @ u)
+    valid = np.abs(a) > ZERO_PROJECTION
+    if not q > 0.0 or not np.any(valid):
+        return np.full(r + 1, np.linalg.det(M))
+    Bu = basis.T @ u
+    S0 = basis.T @ M @ basis - np.outer(Bu, Bu) / q
+    det_S0, adj_S0 = _adjugate_psd(0.5 * (S0 + S0.T))
+    K = basis @ adj_S0 @ basis.T
+    KG = K @ G
+    Ku = K @ u
+    f = a / q
+    quad = np.einsum("ij,ij->j", G, KG) - 2.0 * f * (KG.T @ u) + f**2 * float(u @ Ku)
+    cc = float(c_row @ c_row)
+    scores = np.full(r + 1, q * det_S0 / cc)
+    av = a[valid]
+    scores[1:][valid] = sigma**2 / cc * (det_S0 + (q / av**2) * quad[valid])
+    return scores
+
+
+def gram_update(
+    M: np.ndarray, G: np.ndarray, c_row: np.ndarray, sigma: float, j: int
+) -> np.ndarray:
+    """``G_j G_j'`` of Bravo's candidate ``j`` (:func:`bravo_update`) from ``M = G G'``:
+    ``M - lam u' - u lam' + (q + sigma^2) lam lam'`` with ``lam = g_j / a_j``, ``u = M c'``,
+    ``q = c M c'`` (column ``j`` of ``(I - lam c) G`` is zero and is replaced by
+    ``sigma lam``); ``O(n^2)`` instead of ``O(n^2 r)``."""
+    if j == 0:
+        return M
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    lam = G[:, j - 1] / float(c_row @ G[:, j - 1])
+    u = M @ c_row
+    q = float(c_row @ u)
+    out = M - np.outer(lam, u) - np.outer(u, lam) + (q + sigma**2) * np.outer(lam, lam)
+    return 0.5 * (out + out.T)
 
 
 def bravo_choice(

@@ -23,7 +23,8 @@ returns ``(c, G, ok)``:
 * :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W`` (:func:`propagate`)
   with a given gain or Combastel's (:func:`combastel_gain`), reduction;
 * :func:`bravo_step`: prediction, Bravo's choice of the least ``det(T T')`` candidate strip by
-  strip (:func:`bravo_choice`, :func:`bravo_update`; VolMin-B), reduction.
+  strip (:func:`bravo_choice_gram` on ``G G'`` kept by :func:`gram_update`,
+  :func:`bravo_update`; VolMin-B), reduction.
 
 The kernels' names for their gain formulas (integers) do not leave this module: :func:`prepare`
 maps the kernel names to them.  The compiled formulas carry the names of their numpy twins
@@ -528,7 +529,13 @@ def strip_update(c, G, Lam, C, y, sigma):
     m = C.shape[0]
     c_new = c + np.dot(Lam, y - np.dot(C, c))
     G_new = np.empty((n, r + m))
-    G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+    if 2 * m < n:  # G - Lam (C G): 2 m n r flops
+        G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n (as alamo_frad_strips)
+        T = -np.dot(Lam, C)
+        for a in range(n):
+            T[a, a] += 1.0
+        G_new[:, :r] = np.dot(T, G)
     for i in range(n):
         for j in range(m):
             G_new[i, r + j] = Lam[i, j] * sigma[j]
@@ -706,6 +713,80 @@ def bravo_choice(G, c_row, sigma, B, zero_projection):
     return int(np.argmin(scores))
 
 
+def bravo_choice_gram(G, M, c_row, sigma, B, zero_projection):
+    """:func:`observers.numerics.volmin.bravo_scores_gram` and the index of the least score
+    (0: unchanged zonotope; ties: the first)."""
+    n, r = G.shape
+    a = np.dot(c_row, G)
+    u = np.dot(M, c_row)
+    q = np.dot(c_row, u)
+    nvalid = 0
+    for j in range(r):
+        if abs(a[j]) > zero_projection:
+            nvalid += 1
+    if not q > 0.0 or nvalid == 0:
+        return 0
+    Bt = np.ascontiguousarray(B.T)
+    Bu = np.dot(Bt, u)
+    S0 = np.dot(np.dot(Bt, M), B)
+    k = S0.shape[0]
+    for p in range(k):
+        for s in range(k):
+            S0[p, s] -= Bu[p] * Bu[s] / q
+    for p in range(k):
+        for s in range(p):
+            avg = 0.5 * (S0[p, s] + S0[s, p])
+            S0[p, s] = avg
+            S0[s, p] = avg
+    det_S0, adj = _adjugate_psd(S0)
+    K = np.dot(np.dot(B, adj), Bt)
+    KG = np.dot(K, G)
+    Ku = np.dot(K, u)
+    uKu = np.dot(u, Ku)
+    cc = np.dot(c_row, c_row)
+    best = q * det_S0 / cc
+    arg = 0
+    scale = sigma**2 / cc
+    for j in range(r):
+        if abs(a[j]) > zero_projection:
+            w = 0.0
+            v = 0.0
+            for p in range(n):
+                w += G[p, j] * KG[p, j]
+                v += KG[p, j] * u[p]
+            f = a[j] / q
+            score = scale * (det_S0 + (q / a[j] ** 2) * (w - 2.0 * f * v + f * f * uKu))
+            if score < best:
+                best = score
+                arg = j + 1
+    return arg
+
+
+def gram_update(M, G, c_row, sigma, j):
+    """:func:`observers.numerics.volmin.gram_update`: ``G_j G_j'`` from ``M = G G'``."""
+    if j == 0:
+        return M
+    n = M.shape[0]
+    a_j = 0.0
+    for p in range(n):
+        a_j += c_row[p] * G[p, j - 1]
+    lam = np.empty(n)
+    for p in range(n):
+        lam[p] = G[p, j - 1] / a_j
+    u = np.dot(M, c_row)
+    q = np.dot(c_row, u)
+    out = np.empty((n, n))
+    for p in range(n):
+        for s in range(n):
+            out[p, s] = M[p, s] - lam[p] * u[s] - u[p] * lam[s] + (q + sigma**2) * lam[p] * lam[s]
+    for p in range(n):
+        for s in range(p):
+            avg = 0.5 * (out[p, s] + out[s, p])
+            out[p, s] = avg
+            out[s, p] = avg
+    return out
+
+
 def bravo_update(c, G, c_row, y, sigma, j):
     """:func:`observers.numerics.volmin.bravo_update`: Bravo's candidate ``j`` (1-based
     generator index; 0 returns ``(c, G)`` unchanged)."""
@@ -805,9 +886,11 @@ def _propagate_step_py(c, G, d, y, args):
 def _bravo_step_py(c, G, d, y, args):
     data = StepData(*args)
     cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
+    M = np.dot(Gn, np.ascontiguousarray(Gn.T))
     for i in range(data.C.shape[0]):
         ci = data.C[i].copy()
-        j = bravo_choice(Gn, ci, data.sigma[i], data.bases[i], data.zero_projection)
+        j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i], data.zero_projection)
+        M = gram_update(M, Gn, ci, data.sigma[i], j)
         cn, Gn = bravo_update(cn, Gn, ci, y[i], data.sigma[i], j)
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
                      JACOBI_MAX_DIM)
@@ -824,10 +907,11 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
     # the formulas of the kernels keep the kernels' error model (a division by zero gives
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
     (_predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
-     combastel_gain, propagate, bravo_choice, bravo_update) = (
+     combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update, bravo_update) = (
         njit(f, error_model="numpy") for f in (
             _predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
-            combastel_gain, propagate, bravo_choice, bravo_update))
+            combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update,
+            bravo_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
