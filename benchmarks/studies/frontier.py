@@ -5,8 +5,9 @@
 record ``tank30-linear-cora``, every setting of :data:`SETTINGS` (the zonotope order of
 FRad-A/B and VolMin-B with the scenario's PCA reduction and of FRad-A with Girard's, the
 constraint budget of CZN-A/B/MV, the window L of the moving-horizon estimator MHE in both
-formulations, ...), and writes ``reports/frontier.md``, a log-log
-figure beside it and the tidy table ``results/frontier/frontier.csv``:
+formulations, the members of the zonotope bundle ZB-A, ...), and writes
+``reports/frontier.md``, a log-log figure beside it and the tidy table
+``results/frontier/frontier.csv``:
 
 * **gap**: the mean over the states of the observer's RMS radius over the exact floor's
   (:mod:`benchmarks.run.floor`; 1 is optimal), with ``covers_exact`` and the containment
@@ -65,6 +66,7 @@ SETTINGS: dict[str, list[tuple[str, str, tuple]]] = {
         ("CZN-B", "max_constraints", (3, 6, 12, 24)), ("CZN-A", "max_constraints", (3, 6, 12)),
         ("CZN-MV", "max_constraints", (3, 6, 12)), ("FRad-A[girard]", "order", (5, 20, 100)),
         ("MHE[lp]", "window", (5, 20)), ("ROPO", "basis", ("min-volume",)),
+        ("ZB-A", "members", (1, 2)),
     ],
     "vehicle6d-cora": [
         ("MHE", "window", _WINDOWS), ("FRad-A", "order", _ORDERS),
@@ -72,6 +74,7 @@ SETTINGS: dict[str, list[tuple[str, str, tuple]]] = {
         ("CZN-B", "max_constraints", (4, 8, 16, 32)), ("CZN-A", "max_constraints", (4, 8, 16)),
         ("CZN-MV", "max_constraints", (4, 8, 16)), ("FRad-A[girard]", "order", (5, 20, 100)),
         ("MHE[lp]", "window", (5, 20)), ("ROPO", "basis", ("min-volume",)),
+        ("ZB-A", "members", (1, 2)),
     ],
     "tank30-linear-cora": [
         ("MHE", "window", (1, 3, 5)), ("FRad-A", "order", (5, 20, 100)),
