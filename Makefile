@@ -49,9 +49,11 @@ lint: $(STAMP)  ## ruff only
 
 bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: serial times) -> results/, reports/; speed.md, scaling.md, frontier.md, index.html
 	$(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS)
-	@for cfg in $(CONFIGS_ALL); do \
+	@rm -f $(RESULTS)/.bench-failed; for cfg in $(CONFIGS_ALL); do \
 		name=$$(basename $$cfg .yaml); \
-		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name --jobs $(JOBS) || exit $$?; \
+		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name --jobs $(JOBS); rc=$$?; \
+		if [ $$rc -ne 0 ]; then echo "$$name: run exit $$rc (see its report)" >> $(RESULTS)/.bench-failed; fi; \
+		[ -f $(RESULTS)/$$name/summary.csv ] || continue; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
 		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
 	done
@@ -60,6 +62,7 @@ bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: se
 	$(MAKE) frontier
 	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
+	@if [ -f $(RESULTS)/.bench-failed ]; then echo "make bench: configurations with a failing verdict (reports written; exit 1 = a containment violation or a missed consistent state, 3 = a stopped observer, 4 = an inconsistent record):"; cat $(RESULTS)/.bench-failed; exit 1; fi
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
