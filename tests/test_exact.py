@@ -329,3 +329,73 @@ def test_a_stalled_warm_solve_is_finished_cold(monkeypatch):
     assert lp.inexact == []
     ref = dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y)
     _assert_agree({k: np.array(v) for k, v in got.items()}, ref, "cold fallback")
+
+
+def _stalled_run(monkeypatch, cold_solves, steps: int = 12):
+    """The hulls of a record with every warm solve stalled and ``cold_solves`` as the cold
+    re-solves (real HiGHS solves; a time limit of zero makes one stop unfinished)."""
+    import observers.numerics.exact as engine
+
+    monkeypatch.setattr(engine, "WARM_ITERATIONS", 1)
+    monkeypatch.setattr(engine, "WARM_ITERATIONS_PER_ROW", 0)
+    monkeypatch.setattr(engine, "COLD_SOLVES", cold_solves)
+    s = _general_system()
+    sc = systems.simulate(s, 0.3 * np.cos(np.arange(steps)).reshape(-1, 1), seed=5)
+    lp = ExactHullLP(s.A, s.B, s.C, *_sets(s))
+    got = {"pred_lo": [], "pred_hi": [], "filt_lo": [], "filt_hi": []}
+    for k in range(steps):
+        h = lp.first(sc.y[0]) if k == 0 else lp.advance(sc.u[k - 1], sc.y[k])
+        for key in got:
+            got[key].append(getattr(h, key))
+    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y)
+    return lp, {k: np.array(v) for k, v in got.items()}, ref
+
+
+def test_a_failed_cold_solve_falls_back_to_the_next_strategy(monkeypatch):
+    """Bug: on the 30-tank record of Table 5 HiGHS's cold steepest-edge dual simplex stopped
+    with an error at its first iteration on one LP of step 243; its bound fell back to the
+    predicted one (sound, 5.3e-3 loose), and the floor flagged ZB-A for a state it had
+    rightly excluded.  The cold re-solves are now a chain: a strategy that does not finish
+    (here: a zero time limit) hands over to the next, and the hulls are exact again."""
+    import observers.numerics.exact as engine
+
+    chain = (("unfinished", {"time_limit": 0.0}),) + engine.COLD_SOLVES[1:]
+    lp, got, ref = _stalled_run(monkeypatch, chain)
+    assert lp.inexact == []
+    _assert_agree(got, ref, "fallback chain")
+    # the zero time limit was the failed strategy's own: the warm solves ran without it
+    assert all(h.getOptionValue("time_limit")[1] == np.inf for h in lp._models)
+
+
+def test_steps_no_strategy_solves_are_listed_inexact_and_stay_sound(monkeypatch):
+    """When no cold strategy finishes, the step is listed in ``inexact`` and its bounds are
+    still sound (they contain the exact hulls)."""
+    lp, got, ref = _stalled_run(monkeypatch, (("unfinished", {"time_limit": 0.0}),), steps=6)
+    assert lp.inexact == list(range(6))
+    for k, (plo, phi, flo, fhi) in ref.items():  # step -> the dense formulation's hulls
+        for key, lo, hi in (("pred", plo, phi), ("filt", flo, fhi)):
+            assert np.all(got[f"{key}_lo"][k] <= lo + 1e-9), (k, key)
+            assert np.all(got[f"{key}_hi"][k] >= hi - 1e-9), (k, key)
+
+
+def test_inexact_steps_are_kept_by_the_cache(tmp_path, monkeypatch):
+    """A step no strategy solved to optimality stays marked when its hulls are read back
+    from the cache (the floor must not hold observers to it on a warm run either)."""
+    import observers.numerics.exact as engine
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    sc = systems.scenario("vehicle2d-cora")
+    u, y = sc.u[:4], sc.y[:4]
+    monkeypatch.setattr(engine, "WARM_ITERATIONS", 1)
+    monkeypatch.setattr(engine, "WARM_ITERATIONS_PER_ROW", 0)
+    monkeypatch.setattr(engine, "COLD_SOLVES", (("unfinished", {"time_limit": 0.0}),))
+    first = observers.create("Exact", sc.system)
+    observers.run(first, u, y)
+    marked = first.inexact_steps()
+    assert marked and set(marked) <= {0, 1, 2, 3}
+    monkeypatch.undo()
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    again = observers.create("Exact", sc.system)
+    observers.run(again, u, y)
+    assert again.cached_steps == 4 and again.inexact_steps() == marked
+    assert again.lp_stats["inexact_steps"] == marked

@@ -130,6 +130,29 @@ def test_floor_columns_on_a_hand_example():
     assert cut["covers_exact"] == "n/a" and np.isnan(cut["gap"]).all()
 
 
+def test_unchecked_steps_of_the_floor_are_not_held_against_observers():
+    """Bug: a step whose exact LP was not solved to optimality had a sound but loose floor
+    (the predicted bound of the 30-tank record's step 243), and an observer that rightly
+    excluded the extra states was flagged.  Such steps have no floor (NaN) and are listed
+    in ``unchecked``; the rest is checked as usual and still gives a verdict."""
+    from benchmarks.run.floor import RecordFloor
+
+    lo = np.array([[-1.0], [np.nan], [-3.0]])
+    hi = np.array([[1.0], [np.nan], [3.0]])
+    floor = RecordFloor(EXACT, {"filtered": lo}, {"filtered": hi}, unchecked=(1,))
+    obs_lo, obs_hi = np.array([[-1.0], [-0.5], [-3.0]]), np.array([[1.0], [0.5], [3.0]])
+    out = floor_columns(floor, "filtered", obs_lo, obs_hi, True, 0.0)
+    assert out["covers_exact"] == YES and out["uncovered_steps"] == 0
+    # the gap is over the checked steps: RMS radius (1, 3) over (1, 3)
+    assert out["gap"][0] == pytest.approx(1.0)
+    missed = floor_columns(floor, "filtered", obs_lo, obs_hi * np.array([[1], [1], [0.9]]),
+                           True, 0.0)
+    assert missed["covers_exact"] == NO and missed["first_uncovered_step"] == 2
+    # a floor step unknown for another reason is not "checked": n/a, not yes
+    other = RecordFloor(EXACT, {"filtered": lo}, {"filtered": hi})
+    assert floor_columns(other, "filtered", obs_lo, obs_hi, True, 0.0)["covers_exact"] == "n/a"
+
+
 def test_an_inconsistent_record_is_found_by_the_empty_floor():
     sc = systems.scenario("alamo2d")
     y = np.array(sc.y, float)

@@ -29,7 +29,9 @@ Per observer row (:func:`floor_columns`):
   (the floor's own precision) and the scenario's containment tolerance; for a
   nonlinear record, a verified consistent state found by the falsifier lies outside the hull
   -- ``yes`` if every step of a complete run was checked against the exact floor and none
-  missed, ``n/a`` otherwise (no floor, a nonlinear record without a violation: nothing proves
+  missed (steps where the exact reference solved an LP only inexactly,
+  :attr:`RecordFloor.unchecked`, have no floor: a loose floor would flag a sound observer;
+  they are named in the reference's row), ``n/a`` otherwise (no floor, a nonlinear record without a violation: nothing proves
   that every consistent state is inside);
 * ``uncovered_steps`` and ``first_uncovered_step``.
 
@@ -89,6 +91,9 @@ class RecordFloor:
     #: median seconds of a computed step of the exact reference (NaN: every step was read
     #: from its cache, or no exact floor)
     step_seconds: float = float("nan")
+    #: steps without a floor because an LP of the exact reference was not solved to
+    #: optimality (their hulls are sound but maybe loose; ``lo``/``hi`` are NaN there)
+    unchecked: tuple[int, ...] = ()
 
     @property
     def usable(self) -> bool:
@@ -135,11 +140,15 @@ def _exact(sc: Scenario, t0: float) -> RecordFloor:
     if res.status != "ok":
         raise ObserverError(f"Exact: {res.status}: {res.message}")
     h = obs.hull_arrays()
+    unchecked = tuple(obs.inexact_steps())
+    for key in h:  # a loose floor is no floor: the steps are not checked
+        h[key][list(unchecked)] = np.nan
     computed = obs.lp_stats["computed_steps"]
     step = float(np.median(res.step_times[-computed:])) if computed else float("nan")
     return RecordFloor(EXACT, {"filtered": h["filt_lo"], "predicted": h["pred_lo"]},
                        {"filtered": h["filt_hi"], "predicted": h["pred_hi"]},
-                       seconds=time.perf_counter() - t0, step_seconds=step)
+                       seconds=time.perf_counter() - t0, step_seconds=step,
+                       unchecked=unchecked)
 
 
 def observer_floor(name: str, overrides: dict[str, str] | None = None) -> str:
@@ -184,7 +193,8 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
         return out
     flo, fhi = floor.bounds(which, N, n)
     known = np.all(np.isfinite(flo) & np.isfinite(fhi), axis=1)
-    have = np.all(np.isfinite(lo) & np.isfinite(hi), axis=1) & known
+    produced = np.all(np.isfinite(lo) & np.isfinite(hi), axis=1)
+    have = produced & known
     if not have.any():
         return out
     mag = np.maximum(1.0, np.maximum(np.abs(flo), np.abs(fhi)))
@@ -192,7 +202,9 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
     missed = ((lo > flo + slack) | (hi < fhi - slack)).any(axis=1) & have
     count = int(missed.sum())
     exact = floor.kind == EXACT
-    out["covers_exact"] = NO if count else (YES if exact and complete and have.all() else NA)
+    checked = produced.all() and np.array_equal(known, np.isin(np.arange(N), floor.unchecked,
+                                                                invert=True))
+    out["covers_exact"] = NO if count else (YES if exact and complete and checked else NA)
     out["uncovered_steps"] = count if exact or count else None
     out["first_uncovered_step"] = int(np.argmax(missed)) if count else -1
     if complete or not exact:

@@ -517,9 +517,14 @@ def add_floor(cfg: BenchConfig, job: Job, floor: RecordFloor, runs: pd.DataFrame
         # run had): its cost is the floor's, not a cache read
         ms = 1e3 * floor.step_seconds
         summary["step_ms"], summary["hull_ms"] = ms, 0.0 if np.isfinite(ms) else np.nan
-        if not np.isfinite(ms):
-            summary["message"] = ("exact hulls read from the cache (their cost: "
-                                  "reports/speed.md)")
+        notes = [] if np.isfinite(ms) else [
+            "exact hulls read from the cache (their cost: reports/speed.md)"]
+        if floor.unchecked:
+            steps = ", ".join(map(str, floor.unchecked))
+            notes.append(f"an LP of step(s) {steps} was not solved to optimality by any "
+                         "strategy: no observer is held to the floor there")
+        if notes:
+            summary["message"] = "; ".join(notes)
     if runs is not None:
         flo, fhi = floor.bounds(which, N, n)
         runs["floor_lo"], runs["floor_hi"] = flo.reshape(-1), fhi.reshape(-1)

@@ -22,12 +22,21 @@ Cache
 The hulls of a record are cached on disk like the offline designs
 (:mod:`observers.offline`: ``$SETOBS_CACHE_DIR``, default ``~/.cache/setobs-bench/designs``;
 ``off`` disables it), keyed by the model (matrices and sets), the solver settings and the
-first measurement; the entry holds the record (``u``, ``y``) and the four hull arrays.  While
+first measurement; the entry holds the record (``u``, ``y``), the four hull arrays and which
+steps had an LP that no strategy solved to optimality (``inexact``).  While
 the record matches the entry step by step, ``step`` only reads the arrays; from the first
 step that differs (or beyond the entry's end) the LPs are set up from the matching prefix
 (with its cached hulls as the state bounds, no solve) and solved from there on, and the entry
 is rewritten after every computed step (atomic replace), so an interrupted run keeps what it
 computed.  Option ``cache=False`` bypasses it.
+
+Inexact steps
+-------------
+A step whose LPs HiGHS did not solve to optimality by any strategy (warm, then the cold
+chain of :data:`observers.numerics.exact.COLD_SOLVES`) keeps a sound but possibly loose
+hull; :meth:`Exact.inexact_steps` lists them, and the benchmark's floor does not hold
+observers to them (a loose floor would flag an observer for excluding a state that is in
+fact inconsistent with the data).
 
 Linear systems only: a nonlinear record has no polytope of consistent states, and ``Exact``
 refuses it (:class:`~observers.errors.Unsupported`).
@@ -52,7 +61,7 @@ from ..sets import Interval
 from ..sets.errors import EmptySet
 
 #: bump when the formulation or the bounds change, so that cached hulls are recomputed
-CACHE_VERSION = "1"
+CACHE_VERSION = "2"  # 2: entries record their inexact steps
 #: the arrays of a cache entry
 _HULLS = ("pred_lo", "pred_hi", "filt_lo", "filt_hi")
 
@@ -112,6 +121,7 @@ class Exact(LinearModelObserver):
         self._u: list[np.ndarray] = []
         self._y: list[np.ndarray] = []
         self._hulls: list[ex.StepHulls] = []
+        self._inexact: list[bool] = []  # per step: an LP not solved to optimality
         self._entry: dict[str, np.ndarray] | None = None  # cache entry being replayed
         self._path: Path | None = None
         #: steps read from the cache and steps computed since the last reset
@@ -129,8 +139,11 @@ class Exact(LinearModelObserver):
         if hulls is None:
             hulls = self._compute(k, u, y)  # may raise EmptySet: the record stays as it was
             self.computed_steps += 1
+            inexact = k in self._engine.inexact
         else:
             self.cached_steps += 1
+            inexact = bool(self._entry["inexact"][k])
+        self._inexact.append(inexact)
         if u is not None:
             self._u.append(u)
         self._y.append(y)
@@ -166,13 +179,18 @@ class Exact(LinearModelObserver):
         return {key: np.array([getattr(h, key) for h in self._hulls]).reshape(-1, n)
                 for key in _HULLS}
 
+    def inexact_steps(self) -> list[int]:
+        """The steps so far whose hulls are sound but possibly loose (an LP that no strategy
+        solved to optimality), computed or read from the cache."""
+        return [k for k, flag in enumerate(self._inexact) if flag]
+
     @property
     def lp_stats(self) -> dict[str, Any]:
         """LP work of the steps computed since the last reset (HiGHS solves, simplex
         iterations, steps whose LPs were not solved to optimality) and the cached steps."""
         e = self._engine
         return {"solves": e.solves if e else 0, "iterations": e.iterations if e else 0,
-                "inexact_steps": list(e.inexact) if e else [],
+                "inexact_steps": self.inexact_steps(),
                 "computed_steps": self.computed_steps, "cached_steps": self.cached_steps}
 
     # -- cache -----------------------------------------------------------------------------------
@@ -183,7 +201,7 @@ class Exact(LinearModelObserver):
         h = hashlib.sha256(np.ascontiguousarray(y0, dtype=float).tobytes()).hexdigest()[:16]
         self._path = folder / f"Exact-{self._key}-{h}.npz"
         entry = _load(self._path)
-        if entry is not None and all(k in entry for k in ("u", "y", *_HULLS)):
+        if entry is not None and all(k in entry for k in ("u", "y", "inexact", *_HULLS)):
             self._entry = entry
 
     def _replay(self, k: int, u, y) -> ex.StepHulls | None:
@@ -202,7 +220,8 @@ class Exact(LinearModelObserver):
     def _save(self) -> None:
         n, nu = self.A.shape[0], self.B.shape[1]
         arrays = {"u": np.array(self._u, float).reshape(-1, nu),
-                  "y": np.array(self._y, float).reshape(len(self._y), -1)}
+                  "y": np.array(self._y, float).reshape(len(self._y), -1),
+                  "inexact": np.array(self._inexact, bool)}
         for key in _HULLS:
             arrays[key] = np.array([getattr(h, key) for h in self._hulls]).reshape(-1, n)
         _store(self._path, arrays)

@@ -110,6 +110,21 @@ CHUNK = 8
 WARM_ITERATIONS = 3000
 WARM_ITERATIONS_PER_ROW = 1
 _NO_LIMIT = 2**31 - 1
+#: a warm solve: dual simplex from the kept basis, Dantzig pricing, under the iteration cap
+_WARM = {"solver": "simplex", "simplex_strategy": 1, "simplex_dual_edge_weight_strategy": 0}
+#: the cold re-solves tried in turn after a warm solve that did not finish, each from scratch
+#: and without a cap, until one proves optimality or infeasibility.  Steepest-edge dual
+#: simplex first (the fastest cold solve here); the others because HiGHS's steepest-edge
+#: dual simplex can stop with an error at its first iteration (measured: one LP of step 243
+#: of the 30-tank record of Table 5, rebuilt from a cached prefix, where Devex pricing,
+#: the primal simplex and the interior-point method all solve it to the same optimum
+#: within 4e-12)
+COLD_SOLVES = (
+    ("steepest-edge dual simplex", {"simplex_dual_edge_weight_strategy": 2}),
+    ("Devex dual simplex", {"simplex_dual_edge_weight_strategy": 1}),
+    ("primal simplex", {"simplex_strategy": 4}),
+    ("interior point with crossover", {"solver": "ipm"}),
+)
 _OPTIMAL = highspy.HighsModelStatus.kOptimal
 _INFEASIBLE = highspy.HighsModelStatus.kInfeasible
 
@@ -490,17 +505,15 @@ class ExactHullLP:
         n, R = self.n, self._active
         Mu = np.zeros((2 * n, self._nrows))
         for o, h in enumerate(self._models):
-            status = self._run(h, warm=True)
+            status = self._run(h)
             if status not in (_OPTIMAL, _INFEASIBLE):
-                h.clearSolver()  # once more from scratch, with robust pricing
-                status = self._run(h, warm=False)
+                status = self._cold(h)
                 if status not in (_OPTIMAL, _INFEASIBLE) and j not in self.inexact:
                     self.inexact.append(j)
             if status == _INFEASIBLE:
                 certified = self._farkas(j, o)
                 if not certified:  # HiGHS's verdict alone: confirm it from scratch
-                    h.clearSolver()
-                    status = self._run(h)
+                    status = self._cold(h)
                 if status == _INFEASIBLE:
                     how = ("proved by a Farkas certificate" if certified
                            else "HiGHS finds the LP infeasible")
@@ -543,16 +556,33 @@ class ExactHullLP:
         scale = np.abs(rterms).sum(axis=1) + np.abs(sterms).sum(axis=1) + gpart
         return total + (self._nrows + self._ncols + 4) * _EPS * 1.01 * scale + _TINY
 
-    def _run(self, h: highspy.Highs, warm: bool = True) -> highspy.HighsModelStatus:
-        """Solve ``h``: a warm solve with Dantzig pricing under an iteration cap, or a cold
-        one with steepest-edge pricing and no cap (stalls of the warm solve end there)."""
+    def _run(self, h: highspy.Highs, cold: dict | None = None) -> highspy.HighsModelStatus:
+        """Solve ``h``: warm (the kept basis, Dantzig pricing, under the iteration cap) or,
+        with ``cold`` (options of :data:`COLD_SOLVES`), from scratch without a cap."""
+        for key, value in _WARM.items():
+            h.setOptionValue(key, value)
         cap = max(WARM_ITERATIONS, WARM_ITERATIONS_PER_ROW * self._active)
-        h.setOptionValue("simplex_iteration_limit", cap if warm else _NO_LIMIT)
-        h.setOptionValue("simplex_dual_edge_weight_strategy", 0 if warm else 2)
+        h.setOptionValue("simplex_iteration_limit", cap if cold is None else _NO_LIMIT)
+        saved = {key: h.getOptionValue(key)[1] for key in cold or {} if key not in _WARM}
+        for key, value in (cold or {}).items():
+            h.setOptionValue(key, value)
         h.run()
+        for key, value in saved.items():  # a cold solve's own options end with it
+            h.setOptionValue(key, value)
         self.solves += 1
-        self.iterations += h.getInfo().simplex_iteration_count
+        self.iterations += max(h.getInfo().simplex_iteration_count, 0)
         return h.getModelStatus()
+
+    def _cold(self, h: highspy.Highs) -> highspy.HighsModelStatus:
+        """Solve ``h`` from scratch by the strategies of :data:`COLD_SOLVES` in turn, until one
+        proves optimality or infeasibility (the last status otherwise)."""
+        status = h.getModelStatus()
+        for _, options in COLD_SOLVES:
+            h.clearSolver()
+            status = self._run(h, options)
+            if status in (_OPTIMAL, _INFEASIBLE):
+                break
+        return status
 
     def _farkas(self, j: int, o: int) -> bool:
         """Whether the dual ray of model ``o`` (found infeasible) proves the LP infeasible:
