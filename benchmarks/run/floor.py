@@ -31,8 +31,8 @@ Per observer row (:func:`floor_columns`):
   -- ``yes`` if every step of a complete run was checked against the exact floor and none
   missed (steps where the exact reference solved an LP only inexactly,
   :attr:`RecordFloor.unchecked`, have no floor: a loose floor would flag a sound observer;
-  they are named in the reference's row), ``n/a`` otherwise (no floor, a nonlinear record without a violation: nothing proves
-  that every consistent state is inside);
+  they are named in the reference's row), ``n/a`` otherwise (no floor, a nonlinear record
+  without a violation: nothing proves that every consistent state is inside);
 * ``uncovered_steps`` and ``first_uncovered_step``.
 
 A record that no state fits (the exact floor is empty) contradicts its model: every observer's

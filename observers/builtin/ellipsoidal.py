@@ -35,6 +35,27 @@ from ..sets.ellipsoid import CONVERSIONS, max_quadratic_on_zonotope
 VARIANTS = ("paper", "cora")
 
 
+def _ellipsoids(s, mode: str, name: str):
+    """``X0`` as an :class:`Ellipsoid` and ``(Q, q)`` of ``W`` and ``V``, each converted from
+    its zonotope by ``mode`` (:data:`~observers.sets.ellipsoid.CONVERSIONS`).
+
+    Raises
+    ------
+    DesignFailed
+        ``W`` is a single point: without process noise the estimate shrinks towards a
+        point, where the ellipsoidal update loses containment to rounding.
+    """
+    X0 = Ellipsoid.from_zonotope(as_zonotope(s.X0, "X0"), mode)
+    W = Ellipsoid.from_zonotope(as_zonotope(s.W, "W"), mode)
+    V = Ellipsoid.from_zonotope(as_zonotope(s.V, "V"), mode)
+    if not np.any(W.Q):
+        raise DesignFailed(
+            f"{name}: the disturbance set W is a single point; without process noise the "
+            "estimate shrinks towards a point, where the ellipsoidal update loses "
+            "containment to rounding (give W a width)")
+    return X0, (np.array(W.Q), np.array(W.q)), (np.array(V.Q), np.array(V.q))
+
+
 class EllipsoidalStripObserver(Observer):
     """Predict with Liu et al. (2016), intersect with the measurement of ``y[k]``.
 
@@ -60,16 +81,7 @@ class EllipsoidalStripObserver(Observer):
         self.A = np.asarray(s.A, dtype=float)
         self.B = np.asarray(s.B, dtype=float)
         self.C = np.asarray(s.C, dtype=float)
-        X0 = Ellipsoid.from_zonotope(as_zonotope(s.X0, "X0"), mode)
-        W = Ellipsoid.from_zonotope(as_zonotope(s.W, "W"), mode)
-        V = Ellipsoid.from_zonotope(as_zonotope(s.V, "V"), mode)
-        self.QW, self.cW = np.array(W.Q), np.array(W.q)
-        self.QV, self.cV = np.array(V.Q), np.array(V.q)
-        if not np.any(self.QW):
-            raise DesignFailed(
-                f"{self.name}: the disturbance set W is a single point; without process noise "
-                "the estimate shrinks towards a point, where the ellipsoidal update loses "
-                "containment to rounding (give W a width)")
+        X0, (self.QW, self.cW), (self.QV, self.cV) = _ellipsoids(s, mode, self.name)
         self.cora = self.options["variant"] == "cora"
         s2 = CORA_SIGMA2_0 if self.cora else 1.0
         self._start = (np.array(X0.q), np.array(X0.Q), s2)
@@ -337,14 +349,7 @@ class ESMF(Observer):
         self.C = None if C is None else np.asarray(C, dtype=float)
         if self.C is None:
             self._h = Smooth(s, "h")
-        X0 = Ellipsoid.from_zonotope(as_zonotope(s.X0, "X0"), mode)
-        W = Ellipsoid.from_zonotope(as_zonotope(s.W, "W"), mode)
-        V = Ellipsoid.from_zonotope(as_zonotope(s.V, "V"), mode)
-        self.QW, self.cW = np.array(W.Q), np.array(W.q)
-        self.QV, self.cV = np.array(V.Q), np.array(V.q)
-        if not np.any(self.QW):
-            raise DesignFailed(f"{self.name}: the disturbance set W is a single point (the "
-                               "ellipsoidal update loses containment to rounding)")
+        X0, (self.QW, self.cW), (self.QV, self.cV) = _ellipsoids(s, mode, self.name)
         try:
             np.linalg.cholesky(self.QV)
         except np.linalg.LinAlgError:

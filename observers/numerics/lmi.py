@@ -278,23 +278,32 @@ def analytic_centre(
             break
         if decrement < tol:  # one last full step: quadratic convergence from here
             return x + step if factors(x + step) is not None else x
-        t = 1.0
-        while t > 1e-12:
-            chol_t = factors(x + t * step)
-            if chol_t is not None:
-                f_t = value(chol_t)
-                if f_t >= f + 0.25 * t * decrement:
-                    break
-            t *= 0.5
-        else:  # no progress at rounding level: accept a point that is already near the optimum
+        found = _backtrack(x, step, f, decrement, factors, value)
+        if found is None:  # no progress at rounding level: accept a point near the optimum
             if decrement < 1e-8:
                 return x
             break
-        x, f, chol = x + t * step, f_t, chol_t
+        x, f, chol = found
     raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")
 
 
 # -- analytic centre of the decay cone, with a structured Hessian --------------------------------
+def _backtrack(x: np.ndarray, step: np.ndarray, f: float, decrement: float, factors, value):
+    """Backtracking (Armijo) line search of the damped Newton methods of the analytic
+    centres: the first ``t`` of 1, 1/2, 1/4, ... (down to 1e-12) at which the LMI still
+    holds (``factors`` not None) and the concave objective rises by at least a quarter of the
+    predicted ``t * decrement``; ``(x + t step, f_t, factors_t)``, or None if no such ``t``."""
+    t = 1.0
+    while t > 1e-12:
+        chol_t = factors(x + t * step)
+        if chol_t is not None:
+            f_t = value(chol_t)
+            if f_t >= f + 0.25 * t * decrement:
+                return x + t * step, f_t, chol_t
+        t *= 0.5
+    return None
+
+
 def _decay_terms(A: np.ndarray, H: np.ndarray, rate: float) -> list[tuple[str, np.ndarray,
                                                                           np.ndarray]]:
     """The decay matrix ``D(P, Y) = [[rate P, M'], [M, P]]``, ``M = P A - Y H``, as a sum of
@@ -450,17 +459,10 @@ def decay_centre(
             break
         if decrement < tol:  # one last full step: quadratic convergence from here
             return unpack(x + step if factors(x + step) is not None else x)
-        t = 1.0
-        while t > 1e-12:
-            chol_t = factors(x + t * step)
-            if chol_t is not None:
-                f_t = value(chol_t)
-                if f_t >= f + 0.25 * t * decrement:
-                    break
-            t *= 0.5
-        else:
+        found = _backtrack(x, step, f, decrement, factors, value)
+        if found is None:  # no progress at rounding level: accept a point near the optimum
             if decrement < 1e-8:
                 return unpack(x)
             break
-        x, f, chol = x + t * step, f_t, chol_t
+        x, f, chol = found
     raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")

@@ -323,14 +323,21 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
                          [strict(hinf_g_lmi(A, C, E, F, g_max, P, Y))]),
               f"{what} (min trace P)")
     P, Y = lmi.sym(P.value), Y.value
-    L = gain_from(P, Y, what)
+    return _verified_hinf_g(A, C, E, F, gain_from(P, Y, what), P, Y, g_star, g_max, "sdp",
+                            what)
+
+
+def _verified_hinf_g(A, C, E, F, L, P, Y, g_star: float, g_max: float, method: str,
+                     what: str) -> GainDesign:
+    """The Hinf-G design ``(L, P)`` once verified in numpy (either route): the LMI with
+    ``g_max`` holds strictly and ``A - L C`` is Schur stable; else :class:`DesignFailed`."""
     lmi.require_pd(-hinf_g_lmi(A, C, E, F, g_max, P, Y), f"{what} LMI")
     rho = lmi.spectral_radius(A - L @ C)
     if rho >= 1.0:
         raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
                            f"{rho:.6g} >= 1)")
     return GainDesign(L, P, {"rho": rho, "gamma_min": float(np.sqrt(g_star)),
-                                  "gamma": float(np.sqrt(g_max)), "method": "sdp"})
+                             "gamma": float(np.sqrt(g_max)), "method": method})
 
 
 def _hinf_g_riccati(A, C, E, F, gamma_slack: float, what: str) -> GainDesign:
@@ -358,11 +365,4 @@ def _hinf_g_riccati(A, C, E, F, gamma_slack: float, what: str) -> GainDesign:
         raise DesignFailed(f"{what}: the Riccati point needs gamma^2 = {g_used:.6g} above the "
                            f"bound {g_max:.6g}")
     P = lmi.sym(P)
-    Y = P @ L
-    lmi.require_pd(-hinf_g_lmi(A, C, E, F, g_max, P, Y), f"{what} LMI")
-    rho = lmi.spectral_radius(A - L @ C)
-    if rho >= 1.0:
-        raise DesignFailed(f"{what}: verification failed (spectral radius of A - L C is "
-                           f"{rho:.6g} >= 1)")
-    return GainDesign(L, P, {"rho": rho, "gamma_min": float(np.sqrt(g_star)),
-                             "gamma": float(np.sqrt(g_max)), "method": "riccati"})
+    return _verified_hinf_g(A, C, E, F, L, P, P @ L, g_star, g_max, "riccati", what)
