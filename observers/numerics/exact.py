@@ -36,7 +36,11 @@ the 2n models keeps its own optimal basis from step to step (warm start): the pr
 of step k starts from the basis of the filtered LP of step k-1, the filtered LP from that of
 the predicted one.  Every column is boxed, so the dual simplex restores dual feasibility by
 bound flips; Dantzig pricing avoids recomputing steepest-edge weights after every change.
-Nothing is ever dropped: this is the whole record's LP.
+A warm solve that does not finish within its iteration cap (Dantzig pricing can cycle on a
+degenerate LP) is solved again from scratch by the strategies of :data:`COLD_SOLVES` in turn
+(steepest-edge dual, Devex dual, primal simplex, interior point), so that one solver path
+failing on one LP does not loosen a floor.  Nothing is ever dropped: this is the whole
+record's LP.
 
 Cost (measured, one core, both floors, whole records)
 ------------------------------------------------------
