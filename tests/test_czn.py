@@ -242,3 +242,25 @@ def test_registry_entries():
         info = observers.get(name)
         assert (info.family, info.set_type, info.ready_for_control) == (
             "strip", "conzonotope", False)
+
+
+def test_implied_bounds_ignore_a_subnormal_coefficient():
+    """Bug: on the 200-tank record a constraint row held a subnormal coefficient; 1 / a
+    overflowed, inf - inf made the candidate bounds NaN and the NaN spread through the
+    propagation sweeps (numpy warned "overflow encountered in divide").  Such a coefficient
+    now bounds nothing; the other rows still do.  Hand example: xi1 + 1e-310 xi2 = 0.5 and
+    xi2 - xi3 = 0 in the unit box: xi1 in [0.5 - 1e-310, 0.5 + 1e-310] (rounded outward),
+    xi2 and xi3 unchanged (the first row cannot bound xi2: |0.5 - xi1| / 1e-310 is huge)."""
+    import warnings
+
+    from observers.sets.conzono_ops import implied_bounds
+
+    A = np.array([[1.0, 1e-310, 0.0], [0.0, 1.0, -1.0]])
+    b = np.array([0.5, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lo, hi = implied_bounds(A, b)
+    assert np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))
+    assert lo[0] <= 0.5 <= hi[0] and hi[0] - lo[0] < 1e-14
+    np.testing.assert_array_equal(lo[1:], [-1.0, -1.0])
+    np.testing.assert_array_equal(hi[1:], [1.0, 1.0])

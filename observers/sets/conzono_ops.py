@@ -40,6 +40,7 @@ from collections.abc import Callable
 import numpy as np
 
 _EPS = np.finfo(float).eps
+_TINY = np.finfo(float).tiny
 
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -172,9 +173,10 @@ def implied_bounds(
     if nc == 0 or r == 0:
         return lo, hi
     absA = np.abs(A)
-    nz = absA > 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(nz, 1.0 / np.where(nz, A, 1.0), 0.0)
+    # a subnormal coefficient would overflow 1 / a (and inf - inf poison the bounds with
+    # NaN): such a row says nothing useful about that variable, so it is not solved for it
+    nz = absA >= _TINY
+    inv = np.where(nz, 1.0 / np.where(nz, A, 1.0), 0.0)
     for _ in range(sweeps):
         mid, rad = 0.5 * (hi + lo), 0.5 * (hi - lo)
         s_mid = A @ mid                      # sum_k a_ik mid_k
@@ -185,10 +187,13 @@ def implied_bounds(
         slack = 4 * _EPS * (np.abs(b)[:, None] + (absA @ np.abs(mid))[:, None] + s_rad[:, None]
                             + absA * (np.abs(mid) + rad))
         wid = wid + slack
-        x_c = cen * inv
-        x_r = wid * np.abs(inv)
-        new_lo = np.where(nz, x_c - x_r, -np.inf).max(axis=0)
-        new_hi = np.where(nz, x_c + x_r, np.inf).min(axis=0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            x_c = cen * inv
+            x_r = wid * np.abs(inv)
+            cand_lo, cand_hi = x_c - x_r, x_c + x_r
+        # an overflowed (infinite or NaN) candidate bounds nothing
+        new_lo = np.where(nz & np.isfinite(cand_lo), cand_lo, -np.inf).max(axis=0)
+        new_hi = np.where(nz & np.isfinite(cand_hi), cand_hi, np.inf).min(axis=0)
         new_lo = np.maximum(lo, new_lo)
         new_hi = np.minimum(hi, new_hi)
         if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
