@@ -156,3 +156,31 @@ def test_steady_timing_starts_where_the_zonotope_reaches_its_order(capsys):
     assert main(["time", "FRad-A", "--scenario", "vehicle2d-cora", "--repeat", "1",
                  "--steady", "--steps", "3", "--warmup", "0"]) == 0
     assert "(growing)" in capsys.readouterr().out  # FRad-A's order 100 is not reached
+
+
+def test_fast_forward_times_the_steps_after_the_steady_state():
+    """The large constrained zonotopes are stepped to their steady state without hulls and
+    timed from there: the first timed step is the first after MIN_STEADY_STEPS steps of
+    one size, exactly ``timed`` steps are timed, each with its hull."""
+    import observers
+    from benchmarks.run.config import merge_options
+    from benchmarks.timing.steps import (
+        MIN_STEADY_STEPS,
+        set_size,
+        time_observer_fast_forward,
+    )
+
+    sc = systems.scenario("vehicle2d-cora")
+    opts = dict(merge_options("FRad-A", sc), order=2)
+    obs = observers.create("FRad-A", sc.system, **opts)
+    sizes = [set_size(obs.step(sc.u[k - 1] if k else None, sc.y[k])) for k in range(12)]
+    first = next(k for k in range(MIN_STEADY_STEPS, 12)
+                 if len(set(sizes[k - MIN_STEADY_STEPS:k])) == 1)
+    row = time_observer_fast_forward("FRad-A", sc, opts, timed=4)
+    assert row.status == "ok" and row.steady is True
+    assert row.first_timed == first + 1 and row.timed_steps == 4
+    assert math.isfinite(row.hull_ms_median) and row.step_hull_ms_median >= row.step_ms_median
+    # a design failure is the row's status, not an exception
+    bad = time_observer_fast_forward("PRad-A", systems.scenario("tank18-linear"),
+                                     {}, timed=2)
+    assert bad.status == "noGain"
