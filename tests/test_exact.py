@@ -399,3 +399,70 @@ def test_inexact_steps_are_kept_by_the_cache(tmp_path, monkeypatch):
     observers.run(again, u, y)
     assert again.cached_steps == 4 and again.inexact_steps() == marked
     assert again.lp_stats["inexact_steps"] == marked
+
+
+_REBUILT_PREFIX = """
+import json, sys
+import numpy as np
+import observers
+from benchmarks.gate.audit import realisation
+sc = realisation("vehicle6d-sim", 4)[1]
+prefix = observers.create("Exact", sc.system)  # writes a cache entry of 157 steps
+observers.run(prefix, sc.u[:156], sc.y[:157], keep_sets=False)
+obs = observers.create("Exact", sc.system)  # replays them, rebuilds the LPs, goes on
+res = observers.run(obs, sc.u[:159], sc.y[:160], keep_sets=False)
+h = obs.hull_arrays()
+x = sc.x_true[:160]
+inside = bool(np.all((h["filt_lo"] <= x + 1e-9) & (x <= h["filt_hi"] + 1e-9)))
+print(json.dumps({"status": res.status, "inside": inside, **obs.lp_stats}))
+"""
+
+
+def test_an_engine_rebuilt_from_a_cached_prefix_does_not_cycle(tmp_path):
+    """Bug: on the audit's 6-D vehicle realisation 4 (worst-case input), an engine rebuilt
+    from a cached prefix of 157 steps (no basis: cold solves) never returned from HiGHS's
+    cold steepest-edge dual simplex on the predicted LP of step 157 (it cycled; > 240 s),
+    and the audit hung.  Every cold simplex strategy now runs under an iteration cap and
+    hands over to the next (Devex pricing solves it).  Run in a child process so that a
+    regression fails the test instead of hanging the suite."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "SETOBS_CACHE_DIR": str(tmp_path)}
+    try:
+        proc = subprocess.run([sys.executable, "-c", _REBUILT_PREFIX], capture_output=True,
+                              text=True, env=env, timeout=900)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the rebuilt engine did not finish step 157 (a cold solve cycled)")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["status"] == "ok" and out["inside"]
+    assert out["cached_steps"] == 157 and out["computed_steps"] == 3
+    assert out["inexact_steps"] == []
+
+
+def test_one_writer_per_cache_entry(tmp_path, monkeypatch):
+    """A second process (here a thread) needing the floor of a record whose entry is being
+    written waits for the writer and replays the whole entry: it never rebuilds the LPs
+    from a partial prefix (the path that cycled above)."""
+    import threading
+    import time
+
+    from benchmarks.run.floor import compute_floor
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    sc = systems.scenario("vehicle2d-cora")
+    writer = observers.create("Exact", sc.system)
+    got = {}
+    with writer.sole_writer(sc.y):
+        second = threading.Thread(target=lambda: got.setdefault("floor", compute_floor(sc)))
+        second.start()
+        time.sleep(0.5)  # without the lock the thread would be computing steps by now
+        observers.run(writer, sc.u, sc.y, keep_sets=False)
+    second.join()
+    floor = got["floor"]
+    assert floor.kind == "exact"
+    assert np.isnan(floor.step_seconds)  # no step computed: all replayed from the entry
+    np.testing.assert_array_equal(floor.lo["filtered"], writer.hull_arrays()["filt_lo"])

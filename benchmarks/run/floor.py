@@ -134,7 +134,8 @@ def compute_floor(sc: Scenario, enabled: bool = True) -> RecordFloor:
 def _exact(sc: Scenario, t0: float) -> RecordFloor:
     """The exact floor by the reference estimator ``Exact`` (its on-disk cache included)."""
     obs = observers.create("Exact", sc.system)
-    res = observers.run(obs, sc.u, sc.y, keep_sets=False)
+    with obs.sole_writer(sc.y):
+        res = observers.run(obs, sc.u, sc.y, keep_sets=False)
     if res.status == "empty":
         raise SetError(res.message)
     if res.status != "ok":

@@ -44,6 +44,7 @@ refuses it (:class:`~observers.errors.Unsupported`).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 from importlib import metadata
 from pathlib import Path
@@ -54,7 +55,7 @@ import numpy as np
 from ..errors import ObserverError, Unsupported
 from ..families import LinearModelObserver
 from ..numerics import exact as ex
-from ..offline import _load, _store, cache_dir, design_key
+from ..offline import _key_lock, _load, _store, cache_dir, design_key
 from ..options import Bool
 from ..registry import register
 from ..sets import Interval
@@ -194,12 +195,36 @@ class Exact(LinearModelObserver):
                 "computed_steps": self.computed_steps, "cached_steps": self.cached_steps}
 
     # -- cache -----------------------------------------------------------------------------------
-    def _open_cache(self, y0: np.ndarray) -> None:
+    def _entry_path(self, y0) -> Path | None:
+        """The cache entry of the record whose first measurement is ``y0`` (None: no cache)."""
         folder = cache_dir() if self._key is not None else None
         if folder is None:
+            return None
+        y0 = np.ascontiguousarray(np.asarray(y0, dtype=float).ravel())
+        h = hashlib.sha256(y0.tobytes()).hexdigest()[:16]
+        return folder / f"Exact-{self._key}-{h}.npz"
+
+    @contextlib.contextmanager
+    def sole_writer(self, y):
+        """Hold the cache entry of the record ``y`` (found by its first measurement) for this
+        process while the record is run: another process running the same record (two
+        workers needing one floor) waits, then replays the whole entry instead of rebuilding
+        the LPs from a partial prefix (an engine rebuilt from a prefix has no basis: its first
+        solves are cold, the slow and fragile path).  No cache (or no measurement): no lock."""
+        try:
+            path = self._entry_path(np.asarray(y, dtype=float)[0])
+        except (TypeError, ValueError, IndexError):  # bad input: run() reports it
+            path = None
+        if path is None:
+            yield
             return
-        h = hashlib.sha256(np.ascontiguousarray(y0, dtype=float).tobytes()).hexdigest()[:16]
-        self._path = folder / f"Exact-{self._key}-{h}.npz"
+        with _key_lock(path):
+            yield
+
+    def _open_cache(self, y0: np.ndarray) -> None:
+        self._path = self._entry_path(y0)
+        if self._path is None:
+            return
         entry = _load(self._path)
         if entry is not None and all(k in entry for k in ("u", "y", "inexact", *_HULLS)):
             self._entry = entry
@@ -242,7 +267,8 @@ def exact_hulls(system, u, y, *, cache: bool = True) -> dict[str, np.ndarray]:
     from ..registry import create
 
     obs = create("Exact", system, cache=cache)
-    res = run(obs, u, y, keep_sets=False)
+    with obs.sole_writer(y):
+        res = run(obs, u, y, keep_sets=False)
     if res.status == "empty":
         raise EmptySet(res.message)
     if res.status != "ok":

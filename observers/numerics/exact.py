@@ -116,19 +116,27 @@ WARM_ITERATIONS_PER_ROW = 1
 _NO_LIMIT = 2**31 - 1
 #: a warm solve: dual simplex from the kept basis, Dantzig pricing, under the iteration cap
 _WARM = {"solver": "simplex", "simplex_strategy": 1, "simplex_dual_edge_weight_strategy": 0}
-#: the cold re-solves tried in turn after a warm solve that did not finish, each from scratch
-#: and without a cap, until one proves optimality or infeasibility.  Steepest-edge dual
-#: simplex first (the fastest cold solve here); the others because HiGHS's steepest-edge
-#: dual simplex can stop with an error at its first iteration (measured: one LP of step 243
-#: of the 30-tank record of Table 5, rebuilt from a cached prefix, where Devex pricing,
-#: the primal simplex and the interior-point method all solve it to the same optimum
-#: within 4e-12)
+#: the cold re-solves tried in turn after a warm solve that did not finish, each from scratch,
+#: until one proves optimality or infeasibility.  Steepest-edge dual simplex first (the
+#: fastest cold solve here); the others because HiGHS's steepest-edge dual simplex can stop
+#: with an error at its first iteration (measured: one LP of step 243 of the 30-tank record
+#: of Table 5, rebuilt from a cached prefix, where Devex pricing, the primal simplex and the
+#: interior-point method all solve it to the same optimum within 4e-12) or cycle (measured:
+#: the predicted LP of step 157 of the audit's 6-D vehicle realisation 4, rebuilt from a
+#: cached prefix: no end after 240 s, while Devex pricing solves it in 926 iterations).
+#: Every strategy but the last runs under :data:`COLD_ITERATIONS` (and per active row and
+#: column); the interior-point method, last, runs without a cap
 COLD_SOLVES = (
     ("steepest-edge dual simplex", {"simplex_dual_edge_weight_strategy": 2}),
     ("Devex dual simplex", {"simplex_dual_edge_weight_strategy": 1}),
     ("primal simplex", {"simplex_strategy": 4}),
     ("interior point with crossover", {"solver": "ipm"}),
 )
+#: simplex iterations a cold simplex solve may take, at least and per active row and column
+#: (measured: cold solves take hundreds to a few thousand iterations on the records of
+#: ``make bench``; the cycling solve above ran 20000 iterations in 0.33 s)
+COLD_ITERATIONS = 20000
+COLD_ITERATIONS_PER_SIZE = 2
 _OPTIMAL = highspy.HighsModelStatus.kOptimal
 _INFEASIBLE = highspy.HighsModelStatus.kInfeasible
 
@@ -560,13 +568,16 @@ class ExactHullLP:
         scale = np.abs(rterms).sum(axis=1) + np.abs(sterms).sum(axis=1) + gpart
         return total + (self._nrows + self._ncols + 4) * _EPS * 1.01 * scale + _TINY
 
-    def _run(self, h: highspy.Highs, cold: dict | None = None) -> highspy.HighsModelStatus:
-        """Solve ``h``: warm (the kept basis, Dantzig pricing, under the iteration cap) or,
-        with ``cold`` (options of :data:`COLD_SOLVES`), from scratch without a cap."""
+    def _run(self, h: highspy.Highs, cold: dict | None = None,
+             cap: int | None = None) -> highspy.HighsModelStatus:
+        """Solve ``h``: warm (the kept basis, Dantzig pricing, under the warm iteration cap)
+        or, with ``cold`` (options of :data:`COLD_SOLVES`), from scratch under ``cap``
+        simplex iterations (None: no cap)."""
         for key, value in _WARM.items():
             h.setOptionValue(key, value)
-        cap = max(WARM_ITERATIONS, WARM_ITERATIONS_PER_ROW * self._active)
-        h.setOptionValue("simplex_iteration_limit", cap if cold is None else _NO_LIMIT)
+        if cold is None:
+            cap = max(WARM_ITERATIONS, WARM_ITERATIONS_PER_ROW * self._active)
+        h.setOptionValue("simplex_iteration_limit", _NO_LIMIT if cap is None else cap)
         saved = {key: h.getOptionValue(key)[1] for key in cold or {} if key not in _WARM}
         for key, value in (cold or {}).items():
             h.setOptionValue(key, value)
@@ -579,11 +590,14 @@ class ExactHullLP:
 
     def _cold(self, h: highspy.Highs) -> highspy.HighsModelStatus:
         """Solve ``h`` from scratch by the strategies of :data:`COLD_SOLVES` in turn, until one
-        proves optimality or infeasibility (the last status otherwise)."""
+        proves optimality or infeasibility (the last status otherwise); every strategy but
+        the last under :data:`COLD_ITERATIONS`."""
         status = h.getModelStatus()
-        for _, options in COLD_SOLVES:
+        cap = max(COLD_ITERATIONS,
+                  COLD_ITERATIONS_PER_SIZE * (self._active + self._ncols))
+        for i, (_, options) in enumerate(COLD_SOLVES):
             h.clearSolver()
-            status = self._run(h, options)
+            status = self._run(h, options, None if i == len(COLD_SOLVES) - 1 else cap)
             if status in (_OPTIMAL, _INFEASIBLE):
                 break
         return status
