@@ -285,22 +285,25 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
         stats = getattr(obs, "hull_stats", None)
         if stats is not None:
             lp_runs.append(stats)
-    step, hull = np.concatenate(steps) * 1e3, np.concatenate(hulls) * 1e3
-    kalman = _kalman_median_ms(sc, repeat, warmup)
+    return _timing_row(name, obs, np.concatenate(steps), np.concatenate(hulls),
+                       _kalman_median_ms(sc, repeat, warmup), warmup + 1, reached, lp_runs)
+
+
+def _timing_row(name: str, obs: Any, step_s: np.ndarray, hull_s: np.ndarray, kalman: float,
+                first_timed: int, steady: bool | None, lp_runs: list) -> TimingRow:
+    """The ``ok`` row of timed steps: ``step_s``/``hull_s`` seconds of each timed step (hull
+    NaN: not timed), ``kalman`` ms, and the median over ``lp_runs`` (the observer's
+    ``hull_stats`` after each timed run) of the hull LP counters."""
+    step, hull = step_s * 1e3, hull_s * 1e3
     step_median = float(np.median(step))
     row = TimingRow(
         name, "ok", "", step_median, float(np.percentile(step, 90)), float(np.median(hull)),
         float(np.median(step + hull)), int(step.size), obs.design_time, kalman,
-        step_median / kalman if kalman > 0 else math.nan, first_timed=warmup + 1,
-        steady=reached)
+        step_median / kalman if kalman > 0 else math.nan, first_timed=first_timed,
+        steady=steady)
     if lp_runs:
-        row.hull_lp = {
-            "solves": float(np.median([s.solves for s in lp_runs])),
-            "iterations": float(np.median([s.iterations for s in lp_runs])),
-            "fallbacks": float(np.median([s.fallbacks for s in lp_runs])),
-            "iterations_per_solve": float(np.median([s.iterations_per_solve
-                                                     for s in lp_runs])),
-        }
+        row.hull_lp = {key: float(np.median([getattr(s, key) for s in lp_runs]))
+                       for key in ("solves", "iterations", "fallbacks", "iterations_per_solve")}
     return row
 
 
@@ -355,21 +358,11 @@ def time_observer_fast_forward(name: str, sc: Scenario, options: dict, timed: in
     if not steps:
         return TimingRow(name, "error", f"no steady state within the {sc.N} steps of "
                          f"{sc.name}", design_s=obs.design_time)
-    step, hull = np.array(steps) * 1e3, np.array(hull_times) * 1e3
-    kalman = _kalman_median_ms(sc, 1, first)
-    step_median = float(np.median(step))
     steady = len(set(sizes[first - MIN_STEADY_STEPS:])) == 1
-    row = TimingRow(
-        name, "ok", "", step_median, float(np.percentile(step, 90)), float(np.median(hull)),
-        float(np.median(step + hull)), int(step.size), obs.design_time, kalman,
-        step_median / kalman if kalman > 0 else math.nan, first_timed=first + 1,
-        steady=steady)
     stats = getattr(obs, "hull_stats", None)
-    if stats is not None:
-        row.hull_lp = {"solves": float(stats.solves), "iterations": float(stats.iterations),
-                       "fallbacks": float(stats.fallbacks),
-                       "iterations_per_solve": float(stats.iterations_per_solve)}
-    return row
+    return _timing_row(name, obs, np.array(steps), np.array(hull_times),
+                       _kalman_median_ms(sc, 1, first), first + 1, steady,
+                       [] if stats is None else [stats])
 
 
 def first_steps(sc: Scenario, steps: int | None) -> Scenario:
