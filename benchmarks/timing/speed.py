@@ -93,7 +93,7 @@ CASES: tuple[Case, ...] = (
     Case("FRad-B, FRad-C, PRad-*, Nom-G, vehicle-6, step / Kalman step", VEHICLE,
          ("FRad-B", "FRad-C", "PRad-A", "PRad-B", "PRad-C-I", "PRad-C-II", "PRad-D", "Nom-G"),
          "ratio", 3.0),
-    Case("VolMin-B, vehicle-6, step / Kalman step", VEHICLE, ("VolMin-B",), "ratio", 5.0),
+    Case("VolMin-B, vehicle-6, step / Kalman step", VEHICLE, ("VolMin-B",), "ratio", 4.0),
     Case("CZN-A, vehicle-6, (step + interval hull) / Kalman step", VEHICLE, ("CZN-A",),
          "ratio_hull", 20.0),
     # the zonotopes of the tank systems reach their order (100 n generators) at step ~100
