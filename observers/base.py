@@ -311,6 +311,7 @@ def run(
     keep_sets: bool = True,
     divergence_bound: float = 1e12,
     on_error: str = "raise",
+    budget: float | None = None,
 ) -> RunResult:
     """Drive ``obs`` over the record and collect interval hulls and timings.
 
@@ -326,6 +327,16 @@ def run(
     Any other exception of ``step`` or ``interval`` propagates (``on_error="raise"``) or ends
     the run with status ``"error"`` and the failing step (``on_error="status"``, the
     exception in ``RunResult.error``).
+
+    ``budget`` (seconds, optional) stops a run early that cannot finish within it: after each
+    step from the :data:`BUDGET_WINDOW`-th on, the time spent so far plus the steps left at
+    the median cost (step + hull) of the last :data:`BUDGET_WINDOW` steps is the projected
+    time of the record; once it exceeds the budget the run ends with status ``"timeout"``
+    (``failed_step``: the first step not run; the message gives the steps run, their time
+    and the projection).  A set-based observer's sets grow to their order over the first
+    steps, so its steps get no cheaper as the record goes on: the projection is then an
+    under-estimate and a stopped run would not have finished (the median keeps a single slow
+    first step, e.g. loading a compiled kernel, from stopping a run).
 
     Raises
     ------
@@ -350,6 +361,9 @@ def run(
     name = getattr(obs, "name", "") or type(obs).__name__
     result = RunResult(name, lo, hi, sets, step_times, hull_times,
                        float(getattr(obs, "design_time", np.nan)))
+    if budget is not None and not (isinstance(budget, (int, float)) and budget > 0):
+        raise ValueError(f"budget must be a positive number of seconds, got {budget!r}")
+    start = perf_counter()
     for k in range(N):
         u_prev = u[k - 1] if k > 0 else None
         try:
@@ -395,4 +409,27 @@ def run(
         lo[k], hi[k] = I.lo, I.hi
         if keep_sets:
             sets.append(S)
+        if (budget is not None and BUDGET_WINDOW <= k + 1 < N
+                and _over_budget(result, k, N, start, budget)):
+            break
     return result
+
+
+#: steps whose median cost projects the rest of a budgeted run (:func:`run`)
+BUDGET_WINDOW = 3
+
+
+def _over_budget(result: RunResult, k: int, N: int, start: float, budget: float) -> bool:
+    """After step ``k``: whether the steps run and the ``N - k - 1`` left at the recent
+    median cost exceed ``budget``; if so, the run's status becomes ``"timeout"``."""
+    spent = perf_counter() - start
+    recent = result.step_times[max(0, k + 1 - BUDGET_WINDOW):k + 1] + \
+        result.hull_times[max(0, k + 1 - BUDGET_WINDOW):k + 1]
+    projected = spent + (N - k - 1) * float(np.median(recent))
+    if projected <= budget:
+        return False
+    result.status, result.failed_step = "timeout", k + 1
+    result.message = (f"stopped after step {k} of {N} (steps 0-{k}: {spent:.3g} s, the last "
+                      f"at {1e3 * float(np.median(recent)):.3g} ms per step): the record "
+                      f"would take about {projected:.3g} s, over the budget of {budget:g} s")
+    return True

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
-import numpy as np
+import time
 
+import numpy as np
+import pytest
+
+import observers
 from benchmarks.report import figures
 from benchmarks.studies import scaling
+from observers.base import BUDGET_WINDOW
+from observers.sets import Interval
 
 
 def test_study_rows_exponent_timeout_and_missing_scenarios(tmp_path):
@@ -38,3 +44,49 @@ def test_a_run_over_budget_is_timeout_and_larger_sizes_are_not_attempted():
     first, second = df.sort_values("n").itertuples(index=False)
     assert first.status == "timeout" and "budget" in first.message
     assert second.status == "not run" and second.message == "not attempted: timeout at n=3"
+
+
+class _Sleepy:
+    """An observer whose steps take at least ``seconds[k]`` (the last entry from then on)."""
+
+    def __init__(self, seconds):
+        self.seconds, self.k = list(seconds), 0
+
+    def step(self, u_prev, y):
+        time.sleep(self.seconds[min(self.k, len(self.seconds) - 1)])
+        self.k += 1
+        return Interval([-1.0], [1.0])
+
+
+def test_a_budgeted_run_that_cannot_finish_stops_once_its_projection_is_over():
+    # every step >= 20 ms: after the first window of steps the 40-step record projects to
+    # >= 0.8 s, over a budget of 0.1 s, whatever the machine does
+    res = observers.run(_Sleepy([0.02]), None, np.zeros((40, 1)), budget=0.1)
+    assert res.status == "timeout" and res.failed_step == BUDGET_WINDOW
+    assert np.isfinite(res.lo[:BUDGET_WINDOW]).all() and np.isnan(res.lo[BUDGET_WINDOW:]).all()
+    assert f"stopped after step {BUDGET_WINDOW - 1} of 40" in res.message
+    assert "over the budget of 0.1 s" in res.message
+
+
+def test_one_slow_first_step_does_not_stop_a_budgeted_run():
+    # 0.3 s once (a compiled kernel loading, say), then instant steps: the median of the
+    # window projects ~0.3 s for the record, within 5 s
+    res = observers.run(_Sleepy([0.3, 0.0]), None, np.zeros((40, 1)), budget=5.0)
+    assert res.status == "ok" and np.isfinite(res.lo).all()
+
+
+@pytest.mark.parametrize("budget", [0, -1.0, float("nan"), "5"])
+def test_a_budget_that_is_not_a_positive_number_is_refused(budget):
+    with pytest.raises(ValueError, match="budget must be a positive number"):
+        observers.run(_Sleepy([0.0]), None, np.zeros((4, 1)), budget=budget)
+
+
+def test_a_run_projected_over_budget_in_the_study_names_its_step():
+    # CZN-A's steps on 12 tanks cost milliseconds (2.4 ms at full order): 20000 of them are
+    # far over 20 s, and the projection stops the run in its worker after a few steps (a
+    # first step that compiles the kernels included), long before the executor's hard stop
+    df = scaling.run_study(sizes=(12,), names=["CZN-A"], variants=("linear",), steps=20000,
+                           design_budget=60, run_budget=20.0, log=lambda m: None)
+    (row,) = df.itertuples(index=False)
+    assert row.status == "timeout" and "stopped after step" in row.message, row.message
+    assert "over the budget of 20 s" in row.message

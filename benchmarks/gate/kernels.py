@@ -38,7 +38,10 @@ SPREAD_SAFETY = 4.0
 
 
 def _corename_in(kernel: str) -> str:
-    """The kernel family OpenBLAS runs in a fresh process told to use ``kernel``."""
+    """The kernel family OpenBLAS runs in a fresh process told to use ``kernel``; empty if
+    that process cannot run it (OpenBLAS names a forced kernel even where the CPU lacks its
+    instructions, e.g. SkylakeX's AVX-512 on an AVX2 machine, and dies of an illegal
+    instruction at the first product: the probe computes before it answers)."""
     env = {**os.environ, "OPENBLAS_CORETYPE": kernel}
     try:
         out = subprocess.run([sys.executable, "-m", __name__, "corename"], env=env,
@@ -168,10 +171,21 @@ def write_sensitivity(frame: pd.DataFrame, folder: str | Path, kernels: list[str
     return path
 
 
+def _exercise_blas() -> None:
+    """Matrix products and a solve large enough for OpenBLAS's optimised kernels (level 1-3
+    and LAPACK): on a CPU without the instructions of the kernel in use, the process ends
+    here (SIGILL) instead of naming a kernel it cannot run."""
+    a = np.random.default_rng(0).random((96, 96))
+    b = a @ a
+    v = b @ a[0]
+    np.linalg.solve(a + 96.0 * np.eye(96), v + float(a[0] @ a[1]))
+
+
 def main(argv: list[str] | None = None) -> int:
     """The subprocess entry point (see the module docstring)."""
     args = sys.argv[1:] if argv is None else argv
     if args[:1] == ["corename"]:
+        _exercise_blas()
         print(blas_corename())
         return 0
     if args[:1] == ["subset"] and len(args) >= 4:

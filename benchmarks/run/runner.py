@@ -152,16 +152,19 @@ def design_observer(name: str, sc: Scenario, options: dict
 
 
 def run_observer(name: str, sc: Scenario, options: dict, containment: str,
-                 keep_sets: bool = False) -> ObserverRun:
+                 keep_sets: bool = False, budget: float | None = None) -> ObserverRun:
     """Design and run one observer; failures become statuses, not exceptions.
 
-    ``keep_sets``: keep the estimated sets in ``run.result.sets`` (for the soundness audit).
+    ``keep_sets``: keep the estimated sets in ``run.result.sets`` (for the soundness audit);
+    ``budget``: seconds for the run, stopped early (status ``timeout``) once its projected
+    time exceeds them (:func:`observers.run`).
     """
     info = observers.get(name)
     obs, status, message = design_observer(name, sc, options)
     if obs is None:
         return ObserverRun(sc, info, None, status, message)
-    res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None, on_error="status")
+    res = observers.run(obs, sc.u, sc.y, keep_sets=sc.x_true is not None, on_error="status",
+                        budget=budget)
     if res.error is not None:  # a plugin bug: reported, and the benchmark goes on
         print(f"warning: {name} failed on {sc.name}: {res.message}", file=sys.stderr)
         traceback.print_exception(res.error, limit=3, file=sys.stderr)
@@ -429,8 +432,9 @@ def _job_frames(job: Job, sc: Scenario, run: ObserverRun):
     return runs, summary
 
 
-def execute_job(job: Job):
-    """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``."""
+def execute_job(job: Job, budget: float | None = None):
+    """Run one job (in this process or a worker): ``(runs rows or None, summary rows)``;
+    ``budget``: seconds for the observer's run, as in :func:`run_observer`."""
     if job.observer not in observers.names():  # registered here already: nothing to import
         importlib.import_module(job.module)
     if job.info is not None and job.observer not in observers.names():
@@ -439,7 +443,7 @@ def execute_job(job: Job):
                            ready_for_control=i.ready_for_control, guaranteed=i.guaranteed,
                            reference=i.reference)(i.cls)
     sc, options = job.inputs()
-    run = run_observer(job.observer, sc, options, job.containment)
+    run = run_observer(job.observer, sc, options, job.containment, budget=budget)
     if job.label:  # its rows carry the label and its own guarantee
         run.info = dataclasses.replace(run.info, name=job.label, guaranteed=job.guaranteed)
     return _job_frames(job, sc, run)

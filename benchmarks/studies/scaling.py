@@ -13,7 +13,10 @@ n-tank system (``tank<n>-linear``, ``tank<n>-nonlinear``) for n in :data:`SIZES`
   (least squares over the sizes it ran at, at least 3);
 * the budget: each offline design runs in a worker process with a budget of ``--design-budget``
   seconds and each run of ``--steps`` steps with ``--run-budget`` seconds; one over it is
-  stopped (its worker ended) and reported ``timeout``; larger sizes of that observer are then
+  stopped (its worker ended) and reported ``timeout``, a run as soon as the steps it ran
+  project it over the budget (:func:`observers.run`: the time spent plus the steps left at
+  the cost of the last steps; the message names the step and the projection), so that a run
+  that cannot finish does not use up its whole budget; larger sizes of that observer are then
   not attempted (``not run``, with the reason).  A scenario that does not exist (yet) is
   listed as ``not run: scenario not available``.
 
@@ -26,6 +29,7 @@ read, marked ``cached``).  The real-time limit is the sampling time of the tank 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -36,6 +40,7 @@ import pandas as pd
 
 import observers
 from observers import offline
+from observers.base import BUDGET_WINDOW
 from observers.registry import table_order
 from systems import ModelError
 
@@ -145,7 +150,7 @@ def _one(variant, n, name, steps, design_ex, run_ex) -> dict:
         return _row(variant, n, name, d.status, what + d.message)
     if d["status"] != "ok":
         return _row(variant, n, name, d["status"], d["message"], design_s=d["design_s"])
-    (_, out), = run_ex.map(execute_job, [job])
+    (_, out), = run_ex.map(functools.partial(execute_job, budget=run_ex.timeout), [job])
     design = {"design_s": d["design_s"], "design_cached": d["design_cached"]}
     if isinstance(out, JobFailure):
         what = f"run of {steps} steps " if out.status == "timeout" else ""
@@ -266,9 +271,12 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budge
         "(single-threaded BLAS). Budget: offline design "
         f"{design_budget:g} s, run {run_budget:g} s ({steps} steps, i.e. "
         f"{1e3 * run_budget / steps:.0f} ms per step including the interval hull and the "
-        "containment check); a design or run over it is stopped and marked `timeout`, and the "
-        "larger sizes of that observer are then `not run`. Real-time limit: the sampling time, "
-        f"{REALTIME_MS:g} ms per step. Produced by `python -m benchmarks.studies.scaling` "
+        "containment check); a design or run over it is stopped and marked `timeout`, a run "
+        "as soon as the steps it ran project it over the budget (the time spent plus the steps "
+        f"left at the median cost of its last {BUDGET_WINDOW} steps; its message below names "
+        "the step), and the larger sizes of that observer are then `not run`. Real-time "
+        f"limit: the sampling time, {REALTIME_MS:g} ms per step. Produced by "
+        "`python -m benchmarks.studies.scaling` "
         f"in {elapsed / 60:.0f} min (git {env.get('git', '?')}); timings on a shared 2-core "
         "machine are indicative.", "",
         f"![step time against n]({fig.relative_to(out.parent).as_posix()})", "",
