@@ -30,6 +30,8 @@ from .run import designs, executors
 from .run.config import inline_config, load_config, parse_memory, parse_timeout
 from .run.runner import run_config
 from .run.shipped import shipped_configs
+from .store import bench as store_bench
+from .store import stale as store_stale
 from .timing import speed
 from .timing import steps as timing
 
@@ -46,6 +48,8 @@ def _only(cfg, names: list[str]):
 
 
 def _cmd_run(args) -> int:
+    if args.add:
+        return _cmd_run_add(args)
     if args.config and args.scenario:
         raise ConfigError("run: give either a YAML config or --scenario, not both")
     if args.out is not None:
@@ -81,6 +85,74 @@ def _cmd_run(args) -> int:
     for line in result.problems:
         print(line, file=sys.stderr)
     return result.exit_code
+
+
+def _cmd_run_add(args) -> int:
+    """``run CONFIG --add NAME``: NAME's rows run, the others from the store."""
+    if not args.config or args.scenario or args.observer:
+        raise ConfigError("run --add NAME needs a configuration and no --scenario/--observer")
+    cfg = load_config(args.config)
+    out = Path(args.out) if args.out else Path("results") / path_component(
+        f"{cfg.name}+{args.add}")
+    check_output_dir(out)
+    executor = executors.from_args(args.executor, args.jobs, args.address)
+    try:
+        outcome, report = store_bench.add_observer(
+            cfg, args.add, store_bench.shipped_results(), executor, out,
+            progress=False if args.no_progress else None)
+    finally:
+        executor.close()
+    print(f"ran {outcome.ran} of {outcome.total} rows; wrote {out / 'summary.csv'}, {report}")
+    for line in outcome.problems:
+        print(line, file=sys.stderr)
+    return outcome.exit_code
+
+
+def _cmd_bench(args) -> int:
+    names = args.configs or store_bench.published()
+    executor = executors.from_args(None, args.jobs, None)
+    results, reports = Path(args.results), Path(args.reports)
+    worst = 0
+    t0 = time.perf_counter()
+    try:
+        with store_bench.StoreLock(results):
+            fingerprinter = store_bench.Fingerprinter()
+            for name in names:
+                cfg = load_config(name)
+                outcome = store_bench.bench_config(
+                    cfg, results, reports, executor, cold=args.cold,
+                    progress=False if args.no_progress else None, fingerprinter=fingerprinter)
+                for line in outcome.problems:
+                    print(f"{cfg.name}: {line}", file=sys.stderr)
+                worst = max(worst, outcome.exit_code)
+                fingerprinter = store_bench.Fingerprinter()  # a run may have changed nothing,
+                # but a configuration after it must see the tree as it is now
+    finally:
+        executor.close()
+    print(f"bench: {len(names)} configuration(s) in {time.perf_counter() - t0:.0f} s")
+    return worst
+
+
+def _cmd_reports(args) -> int:
+    changed = store_bench.render_all(Path(args.results), Path(args.reports))
+    for path in changed:
+        print(f"wrote {path}")
+    print(f"reports: {len(changed)} rewritten")
+    return 0
+
+
+def _cmd_stale(args) -> int:
+    if args.record:
+        digest = store_stale.record_study(args.record)
+        print(f"recorded {args.record} as produced from this tree (fingerprint {digest})")
+        return 0
+    lines = store_stale.find_stale(args.configs or None)
+    for line in lines:
+        print(line)
+    if lines:
+        print(f"{len(lines)} stale (`make bench` re-runs the rows, `make reports` renders the "
+              "reports)", file=sys.stderr)
+    return 1 if lines else 0
 
 
 def _print(outcome: policy.Outcome) -> int:
@@ -207,11 +279,17 @@ def _version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (see the module docstring for the sub-commands)."""
-    p = argparse.ArgumentParser(prog="setobs-bench",
+    p = argparse.ArgumentParser(prog="setobs-bench", allow_abbrev=False,
                                 description="Guaranteed state estimator benchmarks "
                                             "(also: python -m benchmarks)")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_parser = sub.add_parser
+
+    def add_parser(*a, **k):  # no abbreviated options (--add is not --address)
+        return _add_parser(*a, allow_abbrev=False, **k)
+
+    sub.add_parser = add_parser
     r = sub.add_parser("run", help="run a YAML benchmark config, or observers on scenarios",
                        epilog=verdicts.EXIT_CODES_HELP,
                        description="Run every observer of a config (or the --observer names) on "
@@ -247,7 +325,37 @@ def build_parser() -> argparse.ArgumentParser:
                         "and reported as status 'memory' (third-party plugins and parallel "
                         "jobs; the project's own observers in a serial run keep the time "
                         "budget only)")
+    r.add_argument("--add", metavar="NAME",
+                   help="rank observer NAME (e.g. your plugin) in the configuration beside "
+                        "its stored rows: only NAME's rows run, the others come from the "
+                        "result store where their fingerprints are current")
     r.set_defaults(func=_cmd_run)
+    be = sub.add_parser("bench", help="bring the result stores up to date (only stale or "
+                                      "missing rows run) and render reports/<config>.md",
+                        description=store_bench.__doc__.splitlines()[0])
+    be.add_argument("configs", nargs="*", metavar="CONFIG",
+                    help="shipped configuration names (default: every published one)")
+    be.add_argument("--cold", action="store_true", help="run every row, stale or not")
+    be.add_argument("--jobs", type=int, default=None, metavar="N",
+                    help="worker processes (default: serial)")
+    be.add_argument("--results", default="results", help="folder of the stores")
+    be.add_argument("--reports", default="reports", help="folder of the committed reports")
+    be.add_argument("--no-progress", action="store_true", help="no progress bar")
+    be.set_defaults(func=_cmd_bench)
+    rr = sub.add_parser("reports", help="render every committed report from its store "
+                                        "(no run; changes no byte when nothing changed)")
+    rr.add_argument("--results", default="results", help="folder of the stores")
+    rr.add_argument("--reports", default="reports", help="folder of the committed reports")
+    rr.set_defaults(func=_cmd_reports)
+    st = sub.add_parser("stale", help="name the stored rows and committed reports that are "
+                                      "out of date (no run; exit 1 if any)",
+                        description=store_stale.__doc__.splitlines()[0])
+    st.add_argument("configs", nargs="*", metavar="CONFIG",
+                    help="shipped configuration names (default: all, and the studies)")
+    st.add_argument("--record", metavar="REPORT",
+                    help="record that the study report REPORT (reports/soundness.md, "
+                         "reports/datadriven.md) was just produced from this tree")
+    st.set_defaults(func=_cmd_stale)
     rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")
     rep.add_argument("--out", help="Markdown file to write (default DIR/report.md; without "
@@ -312,6 +420,12 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--kernels", default="auto", metavar="K1,K2|none",
                     help="OpenBLAS kernel families to measure the sensitivity with (default: "
                          "those of " + ",".join(kernels.SPREAD_KERNELS) + " this CPU runs)")
+    bl.add_argument("--record-cost", dest="func", action="store_const",
+                    const=lambda a: _print(policy.record_cost(
+                        a.config, a.baseline, use_cache=a.use_cache, progress=_progress(a))),
+                    help="instead of --update: run the subset once, serially as check does, and "
+                         "rewrite only the cost of each job (cost.json beside the golden files, "
+                         "check's time budget per job); the golden files are untouched")
     bl.set_defaults(func=_cmd_baseline)
     au = sub.add_parser("audit", help="soundness audit on many seeded realisations")
     au.add_argument("--realisations", type=int, default=audit.DEFAULT_REALISATIONS,

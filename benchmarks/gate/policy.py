@@ -8,7 +8,8 @@ that turn their findings into an exit code are here, in one place:
 * ``check`` fails (1) on a stale committed report, on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
   in the baseline is listed, and fails only with ``strict``, or if it crashed, was stopped or is
-  unsound: then the last line names it); a radius
+  unsound: then the last line names it; a job stopped by its time budget, :mod:`.budget`, is
+  also named on a line of its own with that budget); a radius
   that got smaller is called *tighter* only once proven: no ``no`` in a soundness verdict
   column (:data:`benchmarks.verdicts.SOUNDNESS_COLUMNS`) and no violation in the short
   soundness audit of that observer (:data:`PROOF_SCENARIOS`, adversarial realisations);
@@ -37,7 +38,7 @@ from ..io import atomic_write_csv, blas_corename
 from ..report import freshness
 from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
-from . import kernels, regression
+from . import budget, kernels, regression
 
 #: scenarios of the short soundness audit that a tighter observer must pass
 PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
@@ -115,7 +116,8 @@ def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, 
         res.warn(f"REGRESSION: {config} changed since the baseline in {baseline} was written; "
                  "review and run `python -m benchmarks baseline --update`")
         return 1
-    frame, cache_note = regression.run_subset(cfg, use_cache, progress, out)
+    executor = _gate_executor(res, cfg, baseline)
+    frame, cache_note = regression.run_subset(cfg, use_cache, progress, out, executor=executor)
     diff = _with_proof(regression.compare(base, frame, strict=strict), progress)
     if out:
         atomic_write_csv(Path(out) / "diff.csv", diff)
@@ -125,6 +127,8 @@ def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, 
     plugins = diff[diff["ok"] & (diff["metric"] == "observer")]
     for r in plugins.itertuples(index=False):
         res.warn(f"note: {r.observer} on {r.scenario}: {r.note}")
+    for line in budget.timeout_lines(executor.stopped):
+        res.warn(line)
     where = (f"{frame['observer'].nunique()} observers x {frame['scenario'].nunique()} "
              f"scenarios; {cache_note}; baseline of {meta.get('created', '?')}")
     summary = regression.change_summary(diff)
@@ -141,6 +145,52 @@ def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, 
         return 1
     res.say(f"check passed: {n} values within tolerance ({where}); {summary}")
     return 0
+
+
+def _gate_executor(res: Outcome, cfg, baseline) -> budget.GateExecutor:
+    """The executor of ``check``: a budget per job from the costs recorded beside the golden
+    files (:mod:`.budget`), unless the subset's configuration sets ``timeout:``; without a
+    cost file every job gets :data:`.budget.GATE_TIMEOUT` (a note says so)."""
+    if "timeout" in cfg.raw:
+        return budget.GateExecutor(cfg, fixed="the timeout of the subset's configuration")
+    budgets = budget.load_costs(baseline)  # a corrupted file: ConfigError, before the run
+    if budgets is None:
+        res.warn(f"note: no job costs in {Path(baseline) / budget.COST_FILE}: every job gets "
+                 f"the fixed budget of {budget.GATE_TIMEOUT:g} s (record them with "
+                 "`python -m benchmarks baseline --record-cost`)")
+        return budget.GateExecutor(cfg, fixed=f"no {budget.COST_FILE}: the fixed budget")
+    return budget.GateExecutor(cfg, budgets)
+
+
+def _stopped_jobs(frame: pd.DataFrame) -> list[str]:
+    per = frame.drop_duplicates(["scenario", "observer"])
+    bad = per[per["status"].isin(["error", "timeout", "memory"])]
+    return [f"{o} crashed on {s}" if st == "error" else f"{o} stopped on {s} ({st})"
+            for s, o, st in zip(bad["scenario"], bad["observer"], bad["status"], strict=True)]
+
+
+def record_cost(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
+                progress: bool | None = None) -> Outcome:
+    """``baseline --record-cost``: run the subset once, serially as ``check`` runs it, and
+    rewrite only the job costs beside the golden files (:mod:`.budget`; the golden files are
+    not read or touched).  Refused (1) while a job crashes or is stopped: its time is not its
+    cost."""
+    res = Outcome()
+    cfg = regression.subset_config(config, plugins=False)
+    executor = budget.GateExecutor(cfg)
+    load, t0 = budget.load_average(), time.perf_counter()
+    frame, cache_note = regression.run_subset(cfg, use_cache, progress, executor=executor)
+    elapsed = time.perf_counter() - t0
+    stopped = _stopped_jobs(frame)
+    if stopped:
+        res.warn("job costs NOT written: " + "; ".join(stopped) + " (fix them first)")
+        res.code = 1
+        return res
+    path = budget.write_costs(baseline, executor.seconds, "baseline --record-cost", cache_note,
+                              (load, budget.load_average()))
+    res.say(f"wrote {path}: {len(executor.seconds)} jobs in {elapsed:.0f} s "
+            f"({budget.COST_EXECUTOR}; {cache_note}); the golden files are unchanged")
+    return res
 
 
 def show_baseline(baseline: str | Path) -> Outcome:
@@ -162,7 +212,10 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
     long kernel re-runs start."""
     res = Outcome()
     cfg = regression.subset_config(config, plugins=False)
-    frame, cache_note = regression.run_subset(cfg, use_cache, progress)
+    executor = budget.GateExecutor(cfg)  # the cost of each job, written with the golden files
+    load = budget.load_average()
+    frame, cache_note = regression.run_subset(cfg, use_cache, progress, executor=executor)
+    load = (load, budget.load_average())
     unsound = regression.baseline_problems(frame)
     try:
         old, _ = regression.load_baseline(baseline)
@@ -194,8 +247,9 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
         return res
     files = regression.write_baseline(frame, baseline, cfg, cache_note)
     kernels.write_sensitivity(frame, baseline, names)
-    res.say(f"wrote {len(files)} golden files and SENSITIVITY.md to {baseline} "
-            f"({frame['observer'].nunique()} observers; {cache_note})")
+    budget.write_costs(baseline, executor.seconds, "baseline --update", cache_note, load)
+    res.say(f"wrote {len(files)} golden files, SENSITIVITY.md and {budget.COST_FILE} to "
+            f"{baseline} ({frame['observer'].nunique()} observers; {cache_note})")
     return res
 
 

@@ -66,6 +66,7 @@ from ..report.numbers import fmt, text_table
 from ..run.config import BenchConfig, load_config
 from ..run.runner import is_project_module, run_config
 from ..verdicts import HULL_AND_EXACT, NO, SOUNDNESS_COLUMNS
+from .budget import GATE_TIMEOUT, GateExecutor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
@@ -75,9 +76,6 @@ BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "gu
 #: the precision of the exact floor (its agreement with an independent LP formulation),
 #: added to an observer's tolerance where its gap is compared
 GAP_RTOL = 1e-6
-#: the time budget per job of the gate's subset, unless its configuration sets one (every job
-#: of the subset takes seconds, designs included)
-GATE_TIMEOUT = 300.0
 #: absolute floor of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
@@ -133,19 +131,28 @@ def subset_config(path: str | Path = DEFAULT_CONFIG, plugins: bool = True) -> Be
 
 
 def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None = None,
-               out: str | Path | None = None) -> tuple[pd.DataFrame, str]:
+               out: str | Path | None = None, executor: GateExecutor | None = None
+               ) -> tuple[pd.DataFrame, str]:
     """Run the subset; returns the golden-file rows (with the soundness verdict columns,
     which the golden files do not store) and the design-cache description.
 
     Where the subset asks for the hull test, exact membership is checked beside it
     (``hull+exact``): the golden ``violations`` stay hull counts, and ``contained`` says
-    whether the true state lies in every set."""
+    whether the true state lies in every set.  The jobs run serially on ``executor``
+    (:class:`~benchmarks.gate.budget.GateExecutor`: a budget per job from the recorded
+    costs, and the wall time of each job; closed here), by default one with the budget of
+    the configuration's ``timeout``, else :data:`~benchmarks.gate.budget.GATE_TIMEOUT`, for
+    every job."""
     if cfg.containment == "hull":
         cfg.containment = HULL_AND_EXACT  # not in cfg.raw: the configuration is unchanged
     if "timeout" not in cfg.raw:  # a hanging plugin must not hold the gate for half an hour
         cfg.timeout = GATE_TIMEOUT
-    with design_cache(use_cache) as cache_note:
-        _, summary = run_config(cfg, out, progress=progress)
+    executor = executor or GateExecutor(cfg)
+    try:
+        with design_cache(use_cache) as cache_note:
+            _, summary = run_config(cfg, out, progress=progress, executor=executor)
+    finally:
+        executor.close()
     frame = summary.copy()
     frame["rtol"] = [regression_rtol(o) for o in frame["observer"]]
     frame["kernel_spread"] = 0.0

@@ -35,8 +35,56 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
     results_dir = Path(results_dir)
     summary, meta = load_results(results_dir)  # one complete generation, or ConfigError
     out = Path(out) if out else results_dir / "report.md"
+    runs = None
+    if figures and (results_dir / "runs.csv").is_file() and len(summary):
+        runs = load_runs(results_dir)
+    atomic_write_text(out, render_report(summary, meta, out, runs, results_dir.name))
+    return out
+
+
+def store_footer(meta: dict) -> list[str]:
+    """The closing lines of a report rendered from a result store: the runs its rows come
+    from (when, commit, machine, BLAS kernel, versions) and how it is kept fresh."""
+    runs = meta.get("runs", {})
+    counts: dict[str, int] = {}
+    for rec in meta.get("rows", {}).values():
+        counts[rec.get("run", "?")] = counts.get(rec.get("run", "?"), 0) + 1
+    lines = ["---", f"Rendered from the result store `results/{meta['config']['name']}/` "
+             f"({len(meta.get('rows', {}))} rows, each with the fingerprint of the code, data "
+             "and configuration entry that produced it; `setobs-bench stale` names the rows a "
+             "change touched, `make bench` re-runs just those and `make reports` renders this "
+             "page again). Rows by run:", ""]
+    for run_id, run in sorted(runs.items(), key=lambda kv: (kv[1].get("created", ""), kv[0])):
+        m, v = run.get("machine", {}), run.get("versions", {})
+        ex = run.get("executor", {})
+        lines.append(
+            f"- run {run_id}: {counts.get(run_id, 0)} rows, {run.get('created', '?')}, commit "
+            f"{run.get('commit') or '?'}; {m.get('cpu', '?')} ({m.get('cores', '?')} cores, "
+            f"OpenBLAS kernel {m.get('blas_coretype', '?')}); {ex.get('workers', '?')} "
+            f"worker(s); " + ", ".join(f"{k} {val}" for k, val in v.items()
+                                       if k not in ("blas_coretype",)))
+    return [*lines, ""]
+
+
+def render_report(summary, meta: dict, out: Path, runs=None, name: str = "") -> str:
+    """The Markdown report of a summary and its metadata (a run's or a store's), as text.
+
+    Parameters
+    ----------
+    summary : DataFrame
+        The summary rows.
+    meta : dict
+        ``meta.json`` of a run, or of a result store (it has ``runs``).
+    out : Path
+        Where the report goes (figures are linked relative to it).
+    runs : DataFrame, optional
+        ``runs.csv`` rows, to draw the bounds figures (beside ``out``).
+    name : str
+        Title to use if ``meta`` has none.
+    """
+    out = Path(out)
     fig_dir = out.parent / (out.stem + "_figures")
-    title = meta.get("config", {}).get("title", results_dir.name)
+    title = meta.get("config", {}).get("title", name)
     parts = [f"# {title}", "", INTRO, ""]
     if timed_in_parallel(summary):
         ex = meta.get("executor", {})
@@ -50,9 +98,8 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
                   "min and max over the successful runs; times are medians over them.", ""]
         parts += sweep_tables(summary)
         summary = summary.iloc[0:0]  # no per-seed tables
-    runs = None
-    if figures and (results_dir / "runs.csv").is_file() and len(summary):
-        runs = load_runs(results_dir)
+    if not len(summary):
+        runs = None
     for sc, full in summary.groupby("scenario", sort=False):
         info = meta.get("scenarios", {}).get(sc, {})
         df = full[full["status"] != "unsupported"]  # status rows of the scenario table only
@@ -83,6 +130,9 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
             if links:
                 parts += ["Figures (bounds over time with the true state): " + ", ".join(links),
                           ""]
+    if "runs" in meta:  # a result store: its runs, no code stamp (the rows carry theirs)
+        parts += store_footer(meta)
+        return "\n".join(parts)
     versions = meta.get("versions", {})
     if versions:
         parts += ["---", f"Run {meta.get('run_id', '?')} of " + meta.get("created", "") + "; "
@@ -90,5 +140,4 @@ def write_report(results_dir: str | Path, out: str | Path | None = None,
             f"{k} {v}" for k, v in versions.items()), ""]
     config = freshness.config_of(meta.get("config", {}).get("name"))
     parts.append(freshness.stamp(freshness.report_command(config, out), config))
-    atomic_write_text(out, "\n".join(parts) + "\n")
-    return out
+    return "\n".join(parts) + "\n"

@@ -1,0 +1,238 @@
+"""The incremental bench: run only the rows of a configuration that are stale or missing in its
+store, merge them in, and render the committed report from the store.
+
+``setobs-bench bench [CONFIG ...]`` (``make bench``) does, for each configuration:
+
+1. read and check its store ``results/<name>/`` (:func:`.store.load_store`);
+2. fingerprint every job of the configuration (:mod:`.fingerprint`) and compare with the
+   stored rows: a row is run again if it is missing or its fingerprint differs (``--cold``:
+   every row);
+3. run those jobs (the observers with a stale row on the scenarios with a stale row; the run's
+   own folder is ``results/<name>/run/``, local), merge their rows into the store and write it
+   atomically under :class:`.store.StoreLock`;
+4. render ``reports/<name>.md`` from the store (:func:`render`).
+
+``setobs-bench run CONFIG --add NAME`` (:func:`add_observer`) is the same with the rows of one
+more observer (a plugin): it runs only that observer's rows, takes the others from the store
+shipped with the package where their fingerprints are current, and renders the whole table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..report.markdown import render_report
+from ..run.config import BenchConfig
+from ..run.runner import make_jobs, run_config
+from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
+from .graph import ROOT
+from .store import Store, StoreLock, load_store, merge, new_run, write_store
+
+__all__ = ["Fingerprinter", "StoreLock", "add_observer", "bench_config", "published",
+           "render_all", "shipped_results"]
+
+#: where the stores live (relative to the project root)
+RESULTS = Path("results")
+#: where the committed reports live
+REPORTS = Path("reports")
+
+
+@dataclass
+class Plan:
+    """What a configuration's store needs: its jobs, their fingerprints and which are stale."""
+
+    cfg: BenchConfig
+    store: Store | None
+    jobs: list
+    prints: dict[str, Fingerprint]
+    #: the row keys of the configuration, in its order
+    order: list[str]
+    #: row key -> why it must run (missing, or what changed)
+    stale: dict[str, str] = field(default_factory=dict)
+    #: stored rows no longer in the configuration
+    dropped: list[str] = field(default_factory=list)
+
+
+def plan(cfg: BenchConfig, store: Store | None, fingerprinter: Fingerprinter,
+         cold: bool = False) -> Plan:
+    """Compare the jobs of ``cfg`` with ``store``."""
+    jobs = make_jobs(cfg)
+    prints = {job_key(j): fingerprinter.job(j, cfg) for j in jobs}
+    out = Plan(cfg, store, jobs, prints, list(prints))
+    stored = store.rows if store is not None else {}
+    for key, fp in prints.items():
+        if cold:
+            out.stale[key] = "cold run"
+        elif key not in stored:
+            out.stale[key] = "no stored row"
+        elif stored[key]["fingerprint"] != fp.digest:
+            out.stale[key] = changes(store.fingerprint_record(key), fp, fingerprinter.graph)
+    out.dropped = [k for k in stored if k not in prints]
+    return out
+
+
+def subset(cfg: BenchConfig, jobs: list, keys: set[str]) -> BenchConfig:
+    """``cfg`` restricted to the observers and scenario instances of the jobs ``keys``."""
+    chosen = [j for j in jobs if job_key(j) in keys]
+    labels = {j.label or j.observer for j in chosen}
+    specs = [j.spec for j in chosen]
+    instances = [i for i in cfg.instances if i.spec in specs]
+    return dataclasses.replace(
+        cfg, observers=[o for o in cfg.observers if o in labels], instances=instances,
+        scenarios=list({id(i.scenario): i.scenario for i in instances}.values()))
+
+
+def _run_meta(cfg: BenchConfig) -> dict:
+    from ..run.describe import set_bounds
+
+    return {"config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
+                       "containment": cfg.containment},
+            "scenarios": {sc.name: {
+                "N": sc.N, "n": sc.system.n, "dt": sc.system.dt,
+                "paper_table": sc.paper_table, "description": sc.description,
+                "source": sc.source, "state_names": list(sc.state_names),
+                "tolerance": sc.tolerance, "sets": set_bounds(sc.system)}
+                for sc in cfg.scenarios}}
+
+
+@dataclass
+class Outcome:
+    """What :func:`bench_config` did."""
+
+    name: str
+    ran: int
+    total: int
+    exit_code: int
+    problems: list[str]
+    report: Path | None
+
+
+def run_stale(p: Plan, executor, out: Path, progress: bool | None = None):
+    """Run the stale rows of plan ``p`` (their rectangle of observers x scenarios) into the run
+    folder ``out``; returns ``(merged store, run result)``, or ``(None, None)`` if nothing is
+    stale."""
+    if not p.stale:
+        return None, None
+    sub = subset(p.cfg, p.jobs, set(p.stale))
+    result = run_config(sub, out, progress=progress, executor=executor)
+    ran = {job_key(j) for j in make_jobs(sub)}
+    run_id, run = new_run(ROOT, {"name": executor.name, "workers": executor.workers})
+    merged = merge(p.store, result.summary, {k: p.prints[k] for k in ran}, p.order, run_id,
+                   run, _run_meta(p.cfg))
+    return merged, result
+
+
+def render(store: Store, out: Path) -> str:
+    """The committed Markdown report of a store (written to ``out`` by the caller)."""
+    summary, meta = store.view()
+    return render_report(summary, meta, out)
+
+
+def bench_config(cfg: BenchConfig, results: Path, reports: Path, executor, cold: bool = False,
+                 progress: bool | None = None, fingerprinter: Fingerprinter | None = None,
+                 notify=print) -> Outcome:
+    """Bring the store of ``cfg`` up to date and render its report (see the module docstring).
+    The caller holds the :class:`.store.StoreLock` of ``results``."""
+    folder = results / cfg.name
+    store = load_store(folder)
+    p = plan(cfg, store, fingerprinter or Fingerprinter(), cold)
+    notify(f"{cfg.name}: {len(p.stale)} of {len(p.order)} rows to run"
+           + (f", {len(p.dropped)} no longer in the configuration" if p.dropped else ""))
+    code, problems = 0, []
+    if p.stale:
+        merged, result = run_stale(p, executor, folder / "run", progress)
+        code, problems = result.exit_code, list(result.problems)
+        store = merged
+    elif p.dropped and store is not None:
+        store = merge(store, None, {}, p.order, None, None, _run_meta(p.cfg))
+    if store is None:
+        return Outcome(cfg.name, 0, len(p.order), code, problems, None)
+    if p.stale or p.dropped:
+        write_store(folder, store)
+    out = reports / f"{cfg.name}.md"
+    text = render(store, out)
+    if not out.is_file() or out.read_text(encoding="utf-8") != text:
+        from ..io import atomic_write_text
+        atomic_write_text(out, text)
+        notify(f"wrote {out}")
+    return Outcome(cfg.name, len(p.stale), len(p.order), code, problems, out)
+
+
+def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path,
+                 progress: bool | None = None, notify=print) -> tuple[Outcome, Path]:
+    """Rank observer ``name`` (a plugin) in configuration ``cfg`` beside its stored rows.
+
+    Runs only ``name``'s rows; every other row comes from the store ``results/<cfg>/`` where its
+    fingerprint is current here, and is run too where it is not (so that the table never mixes
+    rows of other code).  Writes the merged store and ``report.md`` to ``out`` (never to the
+    shipped store).
+    """
+    if name in cfg.observers:
+        raise ConfigError(f"run --add: {name} is already in config '{cfg.name}'; use "
+                          f"--observer {name} to run it alone")
+    import observers
+
+    observers.get(name)  # UnknownObserver: a one-line error naming the known ones
+    with_it = dataclasses.replace(cfg, observers=[*cfg.observers, name])
+    store = load_store(results / cfg.name)
+    p = plan(with_it, store, Fingerprinter())
+    mine = {k for k in p.stale if k.split("|")[2] == name}
+    others = {k: why for k, why in p.stale.items() if k not in mine}
+    for key, why in others.items():
+        notify(f"note: stored row {key} is not current here ({why}): it runs too")
+    with tempfile.TemporaryDirectory(prefix="setobs-add-") as tmp:
+        merged, result = run_stale(p, executor, Path(tmp) / "run", progress)
+    assert merged is not None  # the new observer's rows are never stored
+    out.mkdir(parents=True, exist_ok=True)
+    for leftover in ("summary.csv", "meta.json"):
+        if (out / leftover).exists() and load_store(out) is None:
+            raise ConfigError(f"run --add: {out} holds another run's results; give a new or "
+                              "empty folder")
+    write_store(out, merged)
+    report = out / "report.md"
+    from ..io import atomic_write_text
+    atomic_write_text(report, render(merged, report))
+    outcome = Outcome(cfg.name, len(p.stale), len(p.order), result.exit_code,
+                      list(result.problems), report)
+    return outcome, report
+
+
+
+def published(root: Path = ROOT) -> list[str]:
+    """The shipped configurations with a committed report (``reports/<name>.md``) or store."""
+    from ..run.shipped import shipped_configs
+
+    return [n for n in shipped_configs() if (root / REPORTS / f"{n}.md").is_file()
+            or (root / RESULTS / n / "meta.json").is_file()]
+
+
+def shipped_results() -> Path:
+    """The folder of the stores shipped with the package (the checkout's ``results/``, or the
+    copy installed beside the package)."""
+    for candidate in (ROOT / RESULTS, Path(__file__).resolve().parent.parent / "data"
+                      / "results"):
+        if candidate.is_dir():
+            return candidate
+    return ROOT / RESULTS
+
+
+def render_all(results: Path, reports: Path) -> list[Path]:
+    """Render every store under ``results`` to ``reports/<name>.md``; the reports rewritten
+    (none when nothing changed)."""
+    from ..io import atomic_write_text
+
+    changed = []
+    for meta in sorted(results.glob("*/meta.json")):
+        store = load_store(meta.parent)
+        if store is None:
+            continue
+        out = reports / f"{meta.parent.name}.md"
+        text = render(store, out)
+        if not out.is_file() or out.read_text(encoding="utf-8") != text:
+            atomic_write_text(out, text)
+            changed.append(out)
+    return changed

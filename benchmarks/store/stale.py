@@ -1,0 +1,173 @@
+"""What is out of date, without running anything: ``setobs-bench stale``.
+
+- **Rows.**  For every shipped configuration, the fingerprint of each job
+  (:mod:`.fingerprint`) against its stored row in ``results/<name>/``: a row is stale if its
+  fingerprint differs (the line says which module, data file or configuration entry changed),
+  missing if the store has none, and gone if the configuration no longer has it.
+- **Reports of configurations.**  ``reports/<name>.md`` is rendered from the store again in
+  memory and compared byte for byte: out of date if the renderer or the store changed since.
+- **Studies** (``reports/soundness.md``, ``reports/datadriven.md``): one fingerprint per report,
+  over the closure of the study's module and of every built-in observer (the audit runs them
+  all), recorded in ``results/reports.json`` by ``setobs-bench stale --record REPORT`` right
+  after the report is regenerated (``make audit``, ``make datadriven`` do it).
+- **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
+  not the code: they carry their commit and machine and are never stale here; ``make speed``,
+  ``make scaling`` and ``make frontier`` measure again.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import observers
+
+from ..errors import ConfigError
+from ..io import json_text
+from ..run.config import load_config
+from ..run.shipped import shipped_configs
+from .bench import REPORTS, RESULTS, plan, render
+from .fingerprint import Fingerprinter, canonical, short
+from .graph import ROOT
+from .store import load_store
+
+#: reports that measure a machine: never stale for the code
+MEASUREMENTS = ("speed", "scaling", "frontier")
+#: study reports and the module that writes each (besides every built-in observer)
+STUDIES = {"soundness": "benchmarks.gate.audit",
+           "datadriven": "benchmarks.studies.alanwar2022"}
+#: where the fingerprints of the study reports are recorded
+STUDY_RECORD = Path("results") / "reports.json"
+
+
+@dataclass(frozen=True)
+class Line:
+    """One stale thing: ``kind`` is ``row``, ``report`` or ``store``."""
+
+    kind: str
+    config: str
+    text: str
+
+    def __str__(self) -> str:
+        return f"STALE {self.kind.upper()} {self.config}: {self.text}"
+
+
+def _row_text(key: str, why: str) -> str:
+    scenario, seed, obs, variant = key.split("|")
+    where = scenario + (f" seed {seed}" if seed else "") + (f" variant {variant}"
+                                                              if variant else "")
+    return f"{obs} on {where}: {why}"
+
+
+def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path = ROOT
+                 ) -> list[Line]:
+    """The stale rows of one configuration and whether its report is out of date."""
+    folder = root / RESULTS / name
+    report = root / REPORTS / f"{name}.md"
+    try:
+        store = load_store(folder)
+    except ConfigError as exc:
+        return [Line("store", name, str(exc))]
+    if store is None:
+        return [Line("store", name, f"no result store in {folder.relative_to(root)} (run "
+                                    f"`setobs-bench bench {name}`)")]
+    cfg = load_config(path)
+    p = plan(cfg, store, fingerprinter)
+    out = [Line("row", name, _row_text(k, why)) for k, why in p.stale.items()]
+    out += [Line("row", name, _row_text(k, "no longer in the configuration"))
+            for k in p.dropped]
+    if not report.is_file():
+        out.append(Line("report", name, f"{report.relative_to(root)} is missing (`make "
+                                        "reports` renders it)"))
+    elif report.read_text(encoding="utf-8") != render(store, report):
+        out.append(Line("report", name, f"{report.relative_to(root)} differs from its store "
+                                        "rendered now (`make reports` renders it)"))
+    return out
+
+
+def study_fingerprint(name: str, fingerprinter: Fingerprinter) -> dict:
+    """``{"digest": ..., "code": {...}, "data": ...}`` of a study report now."""
+    graph = fingerprinter.graph
+    roots = [STUDIES[name], *sorted({i.cls.__module__ for i in observers.available()
+                                     if i.cls.__module__.startswith("observers.")})]
+    modules = set().union(*(graph.closure(r) for r in roots))
+    code = {m: short(graph.modules[m].digest) for m in sorted(modules)}
+    data = short(__import__("hashlib").sha256(
+        canonical(fingerprinter.data_digests()).encode()).hexdigest())
+    digest = short(__import__("hashlib").sha256(canonical([code, data]).encode()).hexdigest())
+    return {"digest": digest, "code": code, "data": data}
+
+
+def _read_record(root: Path) -> dict:
+    path = root / STUDY_RECORD
+    if not path.is_file():
+        return {}
+    try:
+        rec = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path} is not valid JSON ({exc.msg}); restore it with git") from None
+    if not isinstance(rec, dict):
+        raise ConfigError(f"{path} is not a mapping of report names; restore it with git")
+    return rec
+
+
+def record_study(report: str | Path, root: Path = ROOT) -> str:
+    """Record that the study report ``report`` was just produced from the current tree."""
+    name = Path(report).stem
+    if name not in STUDIES:
+        raise ConfigError(f"stale --record: {report} is not a study report (known: "
+                          f"{', '.join(f'reports/{s}.md' for s in STUDIES)})")
+    rec = _read_record(root)
+    rec[name] = study_fingerprint(name, Fingerprinter())
+    path = root / STUDY_RECORD
+    path.parent.mkdir(parents=True, exist_ok=True)
+    from ..io import atomic_write_text
+    atomic_write_text(path, json_text(dict(sorted(rec.items()))))
+    return rec[name]["digest"]
+
+
+def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT) -> list[Line]:
+    rec = _read_record(root)
+    out = []
+    for name in STUDIES:
+        if not (root / REPORTS / f"{name}.md").is_file():
+            continue
+        now = study_fingerprint(name, fingerprinter)
+        old = rec.get(name)
+        if old is None:
+            out.append(Line("report", name, f"reports/{name}.md has no recorded fingerprint "
+                                            f"in {STUDY_RECORD}"))
+        elif old.get("digest") != now["digest"]:
+            changed = sorted(m for m in set(old.get("code", {})) | set(now["code"])
+                             if old.get("code", {}).get(m) != now["code"].get(m))
+            what = ", ".join(fingerprinter.graph.source_path(m) if m in
+                             fingerprinter.graph.modules else m for m in changed[:3])
+            more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
+            why = f"code changed: {what}{more}" if changed else "data changed"
+            cmd = "make audit" if name == "soundness" else "make datadriven"
+            out.append(Line("report", name, f"reports/{name}.md: {why} (`{cmd}`)"))
+    return out
+
+
+def find_stale(names: list[str] | None = None, root: Path = ROOT) -> list[Line]:
+    """Every stale row, store and report of the shipped configurations ``names`` (default
+    all) and of the study reports."""
+    shipped = shipped_configs()
+    if names:
+        unknown = [n for n in names if n not in shipped]
+        if unknown:
+            raise ConfigError(f"stale: unknown configuration(s) {', '.join(unknown)} (shipped: "
+                              f"{', '.join(shipped)})")
+    fingerprinter = Fingerprinter()
+    out: list[Line] = []
+    for name, path in shipped.items():
+        if names and name not in names:
+            continue
+        if not names and not ((root / REPORTS / f"{name}.md").is_file()
+                              or (root / RESULTS / name / "meta.json").is_file()):
+            continue  # not published (a sweep): no store, no report
+        out += stale_config(name, path, fingerprinter, root)
+    if not names:
+        out += stale_studies(fingerprinter, root)
+    return out

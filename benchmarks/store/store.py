@@ -1,0 +1,349 @@
+"""A result store: ``results/<config>/summary.csv`` and ``results/<config>/meta.json``, committed.
+
+``summary.csv`` holds the summary rows of a configuration (one line per observer x scenario
+instance x variant x state; the columns of ``setobs-bench run``'s ``summary.csv``) with two
+more: ``fingerprint`` (:mod:`.fingerprint`: what produced the row) and ``run_id`` (the run that
+produced it).  ``meta.json`` holds
+
+- ``format``: :data:`FORMAT`;
+- ``config``, ``scenarios``: the configuration and its scenarios' facts (as in a run's
+  ``meta.json``: what the reports need);
+- ``runs``: per run id, when, on which commit and machine, with which BLAS kernel and versions
+  and executor;
+- ``rows``: per row key (:func:`.fingerprint.row_key`), its fingerprint, its run and the digest
+  of its content (every column of its lines);
+- ``fingerprints``, ``code``, ``data``: what each fingerprint was made of (module digests and
+  data files, shared between rows), so that ``stale`` can say which module changed;
+- ``files``: size and SHA-256 of ``summary.csv``.
+
+Reading (:func:`load_store`) checks all of it: a half-written, truncated, corrupted or
+hand-edited ``summary.csv``, a row whose content or fingerprint does not match ``meta.json``,
+is refused with a one-line message.  Writing (:func:`write_store`) builds both files in a
+temporary folder beside the store and swaps the folders atomically (the other files of the
+folder, local run outputs, move along), so that a kill leaves the old store or the new one,
+never a mixture; :class:`StoreLock` keeps two writers off one ``results/`` folder.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import io
+import json
+import os
+import platform
+import shutil
+import subprocess
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import ConfigError
+from ..io import _exchange as exchange  # noqa: PLC2701 - the one atomic folder swap
+from ..io import csv_text, json_text, new_run_id, remove_stale_generations
+from ..metrics import add_relative_rms
+from .fingerprint import Fingerprint, canonical, row_key, short
+
+FORMAT = "setobs-bench store 1"
+#: columns the store adds to a run's summary
+STORE_COLUMNS = ("fingerprint", "run_id")
+SUMMARY = "summary.csv"
+META = "meta.json"
+KEY_COLUMNS = ["scenario", "seed", "observer", "variant"]
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def keys_of(summary: pd.DataFrame) -> pd.Series:
+    """The row key of every line of a summary."""
+    return pd.Series([row_key(*t) for t in summary[KEY_COLUMNS].itertuples(index=False)],
+                     index=summary.index, dtype=object)
+
+
+def content_digest(lines: pd.DataFrame) -> str:
+    """Digest of the lines of one row (every column but ``run_id``), as written to CSV."""
+    return short(_sha(csv_text(lines.drop(columns=["run_id"], errors="ignore")
+                               .reset_index(drop=True)).encode()))
+
+
+def machine() -> dict[str, str]:
+    """The machine a run ran on: host, processor model, cores, the BLAS kernel."""
+    from ..io import blas_corename
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": str(os.cpu_count() or 1), "system": platform.system(),
+            "blas_coretype": blas_corename()}
+
+
+def commit(root: Path) -> str:
+    """The commit of the checkout at ``root`` (``+dirty`` where tracked code differs), or ``""``."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, cwd=root, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                "observers", "systems", "benchmarks"], capture_output=True,
+                               text=True, cwd=root, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return head + ("+dirty" if head and dirty else "")
+
+
+class Store:
+    """The rows of one configuration and their metadata (a value: :func:`merge` returns a new
+    one)."""
+
+    def __init__(self, summary: pd.DataFrame, meta: dict):
+        self.summary = summary
+        self.meta = meta
+
+    @property
+    def rows(self) -> dict[str, dict]:
+        return self.meta.get("rows", {})
+
+    def fingerprint_record(self, key: str) -> dict:
+        """``{"code": {...}, "inputs": ..., "data": {...}}`` of a stored row."""
+        fp = self.rows[key]["fingerprint"]
+        rec = self.meta["fingerprints"][fp]
+        return {"code": self.meta["code"].get(rec["code"], {}), "inputs": rec["inputs"],
+                "data": self.meta["data"].get(rec["data"], {})}
+
+    def view(self) -> tuple[pd.DataFrame, dict]:
+        """``(summary, meta)`` as the report writers take them (the store's columns dropped)."""
+        return self.summary.drop(columns=list(STORE_COLUMNS)), self.meta
+
+
+def load_store(folder: str | Path) -> Store | None:
+    """Read and check the store of ``folder``; None if there is none.
+
+    Raises
+    ------
+    ConfigError
+        One line naming what is wrong: half-written, truncated, corrupted or hand-edited.
+    """
+    folder = Path(folder)
+    meta_path, path = folder / META, folder / SUMMARY
+    if not meta_path.is_file() and not path.is_file():
+        return None
+    fix = (f"restore it (`git checkout -- {folder}`) or re-run it (`setobs-bench bench "
+           f"{folder.name} --cold`)")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"store {folder}: {META} is missing; {fix}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"store {folder}: {META} is not valid JSON "
+                          f"({getattr(exc, 'msg', exc)}); {fix}") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        return None  # a run's output folder, not a store
+    if not path.is_file():
+        raise ConfigError(f"store {folder}: {SUMMARY} is missing; {fix}")
+    data = path.read_bytes()
+    want = meta.get("files", {}).get(SUMMARY, {})
+    if len(data) != want.get("bytes") or _sha(data) != want.get("sha256"):
+        how = "truncated (half-written?)" if len(data) < want.get("bytes", 0) else \
+            "changed since it was written (hand-edited or corrupted?)"
+        raise ConfigError(f"store {folder}: {SUMMARY} is {how}: it does not match {META}; {fix}")
+    try:
+        summary = pd.read_csv(io.BytesIO(data), dtype={"run_id": str, "fingerprint": str})
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"store {folder}: {SUMMARY} is not readable CSV: "
+                          f"{str(exc).splitlines()[0]}; {fix}") from None
+    rows = meta.get("rows", {})
+    keys = keys_of(summary)
+    if set(keys) != set(rows):
+        extra = sorted(set(keys) ^ set(rows))[:2]
+        raise ConfigError(f"store {folder}: the rows of {SUMMARY} and {META} differ "
+                          f"({', '.join(extra)}); {fix}")
+    for key, lines in summary.groupby(keys, sort=False):
+        rec = rows[key]
+        if set(lines["fingerprint"]) != {rec.get("fingerprint")}:
+            raise ConfigError(f"store {folder}: row {key} has fingerprint "
+                              f"{lines['fingerprint'].iloc[0]}, {META} says "
+                              f"{rec.get('fingerprint')}; {fix}")
+        if set(lines["run_id"]) != {rec.get("run")} or rec.get("run") not in meta.get("runs", {}):
+            raise ConfigError(f"store {folder}: row {key} names a run that {META} does not "
+                              f"record; {fix}")
+        if content_digest(lines) != rec.get("content"):
+            raise ConfigError(f"store {folder}: the content of row {key} does not match its "
+                              f"fingerprint's record (edited by hand?); {fix}")
+        if rec["fingerprint"] not in meta.get("fingerprints", {}):
+            raise ConfigError(f"store {folder}: row {key}'s fingerprint is not described in "
+                              f"{META}; {fix}")
+    return Store(summary, meta)
+
+
+def new_run(root: Path, executor: dict) -> tuple[str, dict]:
+    """A run id and its record (when, commit, machine, versions, executor)."""
+    from datetime import datetime, timezone
+
+    from ..io import environment
+
+    versions = environment()
+    versions.pop("git", None)
+    return new_run_id(), {
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "commit": commit(root), "machine": machine(), "versions": versions,
+        "executor": executor}
+
+
+def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fingerprint],
+          order: list[str], run_id: str | None, run: dict | None, run_meta: dict) -> Store:
+    """The store with ``new_rows`` (a run's summary, its rows keyed as in ``prints``) in place
+    of their old versions; rows whose key is not in ``order`` (no longer in the configuration)
+    are dropped, and the rest are ordered as ``order``.  ``rel_rms`` is recomputed over the
+    merged rows (its reference is the best observer of each scenario, whichever run made it).
+
+    Parameters
+    ----------
+    old : Store or None
+        The store so far.
+    new_rows : DataFrame or None
+        ``summary.csv`` rows of the run (without the store's columns); None: no run, only
+        the rows no longer in ``order`` go.
+    prints : dict
+        Row key -> fingerprint, for every key of ``new_rows``.
+    order : list of str
+        The row keys of the configuration, in its order.
+    run_id, run : str, dict
+        The run's id and record (:func:`new_run`).
+    run_meta : dict
+        ``config`` and ``scenarios`` of the run (as in a run's ``meta.json``).
+    """
+    if new_rows is None:  # only drop the rows no longer in the configuration
+        new_rows = old.summary.iloc[0:0].drop(columns=list(STORE_COLUMNS))
+    new_rows = new_rows.copy()
+    keys = keys_of(new_rows)
+    new_rows["fingerprint"] = [prints[k].digest for k in keys]
+    new_rows["run_id"] = run_id
+    frames = [new_rows]
+    meta = {"format": FORMAT, "config": run_meta.get("config", {}), "scenarios": {},
+            "runs": {}, "rows": {}, "fingerprints": {}, "code": {}, "data": {}}
+    if old is not None:
+        keep = ~keys_of(old.summary).isin(set(keys)) & keys_of(old.summary).isin(set(order))
+        frames.insert(0, old.summary[keep])
+        meta["scenarios"].update(old.meta.get("scenarios", {}))
+        for key in set(keys_of(old.summary[keep])):
+            meta["rows"][key] = dict(old.rows[key])
+            fp = old.rows[key]["fingerprint"]
+            rec = old.meta["fingerprints"][fp]
+            meta["fingerprints"][fp] = rec
+            meta["code"][rec["code"]] = old.meta["code"][rec["code"]]
+            meta["data"][rec["data"]] = old.meta["data"][rec["data"]]
+    meta["scenarios"].update(run_meta.get("scenarios", {}))
+    for key in set(keys):
+        p = prints[key]
+        code_id = short(_sha(canonical(p.code).encode()))
+        data_id = short(_sha(canonical(p.data).encode()))
+        meta["code"][code_id] = p.code
+        meta["data"][data_id] = p.data
+        meta["fingerprints"][p.digest] = {"code": code_id, "inputs": p.inputs, "data": data_id}
+        meta["rows"][key] = {"fingerprint": p.digest, "run": run_id}
+    summary = pd.concat([f for f in frames if len(f)], ignore_index=True)
+    rank = {k: i for i, k in enumerate(order)}
+    all_keys = keys_of(summary)
+    summary = summary.assign(_rank=all_keys.map(rank), _state=summary["state"]).sort_values(
+        ["_rank", "_state"], kind="stable").drop(columns=["_rank", "_state"])
+    summary = summary.reset_index(drop=True)
+    columns = [c for c in summary.columns if c not in STORE_COLUMNS] + list(STORE_COLUMNS)
+    summary = add_relative_rms(summary)[columns]
+    runs = {**(old.meta.get("runs", {}) if old else {}), **({run_id: run} if run_id else {})}
+    used = set(summary["run_id"])
+    meta["runs"] = {r: v for r, v in runs.items() if r in used}
+    # the executor of the reports' caption on parallel times: the most workers among the runs
+    meta["executor"] = max((v.get("executor", {}) for v in meta["runs"].values()),
+                           key=lambda e: (e.get("workers", 1), e.get("name", "")), default={})
+    used_sc = set(summary["scenario"])
+    meta["scenarios"] = {k: v for k, v in meta["scenarios"].items() if k in used_sc}
+    for key, lines in summary.groupby(keys_of(summary), sort=False):
+        meta["rows"][key]["content"] = content_digest(lines)
+    meta["rows"] = {k: meta["rows"][k] for k in dict.fromkeys(keys_of(summary))}
+    meta["fingerprints"] = dict(sorted(meta["fingerprints"].items()))
+    meta["code"] = dict(sorted(meta["code"].items()))
+    meta["data"] = dict(sorted(meta["data"].items()))
+    return Store(summary, meta)
+
+
+def store_bytes(store: Store) -> tuple[bytes, bytes]:
+    """The two files of a store as written (``summary.csv``, ``meta.json``)."""
+    data = csv_text(store.summary).encode("utf-8")
+    meta = {**store.meta, "files": {SUMMARY: {"bytes": len(data), "sha256": _sha(data)}}}
+    return data, json_text(meta).encode("utf-8")
+
+
+def write_store(folder: str | Path, store: Store) -> None:
+    """Write ``store`` to ``folder`` atomically (see the module docstring)."""
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_generations(folder)
+    data, meta = store_bytes(store)
+    tmp = folder.parent / f".{folder.name}.new-{os.getpid()}-{new_run_id()}"
+    tmp.mkdir()
+    try:
+        for name, payload in ((SUMMARY, data), (META, meta)):
+            with open(tmp / name, "wb") as fh:
+                fh.write(payload)
+                fh.flush()
+                os.fsync(fh.fileno())
+        if not folder.exists():
+            os.rename(tmp, folder)
+            return
+        moved = [e.name for e in folder.iterdir() if e.name not in (SUMMARY, META)]
+        try:
+            for name in moved:  # local run outputs and HTML pages stay with the store
+                os.rename(folder / name, tmp / name)
+            swapped = exchange(tmp, folder)
+        except BaseException:
+            for name in moved:
+                if (tmp / name).exists():
+                    os.rename(tmp / name, folder / name)
+            raise
+        if not swapped:  # pragma: no cover - no renameat2: two renames
+            old = folder.parent / f".{folder.name}.old-{os.getpid()}-{new_run_id()}"
+            os.rename(folder, old)
+            os.rename(tmp, folder)
+            tmp = old
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+class StoreLock:
+    """An exclusive lock on the stores under one ``results/`` folder (``.store.lock``); a second
+    writer fails at once with a one-line :class:`ConfigError` naming the holder."""
+
+    def __init__(self, root: str | Path):
+        self.path = Path(root) / ".store.lock"
+        self._fh = None
+
+    def __enter__(self) -> StoreLock:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(self.path, "a+")  # noqa: SIM115 - held until __exit__
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip() or "another process"
+            fh.close()
+            raise ConfigError(f"another `make bench` is writing the stores of {self.path.parent} "
+                              f"(lock {self.path} held by {holder}); wait for it to end") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"pid {os.getpid()}")
+        fh.flush()
+        self._fh = fh
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._fh is not None:
+            fcntl.flock(self._fh.fileno(), fcntl.LOCK_UN)
+            self._fh.close()
+            self._fh = None
+
