@@ -119,7 +119,17 @@ def run_stale(p: Plan, executor, out: Path, progress: bool | None = None):
         return None, None
     sub = subset(p.cfg, p.jobs, set(p.stale))
     result = run_config(sub, out, progress=progress, executor=executor)
+    fingerprinter = Fingerprinter()  # the tree as it is now, to compare with the plan
     ran = {job_key(j) for j in make_jobs(sub)}
+    moved = {k: changes({"code": p.prints[k].code, "inputs": p.prints[k].inputs,
+                         "data": p.prints[k].data}, fp, fingerprinter.graph)
+             for k, fp in ((k, fingerprinter.job(j, p.cfg)) for k, j in
+                           ((job_key(j), j) for j in p.jobs) if k in ran)
+             if fp.digest != p.prints[k].digest}
+    if moved:  # the tree changed under the run: its rows are of no single code
+        key, why = next(iter(moved.items()))
+        raise ConfigError(f"{p.cfg.name}: the code changed while its rows ran ({key}: {why}); "
+                          "nothing stored, run `make bench` again")
     run_id, run = new_run(ROOT, {"name": executor.name, "workers": executor.workers})
     merged = merge(p.store, result.summary, {k: p.prints[k] for k in ran}, p.order, run_id,
                    run, _run_meta(p.cfg))
