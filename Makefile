@@ -16,7 +16,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-quick report reports check baseline history audit audit-short speed scaling frontier clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale html datadriven evidence check baseline history audit audit-short speed scaling frontier clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -47,22 +47,29 @@ docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_bu
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## every config (JOBS=N workers, default: the cores; JOBS=1: serial times) -> results/, reports/; speed.md, scaling.md, frontier.md, index.html
-	$(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS)
-	@rm -f $(RESULTS)/.bench-failed; for cfg in $(CONFIGS_ALL); do \
-		name=$$(basename $$cfg .yaml); \
-		$(PY) -m benchmarks run $$cfg --out $(RESULTS)/$$name --jobs $(JOBS); rc=$$?; \
-		if [ $$rc -ne 0 ]; then echo "$$name: run exit $$rc (see its report)" >> $(RESULTS)/.bench-failed; fi; \
-		[ -f $(RESULTS)/$$name/summary.csv ] || continue; \
-		$(PY) -m benchmarks report $(RESULTS)/$$name || exit $$?; \
-		$(PY) -m benchmarks report $(RESULTS)/$$name --no-figures --out reports/$$name.md || exit $$?; \
-	done
-	$(PY) -m benchmarks speed
-	$(MAKE) scaling
-	$(MAKE) frontier
+bench: $(STAMP)  ## incremental: run only the stale or missing rows of every published config (JOBS workers), merge them into results/<config>/, render reports/<config>.md and the HTML pages of the configs it ran
+	$(PY) -m benchmarks bench --jobs $(JOBS) --html
 	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
-	@if [ -f $(RESULTS)/.bench-failed ]; then echo "make bench: configurations with a failing verdict (reports written; exit 1 = a containment violation or a missed consistent state, 3 = a stopped observer, 4 = an inconsistent record):"; cat $(RESULTS)/.bench-failed; exit 1; fi
+
+bench-cold: $(STAMP)  ## every row of every published config from an empty design and floor cache (what the README times); HTML pages without figures (make html draws them)
+	rm -rf $(RESULTS)/.cold-cache
+	SETOBS_CACHE_DIR=$(abspath $(RESULTS))/.cold-cache $(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS) --no-progress
+	SETOBS_CACHE_DIR=$(abspath $(RESULTS))/.cold-cache $(PY) -m benchmarks bench --cold --jobs $(JOBS) --no-progress
+	$(PY) -m benchmarks index reports --committed
+
+reports: $(STAMP)  ## render every committed report from its result store, in seconds (no run; changes no byte when nothing changed)
+	$(PY) -m benchmarks reports
+	$(PY) -m benchmarks index reports --committed
+
+stale: $(STAMP)  ## name the stored rows and committed reports a change made stale (no run; exit 1 if any)
+	$(PY) -m benchmarks stale
+
+html: $(STAMP)  ## the HTML page of every result store, with the figures of its last local run -> results/<config>/index.html
+	@for dir in $(RESULTS)/*/; do \
+		[ -f $$dir/meta.json ] && [ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
+	done
+	$(PY) -m benchmarks index reports --results $(RESULTS)
 
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
@@ -77,20 +84,24 @@ scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.
 frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)
 	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier
 
-check: $(STAMP)  ## CI gate: committed reports fresh (content hashes), regression subset vs results/baseline/
+check: $(STAMP)  ## CI gate: no stale stored row or report (setobs-bench stale), regression subset vs results/baseline/
 	$(PY) -m benchmarks check --reports reports
 
 baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
 	$(PY) -m benchmarks baseline --update
 
-reports: bench audit  ## regenerate every committed report (bench, audit, data-driven study)
+datadriven: $(STAMP)  ## the data-driven study (Alanwar et al. 2022) -> reports/datadriven.md, and its fingerprint
 	$(PY) -m benchmarks.studies.alanwar2022 --out reports/datadriven.md
+	$(PY) -m benchmarks stale --record reports/datadriven.md
+
+evidence: bench audit datadriven speed scaling frontier  ## everything committed: the stale rows, the audit, the data-driven study and the timing reports
 
 history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
 	$(PY) -m benchmarks history
 
-audit: $(STAMP)  ## soundness audit, 100 realisations per observer and scenario -> reports/soundness.md
-	$(PY) -m benchmarks audit
+AUDIT_REALISATIONS ?= 20
+audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenario, default 20): only the stale pairs of results/soundness/ run; -> reports/soundness.md
+	$(PY) -m benchmarks audit --realisations $(AUDIT_REALISATIONS)
 
 audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
 	$(PY) -m benchmarks audit --short --no-progress

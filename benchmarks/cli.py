@@ -112,29 +112,26 @@ def _cmd_bench(args) -> int:
     names = args.configs or store_bench.published()
     executor = executors.from_args(None, args.jobs, None)
     results, reports = Path(args.results), Path(args.reports)
-    worst = 0
     t0 = time.perf_counter()
     try:
-        with store_bench.StoreLock(results):
-            fingerprinter = store_bench.Fingerprinter()
-            for name in names:
-                cfg = load_config(name)
-                outcome = store_bench.bench_config(
-                    cfg, results, reports, executor, cold=args.cold,
-                    progress=False if args.no_progress else None, fingerprinter=fingerprinter)
-                for line in outcome.problems:
-                    print(f"{cfg.name}: {line}", file=sys.stderr)
-                worst = max(worst, outcome.exit_code)
-                fingerprinter = store_bench.Fingerprinter()  # a run may have changed nothing,
-                # but a configuration after it must see the tree as it is now
+        outcomes = store_bench.bench_all(names, results, reports, executor, cold=args.cold,
+                                         progress=False if args.no_progress else None)
     finally:
         executor.close()
-    print(f"bench: {len(names)} configuration(s) in {time.perf_counter() - t0:.0f} s")
-    return worst
+    for outcome in outcomes:
+        for line in outcome.problems:
+            print(f"{outcome.name}: {line}", file=sys.stderr)
+        if args.html and outcome.ran:  # figures exist for the rows just run
+            folder = results / outcome.name
+            print(f"wrote {write_html(folder, data=store_bench.load_store(folder).view())}")
+    ran = sum(o.ran for o in outcomes)
+    print(f"bench: {ran} of {sum(o.total for o in outcomes)} rows run in {len(outcomes)} "
+          f"configuration(s), {time.perf_counter() - t0:.0f} s")
+    return max((o.exit_code for o in outcomes), default=0)
 
 
 def _cmd_reports(args) -> int:
-    changed = store_bench.render_all(Path(args.results), Path(args.reports))
+    changed = policy.render_all(Path(args.results), Path(args.reports))
     for path in changed:
         print(f"wrote {path}")
     print(f"reports: {len(changed)} rewritten")
@@ -146,7 +143,7 @@ def _cmd_stale(args) -> int:
         digest = store_stale.record_study(args.record)
         print(f"recorded {args.record} as produced from this tree (fingerprint {digest})")
         return 0
-    lines = store_stale.find_stale(args.configs or None)
+    lines = policy.stale(args.configs or None)
     for line in lines:
         print(line)
     if lines:
@@ -183,7 +180,7 @@ def _cmd_baseline(args) -> int:
 def _cmd_audit(args) -> int:
     return _print(policy.audit(args.scenarios, args.observers, realisations=args.realisations,
                                jobs=args.jobs, short=args.short, out=args.out,
-                               report=args.report, progress=_progress(args)))
+                               report=args.report, progress=_progress(args), cold=args.cold))
 
 
 def _cmd_time(args) -> int:
@@ -224,10 +221,12 @@ def _cmd_speed(args) -> int:
 def _cmd_report(args) -> int:
     if args.out is not None:
         check_output_file(args.out, "--out")
-    path = write_report(args.dir, args.out, figures=not args.no_figures)
+    store = store_bench.load_store(args.dir)  # a result store, or None for a run's folder
+    data = store.view() if store is not None else None
+    path = write_report(args.dir, args.out, figures=not args.no_figures, data=data)
     print(f"wrote {path}")
     if args.out is None:  # DIR/index.html beside DIR/report.md
-        print(f"wrote {write_html(args.dir, figures=not args.no_figures)}")
+        print(f"wrote {write_html(args.dir, figures=not args.no_figures, data=data)}")
     return 0
 
 
@@ -341,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--results", default="results", help="folder of the stores")
     be.add_argument("--reports", default="reports", help="folder of the committed reports")
     be.add_argument("--no-progress", action="store_true", help="no progress bar")
+    be.add_argument("--html", action="store_true",
+                    help="also write RESULTS/<config>/index.html with figures for each "
+                         "configuration that ran rows (make html: every store)")
     be.set_defaults(func=_cmd_bench)
     rr = sub.add_parser("reports", help="render every committed report from its store "
                                         "(no run; changes no byte when nothing changed)")
@@ -405,8 +407,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="where to write this run and diff.csv (default results/check)")
     ch.add_argument("--all", action="store_true", help="print every compared value")
     ch.add_argument("--reports", metavar="DIR",
-                    help="also fail if a report in DIR is stale (its content-hash stamp differs "
-                         "from the current code, data and configuration; make check: reports)")
+                    help="also fail if a stored row or a committed report is stale "
+                         "(`setobs-bench stale`: row fingerprints against the code, reports "
+                         "against their stores; make check: reports)")
     ch.add_argument("--strict", action="store_true",
                     help="fail on installed third-party plugins that are not in the baseline "
                          "(default: list them)")
@@ -440,9 +443,14 @@ def build_parser() -> argparse.ArgumentParser:
                          f"{', '.join(audit.ADVERSARIAL)}) among the first "
                          f"{audit.SHORT_REALISATIONS}; writes to "
                          "results/audit-short/ (soundness.csv, soundness.md)")
-    au.add_argument("--out", help="folder of soundness.csv (default results/audit)")
-    au.add_argument("--report", help="Markdown report (default reports/soundness.md)")
+    au.add_argument("--out", help="a direct run: folder of soundness.csv (default: the full "
+                                  "audit's store results/soundness/)")
+    au.add_argument("--report", help="a direct run: its Markdown report (default: "
+                                     "reports/soundness.md, rendered from the store)")
     au.add_argument("--no-progress", action="store_true", help="no progress bar")
+    au.add_argument("--cold", action="store_true",
+                    help="the full audit: run every observer x scenario pair, stale or not "
+                         "(default: only the stale ones of results/soundness/)")
     au.set_defaults(func=_cmd_audit)
     ti = sub.add_parser("time", help="per-step times of observers against a Kalman filter step",
                         description=timing.__doc__.splitlines()[0])

@@ -23,7 +23,8 @@ PACKAGES = ("observers", "systems", "benchmarks")
 #: the shared floor of ``benchmarks/`` (top-level modules every wing may import)
 FLOOR = {"errors", "io", "metrics", "verdicts"}
 #: the wings of ``benchmarks/`` and the other wings each may import (besides the floor)
-WINGS = {"run": set(), "report": set(), "gate": {"run", "report"},
+WINGS = {"run": set(), "report": set(), "store": {"run", "report"},
+         "gate": {"run", "report", "store"},
          "timing": {"run", "report"}, "studies": {"run", "report", "timing"}}
 
 

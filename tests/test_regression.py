@@ -62,7 +62,7 @@ def test_perturbed_gain_fails_the_check_and_restoring_it_passes(tmp_path, capsys
     cfg = subset(tmp_path)
     assert gate(tmp_path, "baseline", cfg, "--update") == 0
     assert sorted(p.name for p in (tmp_path / "baseline").iterdir()) == [
-        "SENSITIVITY.md", "alamo2d.csv", "meta.json", "vehicle2d-cora.csv"]
+        "SENSITIVITY.md", "alamo2d.csv", "cost.json", "meta.json", "vehicle2d-cora.csv"]
     assert gate(tmp_path, "check", cfg) == 0
     assert "check passed" in capsys.readouterr().out
 

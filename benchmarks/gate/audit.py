@@ -29,10 +29,12 @@ kinds of the first :data:`SHORT_REALISATIONS` realisations (:data:`ADVERSARIAL`:
 a few minutes, so that an unsound change cannot pass CI by re-baselining the gate.
 
 Failures are counted, not raised: ``noGain``, ``diverged`` (its steps before divergence are
-still checked) and ``error`` runs are listed per observer.  The results go to
-``reports/soundness.md`` (runs, steps, violations, worst violation per observer and scenario;
-non-guaranteed baselines in their own table) and ``results/audit/soundness.csv`` (per kind).
-A violation by a guaranteed observer makes the command exit with status 1.
+still checked) and ``error`` runs are listed per observer.  The full audit's rows (observer x
+scenario, a line per realisation kind) are a result store, ``results/soundness/``, re-run where
+stale (:mod:`.audit_store`); ``reports/soundness.md`` is rendered from it
+(:mod:`.audit_report`: runs, steps, violations, worst violation per observer and scenario;
+non-guaranteed baselines in their own table).  A violation by a guaranteed observer makes the
+command exit with status 1.
 """
 
 from __future__ import annotations
@@ -41,8 +43,6 @@ import dataclasses
 import functools
 import os
 import time
-from datetime import datetime, timezone
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -52,9 +52,6 @@ import systems
 from systems import ModelError, Scenario
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv, atomic_write_text, environment
-from ..report import freshness
-from ..report.numbers import fmt, markdown_table
 from ..run.config import merge_options
 from ..run.executors import run_tasks
 from ..run.floor import RecordFloor, compute_floor, floor_columns, observer_floor
@@ -286,11 +283,13 @@ def _audit_task(task: tuple[str, str, int, tuple[str, ...], int]) -> list[dict]:
 
 def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALISATIONS,
               jobs: int = 1, progress: bool | None = None,
-              kinds: tuple[str, ...] = KINDS, floors: int = FLOOR_REALISATIONS) -> pd.DataFrame:
+              kinds: tuple[str, ...] = KINDS, floors: int = FLOOR_REALISATIONS,
+              only: set[tuple[str, str]] | None = None) -> pd.DataFrame:
     """Audit every observer in ``names`` (default: every registered one but the exact
     reference, whose floor the others are held to) on every scenario, on the realisations
     among the first ``count`` whose kind is in ``kinds``; the first ``floors`` of them per
-    scenario are also held against the record's floor."""
+    scenario are also held against the record's floor.  ``only``: just these
+    ``(scenario, observer)`` pairs (the stale ones of the audit's store)."""
     if not isinstance(count, int) or count < 1:
         raise ConfigError(f"audit: the number of realisations must be >= 1, got {count!r}")
     if jobs < 1:
@@ -306,7 +305,8 @@ def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALIS
     if unknown or not kinds:
         raise ConfigError(f"audit: unknown realisation kind(s) {sorted(unknown)} "
                           f"(known: {', '.join(KINDS)})")
-    tasks = [(sc, name, count, tuple(kinds), floors) for sc in scenarios for name in names]
+    tasks = [(sc, name, count, tuple(kinds), floors) for sc in scenarios for name in names
+             if only is None or (sc, name) in only]
     with progress_bar(len(tasks), "audit", progress) as bar:
         def done(task, _) -> None:
             bar.set_postfix_str(f"{task[0]}: {task[1]}", refresh=False)
@@ -341,102 +341,6 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
             "lp_tests": int(g["lp_tests"].sum()), "seconds": float(g["seconds"].sum()),
         })
     return pd.DataFrame(out)
-
-
-def _table(agg: pd.DataFrame) -> str:
-    """Markdown table of the aggregated audit (:func:`aggregate`)."""
-    head = ["observer", "scenario", "runs", "steps", "violations", "worst violation",
-            "undecided", "floor steps", "uncovered", "failed runs", "LP tests", "time s"]
-    rows = [[r.observer, r.scenario, str(r.runs), str(r.steps),
-             f"**{r.violations}**" if r.violations else "0",
-             "-" if r.violations == 0 else f"{fmt(r.worst_violation, 3)} ({r.worst_at})",
-             str(r.undecided), str(r.floor_steps),
-             f"**{r.uncovered}** ({r.uncovered_at})" if r.uncovered else "0",
-             r.failed or "-", str(r.lp_tests), fmt(r.seconds, 3)]
-            for r in agg.itertuples(index=False)]
-    return markdown_table(head, rows)
-
-
-def soundness_report(df: pd.DataFrame, count: int, elapsed: float, jobs: int,
-                     command: str | None = None) -> str:
-    """The Markdown report ``reports/soundness.md``."""
-    agg = aggregate(df)
-    guaranteed = agg[agg["guaranteed"]]
-    baselines = agg[~agg["guaranteed"]]
-    bad = guaranteed[(guaranteed["violations"] > 0) | (guaranteed["uncovered"] > 0)]
-    verdict = ("**Zero violations for every guaranteed observer: every true state inside, no "
-               "consistent state found outside.**" if bad.empty else
-               "**VIOLATIONS by guaranteed observers: " + ", ".join(
-                   f"{r.observer} on {r.scenario} ({r.violations} steps missing the true state, "
-                   f"{r.uncovered} missing the floor)"
-                   for r in bad.itertuples(index=False)) + "** (bugs to fix or to explain)")
-    first = df[(df["observer"] == df["observer"].iloc[0])
-               & (df["scenario"] == df["scenario"].iloc[0])] if len(df) else df
-    kinds = ", ".join(f"{r.kind} {r.runs}" for r in first.itertuples(index=False))
-    used = int(first["runs"].sum()) if len(first) else 0
-    command = command or f"python -m benchmarks audit --realisations {count}"
-    versions = environment()
-    parts = [
-        "# Soundness audit",
-        "",
-        f"Generated by `{command}` on "
-        f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} (git "
-        f"{versions.get('git', '?')}); {elapsed:.0f} s wall time with {jobs} worker(s).",
-        "",
-        "Every observer runs on seeded realisations of each scenario; at every step the true "
-        "state is tested for membership in the estimated set with an exact test per set type "
-        "(interval hull rejection, a verified factor-vector certificate, else an LP whose "
-        "primal and dual points give certified bounds of the distance; see "
-        "`benchmarks/run/membership.py`). Tolerance: max(scenario tolerance, "
-        "1e-8 max(1, |x|_inf)). "
-        "*Violations*: steps at which the true state is certified to lie outside the set; "
-        "*worst violation*: the largest certified infinity-norm distance from the true state "
-        "to the set (Euclidean for ellipsoids); *undecided*: steps the LP could not decide "
-        "within its precision (counted, not hidden): the true state lies within the rounding "
-        "level of the set's own floating-point data, e.g. on the boundary of a badly scaled "
-        "set, or inside a diverging estimate whose generators reach 1e10, where double "
-        "precision cannot resolve 1e-8; *failed runs*: realisations without an "
-        "estimate (noGain: no gain found; unsupported: the observer does not apply, e.g. a "
-        "data-driven observer on a scenario without training data) or ending early "
-        "(diverged: its earlier steps are still checked; empty: the estimate became empty, "
-        "which also counts as a violation). *Floor steps*: steps of the first realisations of "
-        "each scenario whose interval hulls were also held against the record's floor (the "
-        "exact consistent set of a linear record by `Exact`; the verified consistent states "
-        "the falsifier found at ten steps of a nonlinear record; `benchmarks/run/floor.py`); "
-        "*uncovered*: steps where the hull misses a state consistent with the data, a "
-        "violation whatever the true state did.",
-        "",
-        f"Realisations per observer and scenario: {used} of the first {count} (realisation "
-        f"i has seed i and kind i mod 5: {kinds}). `vertex`, `vertex-hold` and "
-        "`worst-input` are adversarial: "
-        "noise at the vertices of W and V (redrawn every step, or held for random dwell "
-        "times) and bang-bang inputs at the bounds of the nominal input range that swing the "
-        "state between extremes; see `benchmarks/gate/audit.py`.",
-        "",
-        verdict,
-        "",
-        "## Guaranteed observers",
-        "",
-        _table(guaranteed) if len(guaranteed) else "(none)",
-        "",
-        "## Non-guaranteed baselines (counted separately)",
-        "",
-        _table(baselines) if len(baselines) else "(none registered)",
-        "",
-    ]
-    return "\n".join(parts)
-
-
-def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: int,
-                elapsed: float, jobs: int, command: str | None = None) -> tuple[Path, Path]:
-    """Write ``soundness.csv`` (per kind) and the Markdown report, each atomically."""
-    csv_path = Path(out) / "soundness.csv"
-    atomic_write_csv(csv_path, df)
-    report = Path(report)
-    text = soundness_report(df, count, elapsed, jobs, command).rstrip("\n")
-    regen = command or f"python -m benchmarks audit --realisations {count} --report {report}"
-    atomic_write_text(report, f"{text}\n\n{freshness.stamp(regen)}\n")
-    return csv_path, report
 
 
 def default_jobs() -> int:

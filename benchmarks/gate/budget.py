@@ -19,9 +19,9 @@ rounded up to a whole second.  The cap keeps a plugin that hangs in ``step()`` f
 the gate: each of its jobs of the subset's 7 scenarios is stopped after at most 15 s, under
 2 minutes in all.  A job over its budget is stopped and reported as ``timeout``
 (:class:`GateExecutor`), with one line naming it, its scenario and its budget
-(:func:`timeout_lines`).  A ``timeout:`` in the subset's configuration (or a budget given
-to :func:`benchmarks.gate.policy.check`) replaces every per-job budget; the floors (the exact
-reference of each scenario, computed before the jobs) keep :data:`GATE_TIMEOUT`.
+(:func:`timeout_lines`).  A ``timeout:`` in the subset's configuration replaces every per-job
+budget (``check`` has no ``--timeout`` option); the floors (the exact reference of each
+scenario, computed before the jobs) keep :data:`GATE_TIMEOUT`.
 
 Without a cost file (a baseline written before costs were recorded) every job gets
 :data:`GATE_TIMEOUT`, as before, and ``check`` says so on one line; a cost file that cannot be
@@ -57,7 +57,7 @@ MIN_BUDGET_S = 10.0
 #: the most a job without a recorded cost gets (seconds): a plugin that hangs adds at most
 #: this per scenario of the subset to the gate
 NEW_JOB_MAX_BUDGET_S = 15.0
-#: the time budget per job where no cost is recorded (and of the floors), unless the subset's
+#: the time budget of every job without a cost file (and of the floors), unless the subset's
 #: configuration sets one
 GATE_TIMEOUT = 300.0
 #: how the costs are measured (``check`` runs the subset the same way)

@@ -2,7 +2,7 @@
 
 The mechanisms live beside this module (:mod:`.regression` compares golden files,
 :mod:`~benchmarks.gate.kernels` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the
-soundness audit, :mod:`benchmarks.report.freshness` hashes the committed reports); the rules
+soundness audit, :mod:`benchmarks.store.stale` finds stale rows and reports); the rules
 that turn their findings into an exit code are here, in one place:
 
 * ``check`` fails (1) on a stale committed report, on a regression subset configuration that
@@ -35,10 +35,11 @@ import pandas as pd
 
 from ..errors import ConfigError
 from ..io import atomic_write_csv, blas_corename
-from ..report import freshness
+from ..store import bench as store_bench
+from ..store import stale as store_stale
 from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
-from . import budget, kernels, regression
+from . import audit_report, audit_store, budget, kernels, regression
 
 #: scenarios of the short soundness audit that a tighter observer must pass
 PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
@@ -93,19 +94,40 @@ class Outcome:
 def check(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
           progress: bool | None = None, out: str | Path | None = None, strict: bool = False,
           show_all: bool = False, reports: str | Path | None = None) -> Outcome:
-    """``check``: the committed reports' freshness (``reports``), then the regression subset
-    against the golden files of ``baseline``."""
+    """``check``: nothing stale (``reports``: the stored rows and the committed reports of
+    that folder, :func:`stale`), then the regression subset against the golden files of
+    ``baseline``."""
     res = Outcome()
-    stale = freshness.stale_reports(reports) if reports else []
-    if stale:  # cheap (hashes only): reported first, and the regression subset still runs
-        res.warn(freshness.format_stale(stale))
+    found = stale(reports=Path(reports)) if reports else []
+    if found:  # cheap (no run): reported first, and the regression subset still runs
+        res.warn("\n".join(map(str, found)))
     res.code = _check_regression(res, config, baseline, use_cache, progress, out, strict,
                                  show_all)
-    if stale:
-        res.warn(f"check FAILED: {len(stale)} committed report(s) in {reports} are stale "
-                 "(see above)")
+    if found:
+        res.warn(f"check FAILED: {len(found)} stale row(s) or report(s) (listed above): "
+                 "`make bench` / `make audit` re-run the rows, `make reports` renders the "
+                 "reports (timing reports are never stale)")
         res.code = 1
     return res
+
+
+def render_all(results: Path, reports: Path) -> list[Path]:
+    """``make reports``: render every committed report from its store (the configurations',
+    :func:`benchmarks.store.bench.render_all`, and the audit's); the files rewritten."""
+    changed = store_bench.render_all(results, reports)
+    if audit_store.rerender(results, reports):
+        changed.append(reports / audit_store.REPORT.name)
+    return changed
+
+
+def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
+    """``setobs-bench stale``: every stale row and report (:mod:`benchmarks.store.stale`) and,
+    without ``names``, the soundness audit's (:func:`.audit_store.stale_lines`)."""
+    fingerprinter = store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
+    found = store_stale.find_stale(names, reports=reports, fingerprinter=fingerprinter)
+    if not names:
+        found += audit_store.stale_lines(fingerprinter=fingerprinter, reports=reports)
+    return found
 
 
 def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, strict,
@@ -256,31 +278,49 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
 def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
           realisations: int, jobs: int | None = None, short: bool = False,
           out: str | None = None, report: str | None = None,
-          progress: bool | None = None) -> Outcome:
-    """``audit``: run the soundness audit (``short``: the CI mode, adversarial realisations
-    only, written to ``results/audit-short/``), write its CSV and report, and fail on a
-    violation of a guaranteed observer."""
+          progress: bool | None = None, cold: bool = False) -> Outcome:
+    """``audit``: run the soundness audit and fail on a violation of a guaranteed observer.
+
+    The full audit (default scenarios and observers, ``reports/soundness.md``) is a result
+    store re-run where stale (:mod:`.audit_store`; ``cold``: every pair); ``short`` (the CI
+    mode: adversarial realisations only, into ``results/audit-short/``) and an audit of chosen
+    scenarios, observers or outputs are direct runs that write their CSV and report."""
     jobs = jobs if jobs is not None else soundness.default_jobs()
-    count, kinds, command = realisations, soundness.KINDS, None
-    floors = soundness.FLOOR_REALISATIONS
-    if short:
-        count, kinds = soundness.SHORT_REALISATIONS, soundness.ADVERSARIAL
-        floors = soundness.SHORT_FLOOR_REALISATIONS
-        command = "python -m benchmarks audit --short"
-        out = out or str(Path("results") / "audit-short")
-        report = report or str(Path(out) / "soundness.md")
-    out = out or str(Path("results") / "audit")
-    report = report or str(Path("reports") / "soundness.md")
+    full = (not short and out is None and report is None and not observer_names
+            and tuple(scenarios) == tuple(soundness.AUDIT_SCENARIOS))
     t0 = time.perf_counter()
-    df = soundness.run_audit(scenarios, observer_names, count, jobs, progress=progress,
-                             kinds=kinds, floors=floors)
-    elapsed = time.perf_counter() - t0
-    csv_path, report = soundness.write_audit(df, out, report, count, elapsed, jobs, command)
+    if full:
+        store, ran_rows, ran = audit_store.bench_audit(realisations, jobs, cold=cold,
+                                                       progress=progress)
+        elapsed = time.perf_counter() - t0
+        if store is None:
+            raise ConfigError("audit: no store and nothing to run")
+        df = store.view()[0]
+        lines = [f"wrote {audit_store.REPORT} from {audit_store.STORE} ({ran} pair(s) run in "
+                 f"{elapsed:.0f} s, the others current)"]
+    else:
+        count, kinds, command = realisations, soundness.KINDS, (
+            f"python -m benchmarks audit --realisations {realisations}")
+        floors = soundness.FLOOR_REALISATIONS
+        if short:
+            count, kinds = soundness.SHORT_REALISATIONS, soundness.ADVERSARIAL
+            floors = soundness.SHORT_FLOOR_REALISATIONS
+            command = "python -m benchmarks audit --short"
+            out = out or str(Path("results") / "audit-short")
+            report = report or str(Path(out) / "soundness.md")
+        out = out or str(Path("results") / "audit")
+        report = report or str(Path(out) / "soundness.md")
+        df = soundness.run_audit(scenarios, observer_names, count, jobs, progress=progress,
+                                 kinds=kinds, floors=floors)
+        elapsed = time.perf_counter() - t0
+        csv_path, report = audit_report.write_audit(df, out, report, count, elapsed, jobs,
+                                                    command)
+        lines = [f"wrote {report} and {csv_path}"]
     agg = soundness.aggregate(df)
     bad = agg[agg["guaranteed"] & ((agg["violations"] > 0) | (agg["uncovered"] > 0))]
     res = Outcome()
-    res.say(f"wrote {report} and {csv_path} ({int(agg['runs'].sum())} runs, "
-            f"{int(agg['steps'].sum())} steps, {elapsed:.0f} s)")
+    res.say(f"{lines[0]} ({int(agg['runs'].sum())} runs, {int(agg['steps'].sum())} steps, "
+            f"{elapsed:.0f} s)")
     undecided = int(agg["undecided"].sum())
     if undecided:
         res.say(f"note: {undecided} step(s) undecided at LP precision (see the report)")

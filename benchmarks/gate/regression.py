@@ -20,7 +20,8 @@ re-runs the subset and compares:
   also pass the short soundness audit before the last line calls it tighter
   (:mod:`.policy`).
 
-Timings are never compared.
+Timings are never compared: a job only has to end within its time budget, derived from the
+cost of each job recorded beside the golden files (``cost.json``, :mod:`.budget`).
 
 Tolerances are data, not code paths: ``rtol`` is the larger of the class attribute
 ``REGRESSION_RTOL`` of the observer (``observers.Observer``: 1e-6, deterministic online

@@ -1,28 +1,26 @@
-"""Freshness of the committed reports: a content hash of what each report was produced from.
+"""Provenance of a report: the stamp line that says what produced it, and where.
 
-Every report written by the harness (``python -m benchmarks report``, ``audit``, the studies)
-ends with a stamp line::
+Committed reports are kept fresh by the result stores (:mod:`benchmarks.store`): a
+configuration's report is a view of rows whose fingerprints ``setobs-bench stale`` checks, so
+no report needs a hash of the code.  What remains here:
 
-    <!-- freshness: sha256=<hash> config=<path or -> command=<how to regenerate it> -->
-
-``<hash>`` is :func:`content_hash`: a SHA-256 over a well-defined set of files, the code
-(every ``*.py`` under ``observers/``, ``systems/`` and ``benchmarks/`` except the
-configurations), the shipped data (every file under ``systems/data/``) and, for a report of a
-benchmark configuration, that configuration file.  Paths enter relative to the project root
-with ``/`` separators and files in sorted order, so the hash depends only on the contents.
-
-:func:`stale_reports` compares the stamps of ``reports/*.md`` with the hashes of the current
-tree (cheap: no benchmark is re-run) and names every report whose stamp is missing or differs,
-with the command that regenerates it; ``python -m benchmarks check --reports reports`` (what
-``make check`` runs) fails on any.  Since every report depends on the code, any change to it
-makes every report stale: regenerate them all with ``make reports`` once the code is final.
+- :func:`stamp`: the last line of a report written by a run or a study,
+  ``<!-- freshness: sha256=<hash> config=<path or -> command=<how to regenerate it> -->``, with
+  :func:`content_hash` over the code (every ``*.py`` under ``observers/``, ``systems/``,
+  ``benchmarks/``), the shipped data and the configuration: two local reports with the same
+  stamp were made by the same tree;
+- :func:`measured`: the last line of a timing report (``reports/speed.md``, ``scaling.md``,
+  ``frontier.md``), ``<!-- measured: commit=<commit> machine=<cpu; cores; BLAS kernel>
+  command=<command> -->``: a measurement of a machine, never stale for the code;
+- :func:`machine` and :func:`commit`, which the result stores record for every run.
 """
 
 from __future__ import annotations
 
 import hashlib
-import re
-from dataclasses import dataclass
+import os
+import platform
+import subprocess
 from pathlib import Path
 
 #: the project root (the folder holding observers/, systems/, benchmarks/)
@@ -31,7 +29,6 @@ ROOT = Path(__file__).resolve().parent.parent.parent
 CODE_DIRS = ("observers", "systems", "benchmarks")
 #: data folders whose files (all of them) enter the hash
 DATA_DIRS = ("systems/data",)
-_STAMP = re.compile(r"<!-- freshness: sha256=([0-9a-f]+) config=(\S+) command=(.*?) -->")
 
 
 def _inputs(config: str | None, root: Path) -> list[Path]:
@@ -91,68 +88,38 @@ def report_command(config: str | None, out: str | Path) -> str:
             f"report results/{name} --no-figures --out {out}")
 
 
-def default_command(path: Path, root: Path = ROOT) -> str:
-    """The command that regenerates a report that carries no stamp, from its file name."""
-    if path.stem == "soundness":
-        return f"python -m benchmarks audit --report {path}"
-    if path.stem == "datadriven":
-        return f"python -m benchmarks.studies.alanwar2022 --out {path}"
-    if path.stem == "speed":
-        return "python -m benchmarks speed"
-    if path.stem == "scaling":
-        return f"python -m benchmarks.studies.scaling --out {path} --results results/scaling"
-    if path.stem == "frontier":
-        return f"python -m benchmarks.studies.frontier --out {path} --results results/frontier"
-    return report_command(config_of(path.stem, root), path)
+def machine() -> dict[str, str]:
+    """The machine of this process: processor model, cores, system, OpenBLAS kernel."""
+    from ..io import blas_corename
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": str(os.cpu_count() or 1), "system": platform.system(),
+            "blas_coretype": blas_corename()}
 
 
-@dataclass(frozen=True)
-class Stale:
-    """A report whose stamp is missing or does not match the current tree."""
-
-    report: Path
-    reason: str
-    command: str
-
-
-def read_stamp(path: Path) -> tuple[str, str | None, str] | None:
-    """The last stamp of a report: ``(digest, config or None, command)``; None without one."""
-    found = _STAMP.findall(path.read_text(encoding="utf-8", errors="replace"))
-    if not found:
-        return None
-    digest, config, command = found[-1]
-    return digest, None if config == "-" else config, command
+def commit(root: Path = ROOT) -> str:
+    """The commit of the checkout at ``root`` (``+dirty`` where tracked code differs), or
+    ``""`` outside a git checkout."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, cwd=root, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                "observers", "systems", "benchmarks"], capture_output=True,
+                               text=True, cwd=root, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return head + ("+dirty" if head and dirty else "")
 
 
-def check_report(path: Path, root: Path = ROOT) -> Stale | None:
-    """None if the report's stamp matches the current tree, else why not."""
-    text = path.read_text(errors="replace")
-    found = _STAMP.findall(text)
-    if not found:
-        return Stale(path, "no freshness stamp", default_command(path, root))
-    digest, config, command = found[-1]
-    config = None if config == "-" else config
-    if config and not (root / config).is_file():
-        return Stale(path, f"its configuration {config} no longer exists", command)
-    if digest != content_hash(config, root):
-        return Stale(path, "code, data or configuration changed since it was written", command)
-    return None
-
-
-def stale_reports(folder: str | Path = "reports", root: Path = ROOT) -> list[Stale]:
-    """Every ``*.md`` in ``folder`` (except its README.md index) that is not fresh."""
-    folder = Path(folder)
-    out = []
-    for path in sorted(folder.glob("*.md")):
-        if path.name == "README.md":
-            continue
-        bad = check_report(path, root)
-        if bad is not None:
-            out.append(bad)
-    return out
-
-
-def format_stale(stale: list[Stale]) -> str:
-    """One line per stale report: its path, why, and the command that regenerates it."""
-    return "\n".join(f"STALE REPORT {s.report}: {s.reason}; regenerate with `{s.command}`"
-                     for s in stale)
+def measured(command: str) -> str:
+    """The stamp line of a timing report: the commit and machine it measured."""
+    m = machine()
+    return (f"<!-- measured: commit={commit() or '?'} machine={m['cpu']}; {m['cores']} cores; "
+            f"OpenBLAS {m['blas_coretype']} command={command} -->")

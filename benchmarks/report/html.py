@@ -34,7 +34,6 @@ from ..io import atomic_write_text, environment, load_results, load_runs, path_c
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
 from .figures import LayeredFigure, bounds_and_radii, heat_map, step_times
-from .freshness import read_stamp
 from .numbers import MISSING, Num, format_columns
 from .paper import paper_rows, paper_title
 from .tables import (
@@ -402,7 +401,8 @@ def docs_link(page_dir: Path) -> str:
 
 
 def write_html(results_dir: str | Path, out: str | Path | None = None,
-               figures: bool = True, bands: dict | None = None) -> Path:
+               figures: bool = True, bands: dict | None = None,
+               data: tuple | None = None) -> Path:
     """Write the HTML report of a results folder (default ``DIR/index.html``).
 
     Parameters
@@ -418,6 +418,9 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
         Extra bands of the bounds figures per scenario:
         ``{scenario: {name: (lo, hi)}}`` with arrays of shape (steps, states)
         (:func:`~benchmarks.report.figures.bounds_and_radii`).
+    data : (DataFrame, dict), optional
+        ``(summary, meta)`` already read (a result store's view); the figures then come from
+        the store's last local run, ``DIR/run/runs.csv``, where it exists.
 
     Returns
     -------
@@ -425,13 +428,14 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
         The page written.
     """
     results_dir = Path(results_dir)
-    summary, meta = load_results(results_dir)
+    summary, meta = data if data is not None else load_results(results_dir)
     out = Path(out) if out else results_dir / "index.html"
     page_dir = out.parent
     fig_dir = page_dir / FIGURE_DIR
     runs = None
-    if figures and (results_dir / "runs.csv").is_file():
-        runs = load_runs(results_dir)
+    runs_dir = results_dir / "run" if data is not None else results_dir
+    if figures and (runs_dir / "runs.csv").is_file():
+        runs = load_runs(runs_dir)
     title = meta.get("config", {}).get("title", results_dir.name)
     sweep = is_sweep(summary)
     scenarios = [] if sweep else list(dict.fromkeys(summary["scenario"]))
@@ -529,13 +533,22 @@ def _title(path: Path) -> str:
     return path.stem
 
 
+_STORE_LINE = re.compile(r"Rendered from the result store `(results/[^`]+)`")
+_STAMP = re.compile(r"<!-- (?:freshness|measured): .*?(?:config=(\S+) )?command=(.*?) -->")
+
+
 def _made_by(path: Path) -> str:
-    """How a report was made: its configuration file, else the command of its stamp."""
-    stamp = read_stamp(path)
-    if stamp is None:
+    """How a report was made: its result store, else its configuration file or the command
+    of its stamp (:mod:`.freshness`)."""
+    text = path.read_text(encoding="utf-8", errors="replace")
+    store = _STORE_LINE.search(text)
+    if store:
+        return f"{store.group(1)} (result store)"
+    found = _STAMP.findall(text)
+    if not found:
         return ""
-    _, config, command = stamp
-    return Path(config).name if config else command
+    config, command = found[-1]
+    return Path(config).name if config and config != "-" else command
 
 
 def write_index(reports_dir: str | Path, results_root: str | Path | None = None,

@@ -30,14 +30,19 @@ from .tables import (
 
 
 def write_report(results_dir: str | Path, out: str | Path | None = None,
-                 figures: bool = True) -> Path:
-    """Write the Markdown report (and figures) for a results folder; returns its path."""
+                 figures: bool = True, data: tuple | None = None) -> Path:
+    """Write the Markdown report (and figures) for a results folder; returns its path.
+
+    ``data``: ``(summary, meta)`` already read (a result store's view); the figures then come
+    from the store's last local run, ``DIR/run/runs.csv``, where it exists."""
     results_dir = Path(results_dir)
-    summary, meta = load_results(results_dir)  # one complete generation, or ConfigError
+    # one complete generation, or ConfigError
+    summary, meta = data if data is not None else load_results(results_dir)
     out = Path(out) if out else results_dir / "report.md"
     runs = None
-    if figures and (results_dir / "runs.csv").is_file() and len(summary):
-        runs = load_runs(results_dir)
+    runs_dir = results_dir / "run" if data is not None else results_dir
+    if figures and (runs_dir / "runs.csv").is_file() and len(summary):
+        runs = load_runs(runs_dir)
     atomic_write_text(out, render_report(summary, meta, out, runs, results_dir.name))
     return out
 
@@ -61,7 +66,7 @@ def store_footer(meta: dict) -> list[str]:
             f"- run {run_id}: {counts.get(run_id, 0)} rows, {run.get('created', '?')}, commit "
             f"{run.get('commit') or '?'}; {m.get('cpu', '?')} ({m.get('cores', '?')} cores, "
             f"OpenBLAS kernel {m.get('blas_coretype', '?')}); {ex.get('workers', '?')} "
-            f"worker(s); " + ", ".join(f"{k} {val}" for k, val in v.items()
+            f"worker(s); " + ", ".join(f"{k} {val}" for k, val in sorted(v.items())
                                        if k not in ("blas_coretype",)))
     return [*lines, ""]
 

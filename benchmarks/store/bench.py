@@ -25,15 +25,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..io import atomic_write_text
 from ..report.markdown import render_report
-from ..run.config import BenchConfig
-from ..run.runner import make_jobs, run_config
+from ..run.config import BenchConfig, load_config
+from ..run.runner import (
+    FloorTask,
+    floor_task,
+    is_project_module,
+    make_jobs,
+    run_config,
+    scenario_key,
+)
 from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
 from .graph import ROOT
 from .store import Store, StoreLock, load_store, merge, new_run, write_store
 
-__all__ = ["Fingerprinter", "StoreLock", "add_observer", "bench_config", "published",
-           "render_all", "shipped_results"]
+__all__ = ["Fingerprinter", "StoreLock", "add_observer", "bench_all", "bench_config",
+           "load_store", "plan", "published", "render_all", "shipped_results"]
 
 #: where the stores live (relative to the project root)
 RESULTS = Path("results")
@@ -58,9 +66,14 @@ class Plan:
 
 
 def plan(cfg: BenchConfig, store: Store | None, fingerprinter: Fingerprinter,
-         cold: bool = False) -> Plan:
-    """Compare the jobs of ``cfg`` with ``store``."""
-    jobs = make_jobs(cfg)
+         cold: bool = False, add: str | None = None) -> Plan:
+    """Compare the jobs of ``cfg`` with ``store``.
+
+    A configuration's ``observers: all`` means the built-in observers here: an installed
+    third-party plugin enters a store only when named (in the configuration, or as ``add``)."""
+    named = cfg.raw.get("observers") if isinstance(cfg.raw.get("observers"), list) else []
+    jobs = [j for j in make_jobs(cfg) if is_project_module(j.module)
+            or j.observer in named or j.observer == add]
     prints = {job_key(j): fingerprinter.job(j, cfg) for j in jobs}
     out = Plan(cfg, store, jobs, prints, list(prints))
     stored = store.rows if store is not None else {}
@@ -142,15 +155,13 @@ def render(store: Store, out: Path) -> str:
     return render_report(summary, meta, out)
 
 
-def bench_config(cfg: BenchConfig, results: Path, reports: Path, executor, cold: bool = False,
-                 progress: bool | None = None, fingerprinter: Fingerprinter | None = None,
-                 notify=print) -> Outcome:
-    """Bring the store of ``cfg`` up to date and render its report (see the module docstring).
-    The caller holds the :class:`.store.StoreLock` of ``results``."""
-    folder = results / cfg.name
-    store = load_store(folder)
-    p = plan(cfg, store, fingerprinter or Fingerprinter(), cold)
-    notify(f"{cfg.name}: {len(p.stale)} of {len(p.order)} rows to run"
+def bench_config(p: Plan, results: Path, reports: Path, executor,
+                 progress: bool | None = None, notify=print) -> Outcome:
+    """Run the stale rows of plan ``p``, store them and render the report (see the module
+    docstring).  The caller holds the :class:`.store.StoreLock` of ``results``."""
+    folder = results / p.cfg.name
+    store = p.store
+    notify(f"{p.cfg.name}: {len(p.stale)} of {len(p.order)} rows to run"
            + (f", {len(p.dropped)} no longer in the configuration" if p.dropped else ""))
     code, problems = 0, []
     if p.stale:
@@ -160,16 +171,64 @@ def bench_config(cfg: BenchConfig, results: Path, reports: Path, executor, cold:
     elif p.dropped and store is not None:
         store = merge(store, None, {}, p.order, None, None, _run_meta(p.cfg))
     if store is None:
-        return Outcome(cfg.name, 0, len(p.order), code, problems, None)
+        return Outcome(p.cfg.name, 0, len(p.order), code, problems, None)
     if p.stale or p.dropped:
         write_store(folder, store)
-    out = reports / f"{cfg.name}.md"
+        store = load_store(folder)  # render what was written (and check it reads back)
+    out = reports / f"{p.cfg.name}.md"
     text = render(store, out)
     if not out.is_file() or out.read_text(encoding="utf-8") != text:
-        from ..io import atomic_write_text
         atomic_write_text(out, text)
         notify(f"wrote {out}")
-    return Outcome(cfg.name, len(p.stale), len(p.order), code, problems, out)
+    return Outcome(p.cfg.name, len(p.stale), len(p.order), code, problems, out)
+
+
+def prewarm_floors(plans: list[Plan], executor, notify=print) -> int:
+    """Compute the exact floors of every record with a stale row, across configurations, in
+    one parallel map, largest records first; they land in the exact reference's cache, where
+    each configuration's run reads them.  Returns the number of records computed.
+
+    Run configuration by configuration, a configuration with one long record keeps one worker
+    busy and the others idle; across configurations every worker has a record to work on."""
+    tasks, keys, sizes = [], [], []
+    budget: float | None = 0.0
+    for p in plans:
+        if not p.stale or not p.cfg.exact:
+            continue
+        base = str(p.cfg.base) if p.cfg.base is not None else None
+        stale_specs = [j.spec for j in p.jobs if job_key(j) in p.stale]
+        for inst in p.cfg.instances:
+            key = scenario_key(FloorTask(inst.spec, base))
+            if inst.spec not in stale_specs or key in keys:
+                continue
+            if not getattr(inst.scenario.system, "is_linear", False):
+                continue  # the falsifier's inner box has no cache to fill
+            tasks.append(FloorTask(inst.spec, base, True))
+            keys.append(key)
+            sizes.append(inst.scenario.N * inst.scenario.system.n)
+            budget = None if budget is None or p.cfg.timeout is None else max(
+                budget, p.cfg.timeout)
+    if len(tasks) < 2:
+        return 0  # nothing to share out: the configuration's own run computes it
+    order = sorted(range(len(tasks)), key=lambda i: (-sizes[i], keys[i]))
+    tasks, keys = [tasks[i] for i in order], [keys[i] for i in order]
+    executor.set_budget(budget or None, None)
+    notify(f"floors: {len(tasks)} records, {executor.workers} worker(s)")
+    for _ in executor.map(floor_task, tasks, keys=keys):
+        pass
+    return len(tasks)
+
+
+def bench_all(names: list[str], results: Path, reports: Path, executor, cold: bool = False,
+              progress: bool | None = None, notify=print) -> list[Outcome]:
+    """``setobs-bench bench``: plan every configuration ``names``, compute the floors their
+    stale rows need, then run, store and render them one by one (under the store lock)."""
+    with StoreLock(results):
+        fingerprinter = Fingerprinter()
+        cfgs = [load_config(n) for n in names]
+        plans = [plan(c, load_store(results / c.name), fingerprinter, cold) for c in cfgs]
+        prewarm_floors(plans, executor, notify)
+        return [bench_config(p, results, reports, executor, progress, notify) for p in plans]
 
 
 def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path,
@@ -181,15 +240,19 @@ def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path
     rows of other code).  Writes the merged store and ``report.md`` to ``out`` (never to the
     shipped store).
     """
-    if name in cfg.observers:
-        raise ConfigError(f"run --add: {name} is already in config '{cfg.name}'; use "
-                          f"--observer {name} to run it alone")
     import observers
 
     observers.get(name)  # UnknownObserver: a one-line error naming the known ones
-    with_it = dataclasses.replace(cfg, observers=[*cfg.observers, name])
+    with_it = cfg if name in cfg.observers else dataclasses.replace(
+        cfg, observers=[*cfg.observers, name])
     store = load_store(results / cfg.name)
-    p = plan(with_it, store, Fingerprinter())
+    if store is None:
+        raise ConfigError(f"run --add: no result store of '{cfg.name}' in {results} (its "
+                          f"stored rows are what {name} is ranked beside)")
+    p = plan(with_it, store, Fingerprinter(), add=name)
+    if name in store.summary["observer"].unique():
+        raise ConfigError(f"run --add: {name} is already in the stored table of "
+                          f"'{cfg.name}'; use --observer {name} to run it alone")
     mine = {k for k in p.stale if k.split("|")[2] == name}
     others = {k: why for k, why in p.stale.items() if k not in mine}
     for key, why in others.items():
@@ -197,14 +260,8 @@ def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path
     with tempfile.TemporaryDirectory(prefix="setobs-add-") as tmp:
         merged, result = run_stale(p, executor, Path(tmp) / "run", progress)
     assert merged is not None  # the new observer's rows are never stored
-    out.mkdir(parents=True, exist_ok=True)
-    for leftover in ("summary.csv", "meta.json"):
-        if (out / leftover).exists() and load_store(out) is None:
-            raise ConfigError(f"run --add: {out} holds another run's results; give a new or "
-                              "empty folder")
     write_store(out, merged)
     report = out / "report.md"
-    from ..io import atomic_write_text
     atomic_write_text(report, render(merged, report))
     outcome = Outcome(cfg.name, len(p.stale), len(p.order), result.exit_code,
                       list(result.problems), report)
@@ -221,20 +278,14 @@ def published(root: Path = ROOT) -> list[str]:
 
 
 def shipped_results() -> Path:
-    """The folder of the stores shipped with the package (the checkout's ``results/``, or the
-    copy installed beside the package)."""
-    for candidate in (ROOT / RESULTS, Path(__file__).resolve().parent.parent / "data"
-                      / "results"):
-        if candidate.is_dir():
-            return candidate
-    return ROOT / RESULTS
+    """The folder of the stores shipped with the package: ``benchmarks/stores``, in a checkout
+    a link to ``results/``, in an installed package a copy of its stores (package data)."""
+    return Path(__file__).resolve().parent.parent / "stores"
 
 
 def render_all(results: Path, reports: Path) -> list[Path]:
     """Render every store under ``results`` to ``reports/<name>.md``; the reports rewritten
     (none when nothing changed)."""
-    from ..io import atomic_write_text
-
     changed = []
     for meta in sorted(results.glob("*/meta.json")):
         store = load_store(meta.parent)

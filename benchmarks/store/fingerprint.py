@@ -81,14 +81,21 @@ def job_key(job) -> str:
     return f"{job.spec['name']}|{seed}|{job.label or job.observer}|{job.variant}"
 
 
-def row_key(scenario: str, seed: Any, observer: str, variant: Any) -> str:
-    """:func:`job_key` of a ``summary.csv`` row."""
-    try:
-        seed = "" if seed is None or seed != seed or seed == "" else str(int(float(seed)))
-    except (TypeError, ValueError):
-        seed = str(seed)
-    variant = "" if variant is None or variant != variant else str(variant)
-    return f"{scenario}|{seed}|{observer}|{variant}"
+def row_key(*values: Any) -> str:
+    """The key of a stored row from its key columns (``scenario, seed, observer, variant`` of a
+    configuration's summary): the values joined by ``|``, a missing one empty, an integral
+    number without its decimals, so that a key read back from CSV is the key written."""
+    parts = []
+    for v in values:
+        if v is None or (isinstance(v, float) and v != v) or v == "":
+            parts.append("")
+        elif isinstance(v, (int, float)) and float(v).is_integer():
+            parts.append(str(int(v)))
+        elif isinstance(v, str) and v.replace(".", "", 1).lstrip("-").isdigit():
+            parts.append(str(int(float(v))) if float(v).is_integer() else v)
+        else:
+            parts.append(str(v))
+    return "|".join(parts)
 
 
 class Fingerprinter:
@@ -150,17 +157,28 @@ class Fingerprinter:
                 names.append(observers.get(value).cls.__module__)
         return names
 
-    def code(self, job, exact: bool) -> dict[str, str]:
-        """``{module: digest}`` of the job's computation."""
+    def code_of(self, roots: list[str]) -> dict[str, str]:
+        """``{module: digest}`` of the closures of ``roots`` (an outside package is read where
+        its source can be found; else its name stands for it)."""
         modules: set[str] = set()
-        for name in self.roots(job, exact):
+        for name in roots:
             top = name.split(".")[0]
             if name not in self.graph.modules and not self.graph.add_package(top):
-                modules.add(name)  # no source to read: the name stands for it
+                modules.add(name)
                 continue
             modules |= self.graph.closure(name)
         return {m: short(self.graph.modules[m].digest) if m in self.graph.modules else "?"
                 for m in sorted(modules)}
+
+    def make(self, roots: list[str], entry: dict, records: dict[str, str] | None = None
+             ) -> Fingerprint:
+        """The fingerprint of a row computed by the closures of ``roots`` from its entry
+        ``entry`` (any JSON value) and the shipped data, plus ``records`` (file digests)."""
+        code = self.code_of(roots)
+        data = {**self.data_digests(), **(records or {})}
+        inputs = short(_sha(canonical(entry).encode()))
+        digest = short(_sha(canonical({"code": code, "inputs": inputs, "data": data}).encode()))
+        return Fingerprint(digest, code, inputs, data)
 
     def job(self, job, cfg) -> Fingerprint:
         """The fingerprint of ``job`` of configuration ``cfg``."""
@@ -172,11 +190,7 @@ class Fingerprinter:
             "floor": observer_floor(job.label or job.observer, cfg.floors) if cfg.exact else "",
             "timeout": cfg.timeout, "observer": job.observer,
         }
-        code = self.code(job, cfg.exact)
-        data = {**self.data_digests(), **self._records(job.spec, job.base)}
-        inputs = short(_sha(canonical(entry).encode()))
-        digest = short(_sha(canonical({"code": code, "inputs": inputs, "data": data}).encode()))
-        return Fingerprint(digest, code, inputs, data)
+        return self.make(self.roots(job, cfg.exact), entry, self._records(job.spec, job.base))
 
 
 def changes(stored: dict, now: Fingerprint, graph: ModuleGraph) -> str:

@@ -6,10 +6,12 @@
   missing if the store has none, and gone if the configuration no longer has it.
 - **Reports of configurations.**  ``reports/<name>.md`` is rendered from the store again in
   memory and compared byte for byte: out of date if the renderer or the store changed since.
-- **Studies** (``reports/soundness.md``, ``reports/datadriven.md``): one fingerprint per report,
-  over the closure of the study's module and of every built-in observer (the audit runs them
-  all), recorded in ``results/reports.json`` by ``setobs-bench stale --record REPORT`` right
-  after the report is regenerated (``make audit``, ``make datadriven`` do it).
+- **The soundness audit** is a store of its own (:mod:`benchmarks.gate.audit_store`, checked
+  by :func:`benchmarks.gate.policy.stale`, which adds its lines to these).
+- **Studies** (``reports/datadriven.md``): one fingerprint per report, over the closure of the
+  study's module and of every built-in observer, recorded in ``results/reports.json`` by
+  ``setobs-bench stale --record REPORT`` right after the report is regenerated
+  (``make datadriven`` does it).
 - **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
   not the code: they carry their commit and machine and are never stale here; ``make speed``,
   ``make scaling`` and ``make frontier`` measure again.
@@ -17,6 +19,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,14 +32,14 @@ from ..run.config import load_config
 from ..run.shipped import shipped_configs
 from .bench import REPORTS, RESULTS, plan, render
 from .fingerprint import Fingerprinter, canonical, short
-from .graph import ROOT
+from .graph import ROOT, ModuleGraph
 from .store import load_store
 
 #: reports that measure a machine: never stale for the code
 MEASUREMENTS = ("speed", "scaling", "frontier")
-#: study reports and the module that writes each (besides every built-in observer)
-STUDIES = {"soundness": "benchmarks.gate.audit",
-           "datadriven": "benchmarks.studies.alanwar2022"}
+#: study reports and the module that writes each (besides every built-in observer); the
+#: soundness audit is a store of its own (:mod:`benchmarks.gate.audit_store`)
+STUDIES = {"datadriven": "benchmarks.studies.alanwar2022"}
 #: where the fingerprints of the study reports are recorded
 STUDY_RECORD = Path("results") / "reports.json"
 
@@ -60,11 +63,11 @@ def _row_text(key: str, why: str) -> str:
     return f"{obs} on {where}: {why}"
 
 
-def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path = ROOT
-                 ) -> list[Line]:
+def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path = ROOT,
+                 reports: Path | None = None) -> list[Line]:
     """The stale rows of one configuration and whether its report is out of date."""
     folder = root / RESULTS / name
-    report = root / REPORTS / f"{name}.md"
+    report = (reports if reports is not None else root / REPORTS) / f"{name}.md"
     try:
         store = load_store(folder)
     except ConfigError as exc:
@@ -77,12 +80,12 @@ def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path
     out = [Line("row", name, _row_text(k, why)) for k, why in p.stale.items()]
     out += [Line("row", name, _row_text(k, "no longer in the configuration"))
             for k in p.dropped]
+    shown = report.relative_to(root) if report.is_relative_to(root) else report
     if not report.is_file():
-        out.append(Line("report", name, f"{report.relative_to(root)} is missing (`make "
-                                        "reports` renders it)"))
+        out.append(Line("report", name, f"{shown} is missing (`make reports` renders it)"))
     elif report.read_text(encoding="utf-8") != render(store, report):
-        out.append(Line("report", name, f"{report.relative_to(root)} differs from its store "
-                                        "rendered now (`make reports` renders it)"))
+        out.append(Line("report", name, f"{shown} differs from its store rendered now "
+                                        "(`make reports` renders it)"))
     return out
 
 
@@ -93,9 +96,8 @@ def study_fingerprint(name: str, fingerprinter: Fingerprinter) -> dict:
                                      if i.cls.__module__.startswith("observers.")})]
     modules = set().union(*(graph.closure(r) for r in roots))
     code = {m: short(graph.modules[m].digest) for m in sorted(modules)}
-    data = short(__import__("hashlib").sha256(
-        canonical(fingerprinter.data_digests()).encode()).hexdigest())
-    digest = short(__import__("hashlib").sha256(canonical([code, data]).encode()).hexdigest())
+    data = short(hashlib.sha256(canonical(fingerprinter.data_digests()).encode()).hexdigest())
+    digest = short(hashlib.sha256(canonical([code, data]).encode()).hexdigest())
     return {"digest": digest, "code": code, "data": data}
 
 
@@ -117,9 +119,10 @@ def record_study(report: str | Path, root: Path = ROOT) -> str:
     name = Path(report).stem
     if name not in STUDIES:
         raise ConfigError(f"stale --record: {report} is not a study report (known: "
-                          f"{', '.join(f'reports/{s}.md' for s in STUDIES)})")
+                          f"{', '.join(f'reports/{s}.md' for s in STUDIES)}; the audit's "
+                          "report is rendered from its store)")
     rec = _read_record(root)
-    rec[name] = study_fingerprint(name, Fingerprinter())
+    rec[name] = study_fingerprint(name, Fingerprinter(ModuleGraph(root)))
     path = root / STUDY_RECORD
     path.parent.mkdir(parents=True, exist_ok=True)
     from ..io import atomic_write_text
@@ -127,11 +130,14 @@ def record_study(report: str | Path, root: Path = ROOT) -> str:
     return rec[name]["digest"]
 
 
-def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT) -> list[Line]:
+def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
+                  reports: Path | None = None) -> list[Line]:
+    """The study reports whose recorded fingerprint differs from the tree's."""
     rec = _read_record(root)
+    reports = reports if reports is not None else root / REPORTS
     out = []
     for name in STUDIES:
-        if not (root / REPORTS / f"{name}.md").is_file():
+        if not (reports / f"{name}.md").is_file():
             continue
         now = study_fingerprint(name, fingerprinter)
         old = rec.get(name)
@@ -145,29 +151,31 @@ def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT) -> list[Line]
                              fingerprinter.graph.modules else m for m in changed[:3])
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             why = f"code changed: {what}{more}" if changed else "data changed"
-            cmd = "make audit" if name == "soundness" else "make datadriven"
-            out.append(Line("report", name, f"reports/{name}.md: {why} (`{cmd}`)"))
+            out.append(Line("report", name, f"reports/{name}.md: {why} (`make datadriven`)"))
     return out
 
 
-def find_stale(names: list[str] | None = None, root: Path = ROOT) -> list[Line]:
+def find_stale(names: list[str] | None = None, root: Path = ROOT, reports: Path | None = None,
+               fingerprinter: Fingerprinter | None = None) -> list[Line]:
     """Every stale row, store and report of the shipped configurations ``names`` (default
-    all) and of the study reports."""
+    all: the published ones) and of the study reports; ``reports``: the folder of the
+    committed reports (default ``ROOT/reports``)."""
     shipped = shipped_configs()
     if names:
         unknown = [n for n in names if n not in shipped]
         if unknown:
             raise ConfigError(f"stale: unknown configuration(s) {', '.join(unknown)} (shipped: "
                               f"{', '.join(shipped)})")
-    fingerprinter = Fingerprinter()
+    fingerprinter = fingerprinter or Fingerprinter(ModuleGraph(root))
+    reports = Path(reports) if reports is not None else root / REPORTS
     out: list[Line] = []
     for name, path in shipped.items():
         if names and name not in names:
             continue
-        if not names and not ((root / REPORTS / f"{name}.md").is_file()
+        if not names and not ((reports / f"{name}.md").is_file()
                               or (root / RESULTS / name / "meta.json").is_file()):
             continue  # not published (a sweep): no store, no report
-        out += stale_config(name, path, fingerprinter, root)
+        out += stale_config(name, path, fingerprinter, root, reports)
     if not names:
-        out += stale_studies(fingerprinter, root)
+        out += stale_studies(fingerprinter, root, reports)
     return out

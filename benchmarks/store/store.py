@@ -11,7 +11,7 @@ produced it).  ``meta.json`` holds
 - ``runs``: per run id, when, on which commit and machine, with which BLAS kernel and versions
   and executor;
 - ``rows``: per row key (:func:`.fingerprint.row_key`), its fingerprint, its run and the digest
-  of its content (every column of its lines);
+  of its content (every field of its lines, as text: :func:`content_digests`);
 - ``fingerprints``, ``code``, ``data``: what each fingerprint was made of (module digests and
   data files, shared between rows), so that ``stale`` can say which module changed;
 - ``files``: size and SHA-256 of ``summary.csv``.
@@ -31,9 +31,9 @@ import hashlib
 import io
 import json
 import os
-import platform
 import shutil
-import subprocess
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -42,6 +42,7 @@ from ..errors import ConfigError
 from ..io import _exchange as exchange  # noqa: PLC2701 - the one atomic folder swap
 from ..io import csv_text, json_text, new_run_id, remove_stale_generations
 from ..metrics import add_relative_rms
+from ..report.freshness import commit, machine
 from .fingerprint import Fingerprint, canonical, row_key, short
 
 FORMAT = "setobs-bench store 1"
@@ -49,61 +50,56 @@ FORMAT = "setobs-bench store 1"
 STORE_COLUMNS = ("fingerprint", "run_id")
 SUMMARY = "summary.csv"
 META = "meta.json"
-KEY_COLUMNS = ["scenario", "seed", "observer", "variant"]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What a store's rows are: the columns that key a row (a row is one or more lines), the
+    column that orders the lines of a row, and the columns derived across rows, recomputed
+    after every merge."""
+
+    keys: tuple[str, ...]
+    #: the column ordering the lines of a row (None: the order they came in)
+    within: str | None
+    derive: Callable[[pd.DataFrame], pd.DataFrame] | None = None
+
+
+#: a configuration's summary: one row per observer x scenario instance x variant, a line per
+#: state; ``rel_rms`` is relative to the best observer of each scenario
+CONFIG = Layout(("scenario", "seed", "observer", "variant"), "state", add_relative_rms)
 
 
 def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def keys_of(summary: pd.DataFrame) -> pd.Series:
+def keys_of(summary: pd.DataFrame, layout: Layout = CONFIG) -> pd.Series:
     """The row key of every line of a summary."""
-    return pd.Series([row_key(*t) for t in summary[KEY_COLUMNS].itertuples(index=False)],
+    return pd.Series([row_key(*t) for t in summary[list(layout.keys)].itertuples(index=False)],
                      index=summary.index, dtype=object)
 
 
-def content_digest(lines: pd.DataFrame) -> str:
-    """Digest of the lines of one row (every column but ``run_id``), as written to CSV."""
-    return short(_sha(csv_text(lines.drop(columns=["run_id"], errors="ignore")
-                               .reset_index(drop=True)).encode()))
-
-
-def machine() -> dict[str, str]:
-    """The machine a run ran on: host, processor model, cores, the BLAS kernel."""
-    from ..io import blas_corename
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": str(os.cpu_count() or 1), "system": platform.system(),
-            "blas_coretype": blas_corename()}
-
-
-def commit(root: Path) -> str:
-    """The commit of the checkout at ``root`` (``+dirty`` where tracked code differs), or ``""``."""
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, cwd=root, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
-                                "observers", "systems", "benchmarks"], capture_output=True,
-                               text=True, cwd=root, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return head + ("+dirty" if head and dirty else "")
+def content_digests(data: bytes, layout: Layout = CONFIG) -> dict[str, str]:
+    """Row key -> digest of that row's lines as text in ``summary.csv`` (every field but
+    ``run_id``, read as written: no number is parsed, so the digest is the same whoever
+    reads it)."""
+    raw = pd.read_csv(io.BytesIO(data), dtype=str, keep_default_na=False)
+    out = {}
+    for key, lines in raw.groupby(keys_of(raw, layout), sort=False):
+        fields = lines.drop(columns=["run_id"], errors="ignore")
+        out[key] = short(_sha(canonical([list(fields.columns), fields.values.tolist()])
+                              .encode()))
+    return out
 
 
 class Store:
     """The rows of one configuration and their metadata (a value: :func:`merge` returns a new
     one)."""
 
-    def __init__(self, summary: pd.DataFrame, meta: dict):
+    def __init__(self, summary: pd.DataFrame, meta: dict, layout: Layout = CONFIG):
         self.summary = summary
         self.meta = meta
+        self.layout = layout
 
     @property
     def rows(self) -> dict[str, dict]:
@@ -121,8 +117,9 @@ class Store:
         return self.summary.drop(columns=list(STORE_COLUMNS)), self.meta
 
 
-def load_store(folder: str | Path) -> Store | None:
-    """Read and check the store of ``folder``; None if there is none.
+def load_store(folder: str | Path, layout: Layout = CONFIG) -> Store | None:
+    """Read and check the store of ``folder``; None if there is none (or it holds rows of
+    another layout).
 
     Raises
     ------
@@ -144,12 +141,15 @@ def load_store(folder: str | Path) -> Store | None:
                           f"({getattr(exc, 'msg', exc)}); {fix}") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         return None  # a run's output folder, not a store
+    if meta.get("layout", list(CONFIG.keys)) != list(layout.keys):
+        return None  # a store of other rows (the audit's, read with its own layout)
     if not path.is_file():
         raise ConfigError(f"store {folder}: {SUMMARY} is missing; {fix}")
     data = path.read_bytes()
     want = meta.get("files", {}).get(SUMMARY, {})
     if len(data) != want.get("bytes") or _sha(data) != want.get("sha256"):
-        how = "truncated (half-written?)" if len(data) < want.get("bytes", 0) else \
+        cut = len(data) < want.get("bytes", 0) and not data.endswith(b"\n")
+        how = "truncated (half-written?)" if cut else \
             "changed since it was written (hand-edited or corrupted?)"
         raise ConfigError(f"store {folder}: {SUMMARY} is {how}: it does not match {META}; {fix}")
     try:
@@ -158,7 +158,8 @@ def load_store(folder: str | Path) -> Store | None:
         raise ConfigError(f"store {folder}: {SUMMARY} is not readable CSV: "
                           f"{str(exc).splitlines()[0]}; {fix}") from None
     rows = meta.get("rows", {})
-    keys = keys_of(summary)
+    keys = keys_of(summary, layout)
+    digests = content_digests(data, layout)
     if set(keys) != set(rows):
         extra = sorted(set(keys) ^ set(rows))[:2]
         raise ConfigError(f"store {folder}: the rows of {SUMMARY} and {META} differ "
@@ -172,13 +173,13 @@ def load_store(folder: str | Path) -> Store | None:
         if set(lines["run_id"]) != {rec.get("run")} or rec.get("run") not in meta.get("runs", {}):
             raise ConfigError(f"store {folder}: row {key} names a run that {META} does not "
                               f"record; {fix}")
-        if content_digest(lines) != rec.get("content"):
+        if digests.get(key) != rec.get("content"):
             raise ConfigError(f"store {folder}: the content of row {key} does not match its "
                               f"fingerprint's record (edited by hand?); {fix}")
         if rec["fingerprint"] not in meta.get("fingerprints", {}):
             raise ConfigError(f"store {folder}: row {key}'s fingerprint is not described in "
                               f"{META}; {fix}")
-    return Store(summary, meta)
+    return Store(summary, meta, layout)
 
 
 def new_run(root: Path, executor: dict) -> tuple[str, dict]:
@@ -196,11 +197,13 @@ def new_run(root: Path, executor: dict) -> tuple[str, dict]:
 
 
 def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fingerprint],
-          order: list[str], run_id: str | None, run: dict | None, run_meta: dict) -> Store:
+          order: list[str], run_id: str | None, run: dict | None, run_meta: dict,
+          layout: Layout = CONFIG) -> Store:
     """The store with ``new_rows`` (a run's summary, its rows keyed as in ``prints``) in place
     of their old versions; rows whose key is not in ``order`` (no longer in the configuration)
-    are dropped, and the rest are ordered as ``order``.  ``rel_rms`` is recomputed over the
-    merged rows (its reference is the best observer of each scenario, whichever run made it).
+    are dropped, and the rest are ordered as ``order``.  The layout's derived columns are
+    recomputed over the merged rows (a configuration's ``rel_rms``: its reference is the best
+    observer of each scenario, whichever run made it).
 
     Parameters
     ----------
@@ -216,22 +219,27 @@ def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fi
     run_id, run : str, dict
         The run's id and record (:func:`new_run`).
     run_meta : dict
-        ``config`` and ``scenarios`` of the run (as in a run's ``meta.json``).
+        ``config`` and ``scenarios`` of the run (as in a run's ``meta.json``), and any other
+        key to record (the audit's settings).
+    layout : Layout
+        What the rows are (:data:`CONFIG`), if there is no ``old`` store to say it.
     """
+    layout = old.layout if old is not None else layout
     if new_rows is None:  # only drop the rows no longer in the configuration
         new_rows = old.summary.iloc[0:0].drop(columns=list(STORE_COLUMNS))
     new_rows = new_rows.copy()
-    keys = keys_of(new_rows)
+    keys = keys_of(new_rows, layout)
     new_rows["fingerprint"] = [prints[k].digest for k in keys]
     new_rows["run_id"] = run_id
     frames = [new_rows]
     meta = {"format": FORMAT, "config": run_meta.get("config", {}), "scenarios": {},
             "runs": {}, "rows": {}, "fingerprints": {}, "code": {}, "data": {}}
     if old is not None:
-        keep = ~keys_of(old.summary).isin(set(keys)) & keys_of(old.summary).isin(set(order))
+        old_keys = keys_of(old.summary, layout)
+        keep = ~old_keys.isin(set(keys)) & old_keys.isin(set(order))
         frames.insert(0, old.summary[keep])
         meta["scenarios"].update(old.meta.get("scenarios", {}))
-        for key in set(keys_of(old.summary[keep])):
+        for key in set(keys_of(old.summary[keep], layout)):
             meta["rows"][key] = dict(old.rows[key])
             fp = old.rows[key]["fingerprint"]
             rec = old.meta["fingerprints"][fp]
@@ -249,33 +257,40 @@ def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fi
         meta["rows"][key] = {"fingerprint": p.digest, "run": run_id}
     summary = pd.concat([f for f in frames if len(f)], ignore_index=True)
     rank = {k: i for i, k in enumerate(order)}
-    all_keys = keys_of(summary)
-    summary = summary.assign(_rank=all_keys.map(rank), _state=summary["state"]).sort_values(
-        ["_rank", "_state"], kind="stable").drop(columns=["_rank", "_state"])
+    all_keys = keys_of(summary, layout)
+    by = ["_rank"] + (["_within"] if layout.within else [])
+    summary = summary.assign(_rank=all_keys.map(rank),
+                             _within=summary[layout.within] if layout.within else 0
+                             ).sort_values(by, kind="stable").drop(columns=["_rank", "_within"])
     summary = summary.reset_index(drop=True)
     columns = [c for c in summary.columns if c not in STORE_COLUMNS] + list(STORE_COLUMNS)
-    summary = add_relative_rms(summary)[columns]
+    if layout.derive is not None:
+        summary = layout.derive(summary)
+    summary = summary[columns]
     runs = {**(old.meta.get("runs", {}) if old else {}), **({run_id: run} if run_id else {})}
     used = set(summary["run_id"])
     meta["runs"] = {r: v for r, v in runs.items() if r in used}
     # the executor of the reports' caption on parallel times: the most workers among the runs
     meta["executor"] = max((v.get("executor", {}) for v in meta["runs"].values()),
                            key=lambda e: (e.get("workers", 1), e.get("name", "")), default={})
-    used_sc = set(summary["scenario"])
+    used_sc = set(summary["scenario"]) if "scenario" in summary.columns else set()
     meta["scenarios"] = {k: v for k, v in meta["scenarios"].items() if k in used_sc}
-    for key, lines in summary.groupby(keys_of(summary), sort=False):
-        meta["rows"][key]["content"] = content_digest(lines)
-    meta["rows"] = {k: meta["rows"][k] for k in dict.fromkeys(keys_of(summary))}
+    meta["rows"] = {k: meta["rows"][k] for k in dict.fromkeys(keys_of(summary, layout))}
     meta["fingerprints"] = dict(sorted(meta["fingerprints"].items()))
     meta["code"] = dict(sorted(meta["code"].items()))
     meta["data"] = dict(sorted(meta["data"].items()))
-    return Store(summary, meta)
+    meta["layout"] = list(layout.keys)
+    meta.update({k: v for k, v in run_meta.items() if k not in ("config", "scenarios")})
+    return Store(summary, meta, layout)
 
 
 def store_bytes(store: Store) -> tuple[bytes, bytes]:
     """The two files of a store as written (``summary.csv``, ``meta.json``)."""
     data = csv_text(store.summary).encode("utf-8")
-    meta = {**store.meta, "files": {SUMMARY: {"bytes": len(data), "sha256": _sha(data)}}}
+    digests = content_digests(data, store.layout)
+    rows = {key: {**rec, "content": digests[key]} for key, rec in store.meta["rows"].items()}
+    meta = {**store.meta, "rows": rows,
+            "files": {SUMMARY: {"bytes": len(data), "sha256": _sha(data)}}}
     return data, json_text(meta).encode("utf-8")
 
 

@@ -262,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     fig = figures.frontier(df, out.parent / out.stem)[0]
     text = report(df, fig, out, budget=args.budget, elapsed=elapsed).rstrip("\n")
     regen = f"python -m benchmarks.studies.frontier --out {out} --results {args.results}"
-    atomic_write_text(out, f"{text}\n\n{freshness.stamp(regen)}\n")
+    atomic_write_text(out, f"{text}\n\n{freshness.measured(regen)}\n")
     print(f"wrote {out}, {fig} and {Path(args.results) / 'frontier.csv'}")
     return 0
 

@@ -360,7 +360,7 @@ def main(argv: list[str] | None = None) -> int:
                              out.parent / out.stem)
     text = report(df, fig, out, **run).rstrip("\n")
     regen = f"python -m benchmarks.studies.scaling --out {out} --results results/scaling"
-    atomic_write_text(out, f"{text}\n\n{freshness.stamp(regen)}\n")
+    atomic_write_text(out, f"{text}\n\n{freshness.measured(regen)}\n")
     print(f"wrote {out}, {fig} and {Path(args.results) / 'scaling.csv'}")
     return 0
 

@@ -248,8 +248,8 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
                        exact_cases: tuple[ExactCase, ...] = EXACT_CASES) -> Path:
     """Measure :data:`CASES` and the cold cost of the exact reference
     (:mod:`benchmarks.timing.exact_cost`), compare with ``json_path`` (the previous
-    measurement), write the Markdown report ``out`` (with the freshness stamp of
-    :mod:`benchmarks.report.freshness`, as every report) and overwrite ``json_path`` with this
+    measurement), write the Markdown report ``out`` (stamped with the commit and machine it
+    measured, :func:`benchmarks.report.freshness.measured`) and overwrite ``json_path`` with this
     measurement."""
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
@@ -261,7 +261,7 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     text = render(results, previous, previous_git, env)
     if exact:
         text += "\n" + "\n".join(render_exact(exact)) + "\n"
-    text += "\n" + freshness.stamp(command) + "\n"
+    text += "\n" + freshness.measured(command) + "\n"
     atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]

@@ -1,0 +1,141 @@
+"""`setobs-bench stale` on the committed stores: exit 0 on the committed tree, and after an edit
+exactly the rows whose code the edit touched (the acceptance of the result-store issue).
+
+Each case edits a copy of the tree and runs ``python -m benchmarks stale`` there (the command
+line of the copy: its code, its stores, its reports)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import observers
+from benchmarks.cli import main
+from benchmarks.store.bench import render_all
+
+ROOT = Path(__file__).resolve().parents[1]
+ROW = re.compile(r"^STALE ROW (\S+): (\S+) on (\S+)")
+
+
+def _stored_rows() -> pd.DataFrame:
+    """``config, observer`` of every stored row (one per key), read from the stores' files."""
+    out = []
+    for meta in sorted((ROOT / "results").glob("*/meta.json")):
+        rows = json.loads(meta.read_text()).get("rows")
+        if rows is None:
+            continue
+        out += [(meta.parent.name, key.split("|")[2]) for key in rows]
+    return pd.DataFrame(out, columns=["config", "observer"])
+
+
+@pytest.fixture(scope="module")
+def stored():
+    rows = _stored_rows()
+    assert len(rows) > 500 and rows["config"].nunique() >= 13  # every published table
+    return rows
+
+
+def _tree(dst: Path) -> Path:
+    for pkg in ("observers", "systems", "benchmarks"):
+        shutil.copytree(ROOT / pkg, dst / pkg, symlinks=True, ignore=shutil.ignore_patterns(
+            "__pycache__", "*.nbi", "*.nbc", "*.pyc"))
+    (dst / "reports").mkdir()
+    for md in (ROOT / "reports").glob("*.md"):
+        shutil.copy2(md, dst / "reports" / md.name)
+    (dst / "results").mkdir()
+    shutil.copy2(ROOT / "results" / "reports.json", dst / "results" / "reports.json")
+    for meta in (ROOT / "results").glob("*/meta.json"):
+        if not (meta.parent / "summary.csv").is_file():
+            continue  # the golden files of the gate, not a store
+        (dst / "results" / meta.parent.name).mkdir()
+        for name in ("meta.json", "summary.csv"):
+            shutil.copy2(meta.parent / name, dst / "results" / meta.parent.name / name)
+    return dst
+
+
+def _stale(tree: Path) -> tuple[int, list[str]]:
+    done = subprocess.run([sys.executable, "-m", "benchmarks", "stale"], cwd=tree,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode in (0, 1), done.stderr
+    return done.returncode, done.stdout.splitlines()
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+
+
+def _base(name: str) -> str:
+    return name.split("[")[0]  # a labelled variant runs its observer
+
+
+def test_nothing_is_stale_on_the_committed_tree(capsys, stored):
+    assert main(["stale"]) == 0, capsys.readouterr().out
+
+
+def test_make_reports_on_the_committed_tree_changes_no_file(tmp_path):
+    reports = tmp_path / "reports"
+    shutil.copytree(ROOT / "reports", reports)
+    assert render_all(ROOT / "results", reports) == []
+
+
+def test_a_docstring_edit_stales_nothing(tmp_path):
+    tree = _tree(tmp_path)
+    path = tree / "observers" / "numerics" / "frad.py"
+    text = path.read_text()
+    first = text.index('"""') + 3
+    path.write_text(text[:first] + "An edited line of the docstring.\n" + text[first:]
+                    + "\n# a comment at the end\n")
+    code, lines = _stale(tree)
+    assert (code, lines) == (0, [])
+
+
+def test_an_edit_of_the_ellipsoidal_numerics_stales_their_observers_only(tmp_path, stored):
+    tree = _tree(tmp_path)
+    path = tree / "observers" / "numerics" / "ellipsoidal.py"
+    path.write_text(path.read_text() + "\n_EDITED = 1\n")
+    code, lines = _stale(tree)
+    assert code == 1
+    # independently of the graph: the observers whose module names the ellipsoidal numerics
+    users = {p.stem for p in (ROOT / "observers" / "builtin").glob("*.py")
+             if "numerics.ellipsoidal" in p.read_text()}
+    expected = {i.name for i in observers.available()
+                if i.cls.__module__.rsplit(".", 1)[-1] in users
+                and i.cls.__module__.startswith("observers.builtin.")}
+    assert {"ESO-A", "ESO-B", "ESO-C", "ESO-D"} <= expected
+    named = [ROW.match(line) for line in lines]
+    assert all(named), [line for line, m in zip(lines, named, strict=True) if not m]
+    assert {_base(m.group(2)) for m in named} <= expected
+    rows = stored[stored["observer"].map(_base).isin(expected)]
+    assert len(named) == len(rows)  # every stored row of theirs, and no other
+    assert all("observers/numerics/ellipsoidal.py" in line for line in lines)
+
+
+def test_an_edit_of_the_zonotope_stales_every_row_that_uses_zonotopes(tmp_path, stored):
+    tree = _tree(tmp_path)
+    path = tree / "observers" / "sets" / "zonotope.py"
+    path.write_text(path.read_text() + "\n_EDITED = 1\n")
+    code, lines = _stale(tree)
+    assert code == 1
+    named = [ROW.match(line) for line in lines]
+    assert all(named)
+    # the harness builds every record's sets as zonotopes and intervals: every row
+    assert len(named) == len(stored)
+    assert all("observers/sets/zonotope.py" in line for line in lines)
+
+
+def test_a_report_rendered_from_another_store_is_named(tmp_path):
+    tree = _tree(tmp_path)
+    _edit(tree / "reports" / "arch2021_table3.md", "FRad-A", "FRad-Z")
+    code, lines = _stale(tree)
+    assert code == 1
+    assert lines == ["STALE REPORT arch2021_table3: reports/arch2021_table3.md differs from its "
+                     "store rendered now (`make reports` renders it)"]
