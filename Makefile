@@ -16,7 +16,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale html datadriven evidence check baseline history audit audit-short speed scaling frontier clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence check baseline history audit audit-short speed scaling frontier clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -25,8 +25,9 @@ help:  ## list the targets
 	@echo
 	@echo "code: observers/ (sets, family loops, plugins builtin/X.py + numerics/X.py), systems/ (models,"
 	@echo "scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner -> executors),"
-	@echo "report/ (tables, markdown, html, figures, numbers), gate/ (regression, kernels, policy, audit,"
-	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, alanwar2022); cli.py parses and prints"
+	@echo "report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph, fingerprint,"
+	@echo "store, bench, stale), gate/ (regression, budget, kernels, policy, audit, audit_store, history),"
+	@echo "timing/ (steps, speed), studies/ (scaling, frontier, alanwar2022); cli.py parses and prints"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
@@ -52,7 +53,7 @@ bench: $(STAMP)  ## incremental: run only the stale or missing rows of every pub
 	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
 
-bench-cold: $(STAMP)  ## every row of every published config from an empty design and floor cache (what the README times); HTML pages without figures (make html draws them)
+bench-cold: $(STAMP)  ## every row of every published config from an empty design and floor cache (what the README times); HTML pages with figures: make report
 	rm -rf $(RESULTS)/.cold-cache
 	SETOBS_CACHE_DIR=$(abspath $(RESULTS))/.cold-cache $(PY) -m benchmarks designs $(CONFIGS_ALL) --jobs $(JOBS) --no-progress
 	SETOBS_CACHE_DIR=$(abspath $(RESULTS))/.cold-cache $(PY) -m benchmarks bench --cold --jobs $(JOBS) --no-progress
@@ -65,18 +66,12 @@ reports: $(STAMP)  ## render every committed report from its result store, in se
 stale: $(STAMP)  ## name the stored rows and committed reports a change made stale (no run; exit 1 if any)
 	$(PY) -m benchmarks stale
 
-html: $(STAMP)  ## the HTML page of every result store, with the figures of its last local run -> results/<config>/index.html
-	@for dir in $(RESULTS)/*/; do \
-		[ -f $$dir/meta.json ] && [ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
-	done
-	$(PY) -m benchmarks index reports --results $(RESULTS)
-
 speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
 	$(PY) -m benchmarks speed
 
-bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the first run): results/quick/index.html (HTML report) and report.md
-	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick
-	$(PY) -m benchmarks report $(RESULTS)/quick
+bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the first run): results/quick/run/index.html (HTML report) and report.md
+	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick/run
+	$(PY) -m benchmarks report $(RESULTS)/quick/run
 
 scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
 	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
@@ -106,7 +101,7 @@ audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenari
 audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
 	$(PY) -m benchmarks audit --short --no-progress
 
-report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/
+report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/ (a store: figures of its last local run)
 	@for dir in $(RESULTS)/*/; do \
 		[ -f $$dir/summary.csv ] && $(PY) -m benchmarks report $$dir || true; \
 	done

@@ -53,6 +53,7 @@ def _cmd_run(args) -> int:
     if args.config and args.scenario:
         raise ConfigError("run: give either a YAML config or --scenario, not both")
     if args.out is not None:
+        _not_a_store(args.out)
         check_output_dir(args.out)  # before any work (again in run_config for the default)
     # the executor first: local workers' server then starts while the config is read
     executor = executors.from_args(args.executor, args.jobs, args.address)
@@ -71,6 +72,8 @@ def _cmd_run(args) -> int:
         if args.memory_limit is not None:
             cfg.memory_limit = parse_memory(args.memory_limit, "--memory-limit")
         out = Path(args.out) if args.out else Path("results") / path_component(cfg.name)
+        if args.out is None and store_bench.is_store(out):  # a committed store: beside it
+            out = out / "run"
         result = run_config(cfg, out, progress=False if args.no_progress else None,
                             executor=executor)
         summary = result.summary
@@ -87,6 +90,13 @@ def _cmd_run(args) -> int:
     return result.exit_code
 
 
+def _not_a_store(folder: str | Path) -> None:
+    """A run never writes into a result store (``make bench`` merges rows into it)."""
+    if store_bench.is_store(Path(folder)):
+        raise ConfigError(f"run: {folder} is a result store (committed rows: `setobs-bench "
+                          f"bench` updates it); give --out another folder, e.g. {folder}/run")
+
+
 def _cmd_run_add(args) -> int:
     """``run CONFIG --add NAME``: NAME's rows run, the others from the store."""
     if not args.config or args.scenario or args.observer:
@@ -94,6 +104,9 @@ def _cmd_run_add(args) -> int:
     cfg = load_config(args.config)
     out = Path(args.out) if args.out else Path("results") / path_component(
         f"{cfg.name}+{args.add}")
+    if (out / "summary.csv").exists() and not store_bench.is_store(out):
+        raise ConfigError(f"run --add: {out} holds another run's results; give a new or empty "
+                          "folder")
     check_output_dir(out)
     executor = executors.from_args(args.executor, args.jobs, args.address)
     try:
@@ -342,7 +355,7 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--no-progress", action="store_true", help="no progress bar")
     be.add_argument("--html", action="store_true",
                     help="also write RESULTS/<config>/index.html with figures for each "
-                         "configuration that ran rows (make html: every store)")
+                         "configuration that ran rows (make report: every store)")
     be.set_defaults(func=_cmd_bench)
     rr = sub.add_parser("reports", help="render every committed report from its store "
                                         "(no run; changes no byte when nothing changed)")

@@ -122,3 +122,24 @@ def test_progress_shown_in_a_notebook(monkeypatch):
     assert progress_enabled(True) and not progress_enabled(False)
     monkeypatch.setitem(sys.modules, "ipykernel", object())  # as inside a Jupyter kernel
     assert progress_enabled(None) and not progress_enabled(False)
+
+
+@pytest.mark.parametrize(("argv", "bad"), [
+    (["run", "arch2021_table3", "--add", "NC-Good", "--addr", "tcp://127.0.0.1:1"], "--addr"),
+    (["run", "arch2021_table3", "--obs", "FRad-A"], "--obs"),
+    (["bench", "--col"], "--col"),
+])
+def test_options_are_never_abbreviated(argv, bad, capsys):
+    """``--add`` was once read as an abbreviation of ``--address``; a prefix is now an error
+    naming the option, before any work."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "unrecognized arguments" in err and bad in err
+
+
+def test_add_is_its_own_option():
+    from benchmarks.cli import build_parser
+
+    args = build_parser().parse_args(["run", "arch2021_table3", "--add", "My-Obs"])
+    assert args.add == "My-Obs" and args.address is None

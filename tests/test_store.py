@@ -235,3 +235,15 @@ def test_the_fingerprint_of_a_job_names_its_observer_module():
     assert "observers.numerics.ellipsoidal" in fp.code
     assert "observers.builtin.exact" in fp.code  # the floor of the record
     assert "systems/data/alamo2d.yaml" in fp.data
+
+
+def test_a_run_never_writes_into_a_store(tiny_store, tmp_path, capsys):
+    from benchmarks.cli import main
+
+    folder = _copy_store(tiny_store[0] / "tiny", tmp_path / "tiny")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    code = main(["run", "--scenario", "alamo2d-sim", "--observer", "FRad-A", "--out",
+                 str(folder), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "is a result store" in err and f"{folder}/run" in err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before

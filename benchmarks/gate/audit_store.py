@@ -18,10 +18,19 @@ import observers
 
 from ..errors import ConfigError
 from ..io import atomic_write_text
-from ..store.fingerprint import Fingerprint, Fingerprinter, changes, row_key
+from ..store.fingerprint import Fingerprint, Fingerprinter, row_key
 from ..store.graph import ROOT
 from ..store.stale import Line
-from ..store.store import Layout, Store, StoreLock, load_store, merge, new_run, write_store
+from ..store.store import (
+    Layout,
+    Store,
+    StoreLock,
+    compare,
+    load_store,
+    merge,
+    new_run,
+    write_store,
+)
 from . import audit
 from .audit_report import render_store
 
@@ -71,17 +80,8 @@ def plan_audit(count: int, results: Path, cold: bool = False,
     pairs = {row_key(sc, obs): (sc, obs) for sc in audit.AUDIT_SCENARIOS
              for obs in audited_observers()}
     prints = {k: pair_fingerprint(fp, sc, obs, count) for k, (sc, obs) in pairs.items()}
-    out = AuditPlan(store, count, prints, list(pairs), pairs)
-    stored = store.rows if store is not None else {}
-    for key, p in prints.items():
-        if cold:
-            out.stale[key] = "cold run"
-        elif key not in stored:
-            out.stale[key] = "no stored row"
-        elif stored[key]["fingerprint"] != p.digest:
-            out.stale[key] = changes(store.fingerprint_record(key), p, fp.graph)
-    out.dropped = [k for k in stored if k not in prints]
-    return out
+    stale, dropped = compare(store, prints, fp.graph, cold)
+    return AuditPlan(store, count, prints, list(pairs), pairs, stale, dropped)
 
 
 def run_meta(count: int) -> dict:

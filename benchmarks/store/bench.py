@@ -38,10 +38,19 @@ from ..run.runner import (
 )
 from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
 from .graph import ROOT
-from .store import Store, StoreLock, load_store, merge, new_run, write_store
+from .store import (
+    FORMAT,
+    Store,
+    StoreLock,
+    compare,
+    load_store,
+    merge,
+    new_run,
+    write_store,
+)
 
 __all__ = ["Fingerprinter", "StoreLock", "add_observer", "bench_all", "bench_config",
-           "load_store", "plan", "published", "render_all", "shipped_results"]
+           "is_store", "load_store", "plan", "published", "render_all", "shipped_results"]
 
 #: where the stores live (relative to the project root)
 RESULTS = Path("results")
@@ -75,17 +84,8 @@ def plan(cfg: BenchConfig, store: Store | None, fingerprinter: Fingerprinter,
     jobs = [j for j in make_jobs(cfg) if is_project_module(j.module)
             or j.observer in named or j.observer == add]
     prints = {job_key(j): fingerprinter.job(j, cfg) for j in jobs}
-    out = Plan(cfg, store, jobs, prints, list(prints))
-    stored = store.rows if store is not None else {}
-    for key, fp in prints.items():
-        if cold:
-            out.stale[key] = "cold run"
-        elif key not in stored:
-            out.stale[key] = "no stored row"
-        elif stored[key]["fingerprint"] != fp.digest:
-            out.stale[key] = changes(store.fingerprint_record(key), fp, fingerprinter.graph)
-    out.dropped = [k for k in stored if k not in prints]
-    return out
+    stale, dropped = compare(store, prints, fingerprinter.graph, cold)
+    return Plan(cfg, store, jobs, prints, list(prints), stale, dropped)
 
 
 def subset(cfg: BenchConfig, jobs: list, keys: set[str]) -> BenchConfig:
@@ -267,6 +267,18 @@ def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path
                       list(result.problems), report)
     return outcome, report
 
+
+
+def is_store(folder: Path) -> bool:
+    """Whether ``folder`` holds a result store (read from its ``meta.json``'s format line,
+    without checking the rows)."""
+    import json
+
+    try:
+        meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("format") == FORMAT
 
 
 def published(root: Path = ROOT) -> list[str]:

@@ -43,7 +43,7 @@ from ..io import _exchange as exchange  # noqa: PLC2701 - the one atomic folder 
 from ..io import csv_text, json_text, new_run_id, remove_stale_generations
 from ..metrics import add_relative_rms
 from ..report.freshness import commit, machine
-from .fingerprint import Fingerprint, canonical, row_key, short
+from .fingerprint import Fingerprint, canonical, changes, row_key, short
 
 FORMAT = "setobs-bench store 1"
 #: columns the store adds to a run's summary
@@ -180,6 +180,23 @@ def load_store(folder: str | Path, layout: Layout = CONFIG) -> Store | None:
             raise ConfigError(f"store {folder}: row {key}'s fingerprint is not described in "
                               f"{META}; {fix}")
     return Store(summary, meta, layout)
+
+
+def compare(store: Store | None, prints: dict[str, Fingerprint], graph, cold: bool = False
+            ) -> tuple[dict[str, str], list[str]]:
+    """Which rows must run, and why (missing, or what changed: :func:`.fingerprint.changes`;
+    ``cold``: all), and which stored rows are no longer wanted, for the rows ``prints`` (row
+    key -> fingerprint now) against ``store``."""
+    stored = store.rows if store is not None else {}
+    stale = {}
+    for key, fp in prints.items():
+        if cold:
+            stale[key] = "cold run"
+        elif key not in stored:
+            stale[key] = "no stored row"
+        elif stored[key]["fingerprint"] != fp.digest:
+            stale[key] = changes(store.fingerprint_record(key), fp, graph)
+    return stale, [k for k in stored if k not in prints]
 
 
 def new_run(root: Path, executor: dict) -> tuple[str, dict]:
