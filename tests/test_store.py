@@ -247,3 +247,20 @@ def test_a_run_never_writes_into_a_store(tiny_store, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "is a result store" in err and f"{folder}/run" in err
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_every_job_of_every_published_configuration_has_its_own_row_key():
+    """The key of a job is the key of its rows in ``summary.csv``: the regression subset runs
+    tank6-linear twice, once under the label tank6-linear-defaults (a collision of the two
+    was caught by the store's check after the run, and is a test now)."""
+    from benchmarks.run.config import load_config
+    from benchmarks.run.runner import make_jobs
+    from benchmarks.store.fingerprint import job_key
+
+    for name in bench.published():
+        cfg = load_config(name)
+        jobs = make_jobs(cfg)
+        keys = [job_key(j) for j in jobs]
+        assert len(set(keys)) == len(keys), name
+        built = {i.scenario.name for i in cfg.instances}
+        assert {k.split("|")[0] for k in keys} <= built, name

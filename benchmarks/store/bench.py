@@ -84,6 +84,11 @@ def plan(cfg: BenchConfig, store: Store | None, fingerprinter: Fingerprinter,
     jobs = [j for j in make_jobs(cfg) if is_project_module(j.module)
             or j.observer in named or j.observer == add]
     prints = {job_key(j): fingerprinter.job(j, cfg) for j in jobs}
+    if len(prints) != len(jobs):  # two jobs one row: the store could not tell them apart
+        keys = [job_key(j) for j in jobs]
+        twice = next(k for k in keys if keys.count(k) > 1)
+        raise ConfigError(f"{cfg.name}: two jobs share the row key {twice} (scenario, seed, "
+                          "observer, variant); give one scenario entry a 'label'")
     stale, dropped = compare(store, prints, fingerprinter.graph, cold)
     return Plan(cfg, store, jobs, prints, list(prints), stale, dropped)
 

@@ -74,11 +74,19 @@ class Fingerprint:
     data: dict[str, str]
 
 
+def scenario_name(spec: dict) -> str:
+    """The name of the scenario a configuration entry builds, as its rows carry it: its
+    ``label`` where it has one (the same record once more under another name), else its
+    ``name``."""
+    label = spec.get("label")
+    return label.strip() if isinstance(label, str) and label.strip() else spec["name"]
+
+
 def job_key(job) -> str:
-    """The key of a job's rows in a store: ``scenario|seed|observer|variant`` (the observer
-    is the labelled variant's label where there is one, as in ``summary.csv``)."""
-    seed = "" if job.seed is None else str(int(job.seed))
-    return f"{job.spec['name']}|{seed}|{job.label or job.observer}|{job.variant}"
+    """The key of a job's rows in a store: ``scenario|seed|observer|variant`` (the scenario
+    as :func:`scenario_name`, the observer the labelled variant's label where there is one, as
+    in ``summary.csv``)."""
+    return row_key(scenario_name(job.spec), job.seed, job.label or job.observer, job.variant)
 
 
 def row_key(*values: Any) -> str:
