@@ -22,8 +22,8 @@ from observers.builtin.frad import FRadA
 from observers.sets import Zonotope
 
 
-@observers.register("My-Obs", family="propagation", set_type="zonotope",
-                    ready_for_control=True)
+@observers.register("My-Obs", family="strip", set_type="zonotope",
+                    ready_for_control=False)
 class MyObs(FRadA):
     def step(self, u_prev, y):
         Z = super().step(u_prev, y)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -170,9 +171,11 @@ def bench_config(p: Plan, results: Path, reports: Path, executor,
            + (f", {len(p.dropped)} no longer in the configuration" if p.dropped else ""))
     code, problems = 0, []
     if p.stale:
+        t0 = time.perf_counter()
         merged, result = run_stale(p, executor, folder / "run", progress)
         code, problems = result.exit_code, list(result.problems)
         store = merged
+        notify(f"{p.cfg.name}: {len(p.stale)} rows run in {time.perf_counter() - t0:.0f} s")
     elif p.dropped and store is not None:
         store = merge(store, None, {}, p.order, None, None, _run_meta(p.cfg))
     if store is None:
@@ -218,9 +221,11 @@ def prewarm_floors(plans: list[Plan], executor, notify=print) -> int:
     order = sorted(range(len(tasks)), key=lambda i: (-sizes[i], keys[i]))
     tasks, keys = [tasks[i] for i in order], [keys[i] for i in order]
     executor.set_budget(budget or None, None)
-    notify(f"floors: {len(tasks)} records, {executor.workers} worker(s)")
+    t0 = time.perf_counter()
     for _ in executor.map(floor_task, tasks, keys=keys):
         pass
+    notify(f"floors: {len(tasks)} records in {time.perf_counter() - t0:.0f} s with "
+           f"{executor.workers} worker(s)")
     return len(tasks)
 
 
