@@ -59,7 +59,12 @@ def code_digest(source: str) -> str:
         The hex digest; equal for two sources that differ only in docstrings, comments and
         formatting.
     """
-    tree = _strip_docstrings(ast.parse(source))
+    return tree_digest(ast.parse(source))
+
+
+def tree_digest(tree: ast.AST) -> str:
+    """:func:`code_digest` of a parsed module (its docstrings are removed from ``tree``)."""
+    tree = _strip_docstrings(tree)
     return hashlib.sha256(ast.dump(tree, include_attributes=False).encode()).hexdigest()
 
 
@@ -182,9 +187,7 @@ class ModuleGraph:
         for mod in self.modules.values():
             if mod.digest:
                 continue
-            source = mod.path.read_text(encoding="utf-8")
-            tree = ast.parse(source, filename=str(mod.path))
-            mod.digest = code_digest(source)
+            tree = ast.parse(mod.path.read_text(encoding="utf-8"), filename=str(mod.path))
             mod.defined = _defined(tree)
             pending.append((mod, tree))
         for mod, tree in pending:  # re-exports first: ``from P import x`` resolves through them
@@ -207,6 +210,7 @@ class ModuleGraph:
                     self._depend(mod, base, alias.name)
             mod.deep.discard(mod.name)
             mod.shallow -= mod.deep | {mod.name}
+            mod.digest = tree_digest(tree)  # last: it strips the docstrings of ``tree``
 
     def _known(self, name: str) -> str | None:
         """``name`` or its nearest enclosing package that is in the graph, None if outside."""

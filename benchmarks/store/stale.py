@@ -9,7 +9,7 @@
 - **The soundness audit** is a store of its own (:mod:`benchmarks.gate.audit_store`, checked
   by :func:`benchmarks.gate.policy.stale`, which adds its lines to these).
 - **Studies** (``reports/datadriven.md``): one fingerprint per report, over the closure of the
-  study's module and of every built-in observer, recorded in ``results/reports.json`` by
+  study's module and of the observers it runs, recorded in ``results/reports.json`` by
   ``setobs-bench stale --record REPORT`` right after the report is regenerated
   (``make datadriven`` does it).
 - **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
@@ -37,9 +37,11 @@ from .store import load_store
 
 #: reports that measure a machine: never stale for the code
 MEASUREMENTS = ("speed", "scaling", "frontier")
-#: study reports and the module that writes each (besides every built-in observer); the
-#: soundness audit is a store of its own (:mod:`benchmarks.gate.audit_store`)
-STUDIES = {"datadriven": "benchmarks.studies.alanwar2022"}
+#: study reports: the module that writes each and the observers it runs (by name, through the
+#: registry, so not among its imports); the soundness audit is a store of its own
+#: (:mod:`benchmarks.gate.audit_store`)
+STUDIES = {"datadriven": ("benchmarks.studies.alanwar2022",
+                          ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2", "KF-N4SID"))}
 #: where the fingerprints of the study reports are recorded
 STUDY_RECORD = Path("results") / "reports.json"
 
@@ -92,8 +94,8 @@ def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path
 def study_fingerprint(name: str, fingerprinter: Fingerprinter) -> dict:
     """``{"digest": ..., "code": {...}, "data": ...}`` of a study report now."""
     graph = fingerprinter.graph
-    roots = [STUDIES[name], *sorted({i.cls.__module__ for i in observers.available()
-                                     if i.cls.__module__.startswith("observers.")})]
+    module, names = STUDIES[name]
+    roots = [module, *sorted({observers.get(n).cls.__module__ for n in names})]
     modules = set().union(*(graph.closure(r) for r in roots))
     code = {m: short(graph.modules[m].digest) for m in sorted(modules)}
     data = short(hashlib.sha256(canonical(fingerprinter.data_digests()).encode()).hexdigest())

@@ -26,6 +26,7 @@ never a mixture; :class:`StoreLock` keeps two writers off one ``results/`` folde
 
 from __future__ import annotations
 
+import csv
 import fcntl
 import hashlib
 import io
@@ -83,13 +84,20 @@ def content_digests(data: bytes, layout: Layout = CONFIG) -> dict[str, str]:
     """Row key -> digest of that row's lines as text in ``summary.csv`` (every field but
     ``run_id``, read as written: no number is parsed, so the digest is the same whoever
     reads it)."""
-    raw = pd.read_csv(io.BytesIO(data), dtype=str, keep_default_na=False)
-    out = {}
-    for key, lines in raw.groupby(keys_of(raw, layout), sort=False):
-        fields = lines.drop(columns=["run_id"], errors="ignore")
-        out[key] = short(_sha(canonical([list(fields.columns), fields.values.tolist()])
-                              .encode()))
-    return out
+    reader = csv.reader(io.StringIO(data.decode("utf-8"), newline=""))
+    header = next(reader, [])
+    try:
+        at = [header.index(c) for c in layout.keys]
+    except ValueError:
+        return {}  # no key column: no row (the caller names the mismatch)
+    keep = [i for i, c in enumerate(header) if c != "run_id"]
+    columns = [header[i] for i in keep]
+    groups: dict[str, list[list[str]]] = {}
+    for fields in reader:
+        groups.setdefault(row_key(*(fields[i] for i in at)), []).append(
+            [fields[i] for i in keep])
+    return {key: short(_sha(canonical([columns, lines]).encode()))
+            for key, lines in groups.items()}
 
 
 class Store:
