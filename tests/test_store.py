@@ -264,3 +264,16 @@ def test_every_job_of_every_published_configuration_has_its_own_row_key():
         assert len(set(keys)) == len(keys), name
         built = {i.scenario.name for i in cfg.instances}
         assert {k.split("|")[0] for k in keys} <= built, name
+
+
+def test_every_store_is_committed_and_local_runs_are_not():
+    """The stores' two files are not ignored by git (a new published configuration needs its
+    line in .gitignore); a run's or the gate's folder under results/ is."""
+    root = Path(__file__).resolve().parents[1]
+    names = [*bench.published(), "soundness"]
+    wanted = [f"results/{n}/{f}" for n in names for f in ("summary.csv", "meta.json")]
+    local = ["results/check/summary.csv", "results/quick/run/summary.csv",
+             "results/arch2021_table3/index.html", "results/audit-short/soundness.csv"]
+    done = subprocess.run(["git", "check-ignore", "--no-index", *wanted, *local], cwd=root,
+                          capture_output=True, text=True)
+    assert set(done.stdout.split()) == set(local)
