@@ -20,6 +20,7 @@ shipped with the package where their fingerprints are current, and renders the w
 from __future__ import annotations
 
 import dataclasses
+import json
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -105,19 +106,6 @@ def subset(cfg: BenchConfig, jobs: list, keys: set[str]) -> BenchConfig:
         scenarios=list({id(i.scenario): i.scenario for i in instances}.values()))
 
 
-def _run_meta(cfg: BenchConfig) -> dict:
-    from ..run.describe import set_bounds
-
-    return {"config": {"name": cfg.name, "title": cfg.title, "raw": cfg.raw,
-                       "containment": cfg.containment},
-            "scenarios": {sc.name: {
-                "N": sc.N, "n": sc.system.n, "dt": sc.system.dt,
-                "paper_table": sc.paper_table, "description": sc.description,
-                "source": sc.source, "state_names": list(sc.state_names),
-                "tolerance": sc.tolerance, "sets": set_bounds(sc.system)}
-                for sc in cfg.scenarios}}
-
-
 @dataclass
 class Outcome:
     """What :func:`bench_config` did."""
@@ -151,8 +139,15 @@ def run_stale(p: Plan, executor, out: Path, progress: bool | None = None):
                           "nothing stored, run `make bench` again")
     run_id, run = new_run(ROOT, {"name": executor.name, "workers": executor.workers})
     merged = merge(p.store, result.summary, {k: p.prints[k] for k in ran}, p.order, run_id,
-                   run, _run_meta(p.cfg))
+                   run, _run_meta(out))
     return merged, result
+
+
+def _run_meta(out: Path) -> dict:
+    """``config`` and ``scenarios`` of the run just written to ``out`` (its ``meta.json``,
+    written by :func:`~benchmarks.run.runner.run_config`: one description of a run)."""
+    meta = json.loads((out / "meta.json").read_text(encoding="utf-8"))
+    return {"config": meta["config"], "scenarios": meta["scenarios"]}
 
 
 def render(store: Store, out: Path) -> str:
@@ -177,7 +172,8 @@ def bench_config(p: Plan, results: Path, reports: Path, executor,
         store = merged
         notify(f"{p.cfg.name}: {len(p.stale)} rows run in {time.perf_counter() - t0:.0f} s")
     elif p.dropped and store is not None:
-        store = merge(store, None, {}, p.order, None, None, _run_meta(p.cfg))
+        store = merge(store, None, {}, p.order, None, None,
+                      {k: store.meta.get(k, {}) for k in ("config", "scenarios")})
     if store is None:
         return Outcome(p.cfg.name, 0, len(p.order), code, problems, None)
     if p.stale or p.dropped:
@@ -282,8 +278,6 @@ def add_observer(cfg: BenchConfig, name: str, results: Path, executor, out: Path
 def is_store(folder: Path) -> bool:
     """Whether ``folder`` holds a result store (read from its ``meta.json``'s format line,
     without checking the rows)."""
-    import json
-
     try:
         meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
