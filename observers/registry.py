@@ -1,5 +1,6 @@
 """Plugin registry: ``@register("Name", ...)`` for observer classes and discovery of outside
-plugins through the entry-point group ``observers``.
+plugins through the entry-point group ``setobs_bench.observers`` (:data:`ENTRY_POINT_GROUP`;
+the old group ``observers`` is still read, with a deprecation warning per plugin).
 
 Built-in observers live in :mod:`observers.builtin` (one module per family) and are imported
 lazily, on the first registry query, so that importing :mod:`observers.sets` (e.g. from
@@ -19,7 +20,12 @@ from typing import Any
 from .base import Observer, ObserverInfo
 from .errors import ObserverError, OptionError, UnknownObserver
 
-ENTRY_POINT_GROUP = "observers"
+#: entry-point group of observer plugins (``[project.entry-points."setobs_bench.observers"]``)
+ENTRY_POINT_GROUP = "setobs_bench.observers"
+
+#: the group read before 0.2.0, still read: each plugin found only there gives a
+#: :class:`PluginGroupDeprecation` warning
+OLD_ENTRY_POINT_GROUP = "observers"
 
 #: row order of the papers' tables; other observers follow alphabetically.  ``Exact`` (the
 #: exact reference of linear records) is the first row.
@@ -49,6 +55,11 @@ FAMILY_FLOORS = {"propagation": "predicted", "interval": "predicted"}
 
 _REGISTRY: dict[str, ObserverInfo] = {}
 _loaded = False
+
+
+class PluginGroupDeprecation(FutureWarning):
+    """A plugin announced in the old entry-point group ``observers`` (a :class:`FutureWarning`,
+    so that it is shown by default to whoever runs ``setobs-bench``)."""
 
 
 def register(
@@ -111,6 +122,34 @@ def register(
     return decorate
 
 
+def _distribution(ep) -> str:
+    """Name of the distribution that announces entry point ``ep`` (``"?"`` if unknown)."""
+    dist = getattr(ep, "dist", None)
+    return getattr(dist, "name", None) or "?"
+
+
+def _plugin_entry_points() -> list:
+    """The entry points of both groups, each plugin once: those of :data:`ENTRY_POINT_GROUP`,
+    then those of :data:`OLD_ENTRY_POINT_GROUP` not also in the new group (same distribution
+    and target), each with a one-line :class:`PluginGroupDeprecation` warning."""
+    eps = list(entry_points(group=ENTRY_POINT_GROUP))
+    seen = {(_distribution(ep), ep.value) for ep in eps}
+    for ep in entry_points(group=OLD_ENTRY_POINT_GROUP):
+        key = (_distribution(ep), ep.value)
+        if key in seen:
+            continue
+        seen.add(key)
+        eps.append(ep)
+        warnings.warn(
+            f"observer plugin '{ep.name}' of distribution '{key[0]}' is announced in the "
+            f"deprecated entry-point group '{OLD_ENTRY_POINT_GROUP}'; move it to "
+            f"'{ENTRY_POINT_GROUP}'",
+            PluginGroupDeprecation,
+            stacklevel=4,
+        )
+    return eps
+
+
 def _load_plugins() -> None:
     """Import the built-in observer modules and the entry-point plugins (once)."""
     global _loaded
@@ -121,7 +160,7 @@ def _load_plugins() -> None:
 
     for mod in pkgutil.iter_modules(builtin.__path__):
         importlib.import_module(f"{builtin.__name__}.{mod.name}")
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
+    for ep in _plugin_entry_points():
         try:
             obj = ep.load()
         except Exception as exc:  # a broken plugin must not take the harness down

@@ -92,6 +92,7 @@ def test_divergence_is_reported_not_raised():
 def test_entry_point_plugins_are_discovered(monkeypatch):
     class FakeEP:
         name = "my-plugin"
+        value = "my_plugin"
 
         def load(self):
             @observers.register("Plugin-Obs", family="strip", set_type="zonotope",
@@ -106,11 +107,13 @@ def test_entry_point_plugins_are_discovered(monkeypatch):
 
     class BrokenEP:
         name = "broken"
+        value = "nothing"
 
         def load(self):
             raise ImportError("no module named nothing")
 
-    monkeypatch.setattr(registry, "entry_points", lambda group: [FakeEP(), BrokenEP()])
+    groups = {registry.ENTRY_POINT_GROUP: [FakeEP(), BrokenEP()]}
+    monkeypatch.setattr(registry, "entry_points", lambda group: groups.get(group, []))
     monkeypatch.setattr(registry, "_loaded", False)
     try:
         with pytest.warns(UserWarning, match="broken"):

@@ -57,7 +57,7 @@ def _plugin(dst: Path) -> None:
         [project]
         name = "myplug"
         version = "0.1"
-        [project.entry-points.observers]
+        [project.entry-points."setobs_bench.observers"]
         my-obs = "myplug.obs"
         [tool.setuptools.packages.find]
         include = ["myplug*"]
