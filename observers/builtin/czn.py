@@ -304,7 +304,71 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
     reference="Scott, Raimondo, Marseglia, Braatz, Automatica 69, 2016",
 )
 class CZNA(ConZonotopeStripObserver):
-    """Constrained zonotopes, exact generalised intersection with the measurement set."""
+    r"""Constrained zonotopes, exact generalised intersection with the measurement set.
+
+    Notes
+    -----
+    The estimate is a constrained zonotope (Althoff & Rath 2021, Sec. 2.1; Scott et al. 2016)
+
+    .. math::
+
+        \langle c, G, A_c, b_c \rangle
+        = \{c + G \xi \mid \|\xi\|_\infty \le 1,\ A_c \xi = b_c\},
+
+    for the model of eq. (2), :math:`x_{k+1} = A x_k + B u_k + w_k`,
+    :math:`y_k = C x_k + v_k`, with :math:`\mathcal{W} = \langle c_W, E \rangle` and
+    :math:`\mathcal{V} = \langle c_V, F \rangle`.  One step:
+
+    *Prediction* (Sec. 2.4, step 1:
+    :math:`\mathcal{S}^p = A \mathcal{S}_{k-1} \oplus B u_{k-1} \oplus \mathcal{W}`), exact
+    on constrained zonotopes; the generators of :math:`\mathcal{W}` are free of the constraints:
+
+    .. math::
+
+        c^p = A c + B u_{k-1} + c_W, \qquad
+        G^p = \begin{bmatrix} A G & E & R \end{bmatrix}, \qquad
+        A_c^p = \begin{bmatrix} A_c & 0 & 0 \end{bmatrix}, \qquad b_c^p = b_c .
+
+    On a linear system :math:`R` is empty; on a nonlinear one :math:`A` and
+    :math:`B u_{k-1}` are replaced by the affine enclosure :math:`J x + d` of :math:`f` (at the
+    centre :math:`c`, or over the hull with ``enclosure_box="hull"``) and :math:`R` holds the
+    generators of its remainder box.
+
+    *Measurement update*: the correction of eq. (6) computed exactly, with the measurement set
+    :math:`\{x \mid y_k - C x \in \mathcal{V}\}` of eq. (3) itself instead of the strips of
+    eqs. (4)-(5) (Scott et al. 2016, Prop. 1, the generalised intersection with the output
+    map :math:`C`): a noise factor :math:`\xi_v` joins :math:`\xi` and every output adds one
+    constraint :math:`C (c^p + G^p \xi) + c_V + \tilde F \xi_v = y_k`,
+
+    .. math::
+
+        \mathcal{S}_k = \mathcal{S}^p \cap \{x \mid y_k - C x \in \tilde{\mathcal{V}}\}
+        = \left\langle c^p,\
+          \begin{bmatrix} G^p & 0 \end{bmatrix},\
+          \begin{bmatrix} A_c^p & 0 \\ C G^p & \tilde F \end{bmatrix},\
+          \begin{bmatrix} b_c^p \\ y_k - c_V - C c^p \end{bmatrix} \right\rangle,
+
+    where :math:`\tilde F = (1 + \epsilon) F` and
+    :math:`\tilde{\mathcal{V}} = \langle c_V, \tilde F \rangle` (option ``margin``,
+    :math:`\epsilon = 10^{-7}`; :math:`\epsilon = 0` is the exact intersection of CORA).
+
+    *Reduction* (set operations below): the lifted order reduction of
+    :math:`\langle [c; -b_c], [G; A_c] \rangle` and, with ``max_constraints``, the folding of
+    the oldest constraints.  With the default bound the prediction is reduced before the
+    update and the constraints are folded after it; with ``max_constraints=None`` (CORA) the
+    update comes first and the reduction after it.
+
+    *Interval hull* of the returned set: :math:`2n` linear programs,
+
+    .. math::
+
+        \underline{x}_i = \min_{\xi} \{ e_i^\top (c + G \xi) \mid A_c \xi = b_c,\
+        \|\xi\|_\infty \le 1 \}, \qquad
+        \overline{x}_i = \max_{\xi} \{ e_i^\top (c + G \xi) \mid A_c \xi = b_c,\
+        \|\xi\|_\infty \le 1 \},
+
+    each bounded by the weak-duality value of a dual point (sound whatever the solver).
+    """
 
     def design(self) -> None:
         super().design()
@@ -321,7 +385,7 @@ class CZNA(ConZonotopeStripObserver):
     reference="Alanwar, Rath, Said, Johansson, Althoff, arXiv 2010.11097; Scott et al. 2016",
 )
 class CZNB(WangGainVariant, ConZonotopeStripObserver):
-    """Constrained zonotopes, strip intersection parametrised by the F-radius gain.
+    r"""Constrained zonotopes, strip intersection parametrised by the F-radius gain.
 
     Options
     -------
@@ -329,6 +393,39 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
         As for FRad-B (:class:`~observers.builtin.frad.WangGainVariant`): ``"cora"``
         (default) computes the gain from the predicted set's ``G G'`` with ``A`` applied once
         more, ``R = A G G' A' + E E'``; ``"textbook"`` uses ``R = G G'``.
+
+    Notes
+    -----
+    Prediction and reduction as CZN-A (:class:`CZNA`): for the estimate
+    :math:`\langle c, G, A_c, b_c \rangle`,
+    :math:`c^p = A c + B u_{k-1} + c_W`, :math:`G^p = [A G,\ E]`,
+    :math:`A_c^p = [A_c,\ 0]`, :math:`b_c^p = b_c` (Althoff & Rath 2021, Sec. 2.4).
+
+    *Measurement update*: the predicted set intersected exactly with the strips of eq. (4),
+    :math:`|C_j x - y_{k,j}| \le \sigma_j` with :math:`[-\sigma, \sigma] \supseteq
+    \operatorname{BOX}(\mathcal{V})` (:math:`\sigma_j = \max(|\underline{v}_j|,
+    |\overline{v}_j|)`), all at once (eqs. (5)-(6) with equality).  The intersection is
+    written with the gain :math:`\Lambda_k` of intersection method II (Sec. 3.1) for the
+    centre and generators, and the strips as constraints; every :math:`\Lambda_k` gives the
+    same set (Alanwar et al. 2022, Prop. 3), the gain shapes the generators that the later
+    reductions act on:
+
+    .. math::
+
+        \mathcal{S}_k = \left\langle c^p + \Lambda_k (y_k - C c^p),\
+          \begin{bmatrix} (I - \Lambda_k C) G^p & \Lambda_k \operatorname{diag}(\tilde\sigma)
+          \end{bmatrix},\
+          \begin{bmatrix} A_c^p & 0 \\ C G^p & -\operatorname{diag}(\tilde\sigma) \end{bmatrix},\
+          \begin{bmatrix} b_c^p \\ y_k - C c^p \end{bmatrix} \right\rangle,
+        \qquad \tilde\sigma = (1 + \epsilon) \sigma .
+
+    The gain is the F-radius gain of FRad-B (Wang, Puig, Cembrano 2018):
+
+    .. math::
+
+        \Lambda_k = R C^\top \left(C R C^\top + F F^\top\right)^{-1}, \qquad
+        R = \begin{cases} A G^p G^{p\top} A^\top + E E^\top & \text{variant "cora"}, \\
+        G^p G^{p\top} & \text{variant "textbook"}. \end{cases}
     """
 
     def intersect(self, c, G, A, b, y):
@@ -341,7 +438,7 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
               "extension); Scott et al. 2016",
 )
 class CZNMV(CZNA):
-    """CZN-A with the mean-value extension of Rego et al. (2020) as prediction.
+    r"""CZN-A with the mean-value extension of Rego et al. (2020) as prediction.
 
     Beyond CORA.  For a nonlinear system the prediction encloses ``f(x) - f(c)`` by the
     interval Jacobian over the box of the estimate, ``J(B) (x - c)``: its midpoint is applied
@@ -349,6 +446,34 @@ class CZNMV(CZNA):
     (:class:`observers.prediction.MeanValuePrediction`).  It needs first derivatives only
     (no Hessian), and is tighter than the second-order remainder when the curvature is large
     relative to the set; on linear systems it is CZN-A.
+
+    Notes
+    -----
+    With :math:`\mathcal{B} = c \pm r`, :math:`r = |G| \mathbf{1}`, the box of the zonotope
+    :math:`\langle c, G \rangle` (which contains the estimate
+    :math:`\langle c, G, A_c, b_c \rangle`), and the interval Jacobian
+    :math:`J(\mathcal{B}) \subseteq J_m \pm J_r` over it, the mean-value theorem gives for
+    every :math:`x \in \mathcal{B}`
+
+    .. math::
+
+        f(x, u) \in f(c, u) + J(\mathcal{B}) (x - c)
+        \subseteq f(c, u) + J_m (x - c) + [-J_r r,\ J_r r],
+
+    so the prediction is CZN-A's with :math:`A = J_m`,
+    :math:`B u_{k-1} = f(c, u_{k-1}) - J_m c` and the box generators
+    :math:`R = \operatorname{diag}(J_r r)` (rounded outward):
+
+    .. math::
+
+        c^p = J_m c + \bigl(f(c, u_{k-1}) - J_m c\bigr) + c_W, \qquad
+        G^p = \begin{bmatrix} J_m G & E & \operatorname{diag}(J_r r) \end{bmatrix},
+        \qquad A_c^p = \begin{bmatrix} A_c & 0 & 0 \end{bmatrix}.
+
+    A nonlinear output :math:`h` is enclosed the same way over the box of the prediction,
+    :math:`h(x) \in H x + d \pm \rho`, and the update is CZN-A's exact intersection with
+    :math:`C = H`, the measurement :math:`y_k - d` and the noise widened to
+    :math:`\langle c_V, [\tilde F,\ \operatorname{diag}(\rho)] \rangle`.
     """
 
     LINEARISATION = "mean-value"
@@ -368,13 +493,43 @@ class _HullEnclosure(CZNA):
               "Taylor extension); Scott et al. 2016",
 )
 class CZNFO(_HullEnclosure):
-    """Constrained zonotopes with the first-order Taylor extension of Rego et al. (2020).
+    r"""Constrained zonotopes with the first-order Taylor extension of Rego et al. (2020).
 
     The dynamics and a nonlinear output are expanded to first order at the midpoint of the
     interval hull of the estimate (prediction) or of the predicted set (update), with the
     Lagrange remainder enclosed by the interval Hessian over that hull
     (:func:`observers.enclosures.first_order`); the linear part is applied to the
     constrained zonotope exactly, the remainder adds a box.  On linear systems it is CZN-A.
+
+    Notes
+    -----
+    With :math:`\mathcal{B} = [\underline{x}, \overline{x}]` the interval hull of the
+    estimate (:math:`2n` LPs), :math:`p` its midpoint and :math:`H_i(\mathcal{B})` the
+    interval Hessian of :math:`f_i` over it, Taylor's theorem gives for every
+    :math:`x \in \mathcal{B}`
+
+    .. math::
+
+        f_i(x, u) \in f_i(p, u) + \nabla f_i(p, u)^\top (x - p)
+        + \tfrac{1}{2} (x - p)^\top H_i(\mathcal{B}) (x - p),
+
+    whose last term is bounded in interval arithmetic over :math:`\mathcal{B}` by
+    :math:`d_i^R \pm \rho_i`.  With :math:`J = \partial f / \partial x (p, u_{k-1})` the
+    prediction is CZN-A's with the affine part applied exactly:
+
+    .. math::
+
+        c^p = J c + f(p, u_{k-1}) - J p + d^R + c_W, \qquad
+        G^p = \begin{bmatrix} J G & E & \operatorname{diag}(\rho) \end{bmatrix}, \qquad
+        A_c^p = \begin{bmatrix} A_c & 0 & 0 \end{bmatrix}.
+
+    A nonlinear output is enclosed the same way over the hull of the prediction,
+    :math:`h(x) \in H x + d \pm \rho_h`, and intersected exactly as in CZN-A with
+    :math:`C = H`, measurement :math:`y_k - d` and noise
+    :math:`\langle c_V, [\tilde F,\ \operatorname{diag}(\rho_h)] \rangle`.  After each
+    update the set is re-parametrised exactly by the least-squares shear
+    :math:`\langle c + L b_c,\ G - L A_c,\ A_c,\ b_c \rangle`,
+    :math:`L = G A_c^\top (A_c A_c^\top)^+`.
     """
 
     ENCLOSURE = "first-order"
@@ -387,7 +542,7 @@ class CZNFO(_HullEnclosure):
               "2008, on constrained zonotopes as in Rego et al.; Scott et al. 2016",
 )
 class CZNDC(_HullEnclosure):
-    """Constrained zonotopes with a difference-of-convex (DC) enclosure of f and h.
+    r"""Constrained zonotopes with a difference-of-convex (DC) enclosure of f and h.
 
     Each component is split over the interval hull of the set into a convex function minus a
     convex quadratic (:func:`observers.enclosures.dc`); tangent planes at the hull's midpoint
@@ -396,6 +551,36 @@ class CZNDC(_HullEnclosure):
     estimator of Alamo et al. 2008, used with constrained zonotopes in the comparisons of Rego,
     Raffo, Terra, Scott, arXiv 2504.00130).  The vertex enumeration costs ``2^n`` evaluations
     of f per step (refused beyond 12 states).  On linear systems it is CZN-A.
+
+    Notes
+    -----
+    Over the interval hull :math:`\mathcal{B} = p \pm r` of the set, each component is split
+    as :math:`f_i = g_i - q_i` with the convex quadratic
+    :math:`q_i(x) = \tfrac{1}{2} \sum_j a_{ij} (x_j - p_j)^2`, the weights :math:`a_{ij}`
+    making :math:`H_i(\mathcal{B}) + \operatorname{diag}(a_i)` diagonally dominant (Gershgorin),
+    so that :math:`g_i` is convex on :math:`\mathcal{B}`.  Tangent planes at :math:`p` minorise
+    both convex parts and a convex function is largest at a vertex :math:`v` of
+    :math:`\mathcal{B}`, hence, with :math:`J = \partial f / \partial x (p)`,
+
+    .. math::
+
+        f_i(x) - f_i(p) - J_i (x - p) \in
+        \Bigl[-\tfrac{1}{2} \sum_j a_{ij} r_j^2,\
+        \max_{v} \bigl(g_i(v) - g_i(p) - J_i (v - p)\bigr)\Bigr]
+        = d^R_i \pm \rho_i .
+
+    The prediction is then CZN-A's with this affine enclosure:
+
+    .. math::
+
+        c^p = J c + f(p, u_{k-1}) - J p + d^R + c_W, \qquad
+        G^p = \begin{bmatrix} J G & E & \operatorname{diag}(\rho) \end{bmatrix}, \qquad
+        A_c^p = \begin{bmatrix} A_c & 0 & 0 \end{bmatrix},
+
+    and a nonlinear output, enclosed the same way over the hull of the prediction as
+    :math:`h(x) \in H x + d \pm \rho_h`, is intersected exactly as in CZN-A with
+    :math:`C = H`, the measurement :math:`y_k - d` and the noise widened by
+    :math:`\operatorname{diag}(\rho_h)`.
     """
 
     ENCLOSURE = "dc"
@@ -408,7 +593,7 @@ class CZNDC(_HullEnclosure):
               "Scott et al. 2016",
 )
 class CZNPR(_HullEnclosure):
-    """Constrained zonotopes with lifted polyhedral relaxations (Rego, Raffo, Terra, Scott,
+    r"""Constrained zonotopes with lifted polyhedral relaxations (Rego, Raffo, Terra, Scott,
     arXiv 2504.00130).
 
     The dynamics and a nonlinear output are written as factorable functions (sums, products,
@@ -430,6 +615,45 @@ class CZNPR(_HullEnclosure):
         default) or also at both ends (3: tighter, about twice the constraints, which the
         constraint limit then folds; on the rego2d example 2 % tighter, on the robot looser
         and three times slower).
+
+    Notes
+    -----
+    Over the box :math:`\mathcal{B}` of the estimate :math:`\langle c, G, A_c, b_c \rangle`
+    every nonlinear operation of :math:`f` gets a variable :math:`z` bounded by linear
+    inequalities :math:`R_\ell\, (\xi, z) + \kappa_\ell \le 0` on its graph; for a
+    product :math:`z = a b` with :math:`a \in [a^L, a^U]`, :math:`b \in [b^L, b^U]` these are
+    the McCormick envelopes
+
+    .. math::
+
+        z \ge a^L b + a b^L - a^L b^L, \quad z \ge a^U b + a b^U - a^U b^U, \quad
+        z \le a^U b + a b^L - a^U b^L, \quad z \le a^L b + a b^U - a^L b^U,
+
+    and for a convex (concave) univariate operation the secant above (below) and tangents
+    below (above).  Each inequality becomes an equality with a slack
+    :math:`s_\ell = \tfrac{1}{2} s_\ell^{\max} (1 + \sigma_\ell)`,
+    :math:`|\sigma_\ell| \le 1`, so that the graph of :math:`f` over the estimate lies in the
+    lifted constrained zonotope over :math:`\eta = (\xi, z, \sigma)`; its image plus
+    :math:`\mathcal{W}` is the prediction:
+
+    .. math::
+
+        c^p = f_0 + c_W, \qquad
+        G^p = \begin{bmatrix} \Phi & E \end{bmatrix}, \qquad
+        A_c^p = \begin{bmatrix} A_c & 0 & 0 & 0 \\ R_\xi & R_z &
+        \tfrac{1}{2} \operatorname{diag}(s^{\max}) & 0 \end{bmatrix}, \qquad
+        b_c^p = \begin{bmatrix} b_c \\ -\kappa - \tfrac{1}{2} s^{\max} \end{bmatrix},
+
+    with :math:`f(x) = f_0 + \Phi \eta` the (affine) output expressions of the relaxation.
+    Update: the output expressions :math:`h(x) = h_0 + \Psi \eta` of the relaxation of
+    :math:`h` over the lifted predicted set are equated to :math:`y_k - v`,
+    :math:`v = c_V + \tilde F \xi_v`:
+
+    .. math::
+
+        \Psi \eta + \tilde F \xi_v = y_k - h_0 - c_V,
+
+    added as constraint rows (the centre and generators of the state are unchanged).
     """
 
     OPTIONS = {"tangents": Choice(1, (1, 3))}

@@ -123,7 +123,7 @@ class EllipsoidalStripObserver(Observer):
               "Liu, Zhao, Wu, IET CTA 10(4), 2016 (prediction)",
 )
 class ESOA(EllipsoidalStripObserver):
-    """Optimal bounding ellipsoids: Gollamudi's capped update, Liu's prediction (online).
+    r"""Optimal bounding ellipsoids: Gollamudi's capped update, Liu's prediction (online).
 
     The noise is bounded by the Euclidean ball of radius ``gamma = sqrt(lambda_max(Q_V))``
     around ``y`` (it contains ``V``'s ellipsoid); the update weight is
@@ -136,6 +136,22 @@ class ESOA(EllipsoidalStripObserver):
         the default 1e-4 is the value of the reference implementation (CORA), with which the
         published ESO-A rows were computed.  Larger values (e.g. 0.1) follow the measurements
         more closely and give radii of ESO-B's magnitude on the shipped benchmarks.
+
+    Notes
+    -----
+    The estimate :math:`\mathcal{S}_k = \{x \mid (x - q_k)^\top P_k^{-1} (x - q_k) \le
+    \sigma_k^2\}` follows the strip-based loop of Althoff & Rath (2021, Sec. 2.4): the
+    prediction :math:`(q^p, P^p)` of :func:`~observers.numerics.ellipsoidal.liu_prediction`,
+    then the correction of eq. (6) as the outer ellipsoid of
+    :func:`~observers.numerics.ellipsoidal.obe_update` with the measurement set
+
+    .. math::
+
+        \{x \mid \|y_k - c_V - C x\|^2 \le \gamma^2\}, \qquad
+        \gamma^2 = \lambda_{\max}(Q_V) \quad (\mathcal{V} \subseteq \mathcal{E}(c_V, Q_V)),
+
+    and the weight :math:`\lambda = \min(\alpha, \nu)`.  The first set is
+    :math:`\mathcal{X}_0` updated with :math:`y_0`.
     """
 
     OPTIONS = {"alpha": Number(1e-4, low=0, high=1, low_open=True, high_open=True)}
@@ -162,10 +178,26 @@ class ESOA(EllipsoidalStripObserver):
     reference="Liu, Zhao, Wu, IET Control Theory Appl. 10(4), 2016",
 )
 class ESOB(EllipsoidalStripObserver):
-    """Optimal bounding ellipsoids with selective update of Liu et al. (online).
+    r"""Optimal bounding ellipsoids with selective update of Liu et al. (online).
 
     The measurement set is ``y - V`` itself (outputs whitened with ``V``'s shape matrix); the
     update weight is the bound-minimising ``nu`` without a cap.
+
+    Notes
+    -----
+    As ESO-A (prediction :func:`~observers.numerics.ellipsoidal.liu_prediction`, update
+    :func:`~observers.numerics.ellipsoidal.obe_update`), with the measurement set the noise
+    ellipsoid :math:`\mathcal{V} \subseteq \mathcal{E}(c_V, Q_V)` itself, written in
+    whitened outputs:
+
+    .. math::
+
+        \{x \mid (y_k - c_V - C x)^\top Q_V^{-1} (y_k - c_V - C x) \le 1\}
+        = \{x \mid \|T (y_k - c_V) - T C x\|^2 \le 1\}, \qquad
+        T^\top T = Q_V^{-1},
+
+    and the weight :math:`\lambda = \nu` (no cap), updated only if
+    :math:`\sigma^2 + \|\delta\|^2 > 1`.
     """
 
     def design(self) -> None:
@@ -263,7 +295,7 @@ class InvariantSetObserver(Observer):
     reference="Loukkas, Martinez, Meslem, IFAC-PapersOnLine 50(1), 2017",
 )
 class ESOC(InvariantSetObserver):
-    """Ellipsoidal invariant sets of the estimation error (offline LMIs, log-det weight).
+    r"""Ellipsoidal invariant sets of the estimation error (offline LMIs, log-det weight).
 
     Options
     -------
@@ -277,6 +309,22 @@ class ESOC(InvariantSetObserver):
         of ARCH 2021 Table 3 but is **not guaranteed** (the true state leaves its set on the
         6-state vehicle record); benchmark configurations list it as the labelled variant
         ``ESO-C[cora]``, not guaranteed.
+
+    Notes
+    -----
+    A set-propagation observer (Althoff & Rath 2021, Sec. 2.5) whose set is not propagated:
+    the Luenberger estimate of eq. (7) carries an ellipsoid of its error,
+
+    .. math::
+
+        \hat x_{k} = (A - L C) \hat x_{k-1} + B u_{k-1} + L y_{k-1} + c_W - L c_V,
+        \qquad \ell_k = (1 - \lambda) \ell_{k-1} + \gamma^2 p, \qquad
+        \mathcal{S}_k = \mathcal{E}(\hat x_k,\ \ell_k P^{-1}),
+
+    ready before :math:`y_k` arrives (:func:`~observers.numerics.ellipsoidal.invariant_step`).
+    :math:`L, P, \gamma, \lambda` come offline from the H-infinity LMI with the
+    covariance weight and the log-det step of
+    :func:`~observers.numerics.ellipsoidal.loukkas_design`.
     """
 
     OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True),
@@ -301,7 +349,22 @@ class ESOC(InvariantSetObserver):
     reference="Martinez, Loukkas, Meslem, Int. J. Control 93(10), 2020",
 )
 class ESOD(InvariantSetObserver):
-    """H-infinity set-membership observer with an ellipsoidal error bound (offline LMIs)."""
+    r"""H-infinity set-membership observer with an ellipsoidal error bound (offline LMIs).
+
+    Notes
+    -----
+    The online step is ESO-C's (:func:`~observers.numerics.ellipsoidal.invariant_step`),
+
+    .. math::
+
+        \hat x_{k} = (A - L C) \hat x_{k-1} + B u_{k-1} + L y_{k-1} + c_W - L c_V,
+        \qquad \ell_k = (1 - \lambda) \ell_{k-1} + \gamma^2 p, \qquad
+        \mathcal{S}_k = \mathcal{E}(\hat x_k,\ \ell_k P^{-1}),
+
+    with the offline design of Martinez et al. (2020,
+    :func:`~observers.numerics.ellipsoidal.martinez_design`): the H-infinity LMI weighted
+    by the inverse error covariance for uniform noise (variance 1/3 per factor).
+    """
 
     def compute_design(self, A, C, E, F) -> dict:
         return martinez_design(A, C, E, F, what=self.name)
@@ -312,7 +375,7 @@ class ESOD(InvariantSetObserver):
     reference="Scholte, Campbell, Int. J. Robust Nonlinear Control 13(15), 2003",
 )
 class ESMF(Observer):
-    """Extended set-membership filter: ESO-B's ellipsoids around a linearisation (online).
+    r"""Extended set-membership filter: ESO-B's ellipsoids around a linearisation (online).
 
     At every step ``f`` is linearised at the centre of the box of the estimate and its
     Lagrange remainder bounded over that box with the interval Hessian
@@ -331,6 +394,23 @@ class ESMF(Observer):
         Weight of the update (:func:`~observers.numerics.ellipsoidal.esmf_update`): the
         ellipsoid of minimal trace (default), or ESO-B's selective bounding-ellipsoid weight
         (every step then equals ESO-B's on a linear system).
+
+    Notes
+    -----
+    Over the box of the estimate :math:`\mathcal{E}(q, \sigma^2 P)`,
+    :math:`f(x, u) \in J x + d \pm \rho`; the remainder box is absorbed into the
+    disturbance shape and the step is ESO-B's for the linear model
+    :math:`x_{k+1} = J x_k + d + w_k`:
+
+    .. math::
+
+        q^p = J q + d + c_W, \qquad
+        P^p = \frac{J P J^\top}{1 - p} + \frac{Q_W'}{\sigma^2 p}, \qquad
+        \mathcal{E}(0, Q_W') \supseteq \mathcal{E}(0, Q_W) \oplus [-\rho, \rho]
+
+    (:func:`~observers.numerics.ellipsoidal.esmf_prediction`), then the update of
+    :func:`~observers.numerics.ellipsoidal.esmf_update` with
+    :math:`h(x) \in H x + d_h \pm \rho_h` and the noise shape widened likewise.
     """
 
     REQUIRES = ("W", "V", "X0")

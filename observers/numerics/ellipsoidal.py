@@ -63,9 +63,25 @@ CORA_SIGMA2_0 = 0.3
 def liu_prediction(
     q: np.ndarray, P: np.ndarray, s2: float, A: np.ndarray, shift: np.ndarray, QW: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Prediction of Liu, Zhao & Wu (2016, eq. (21)): the minimal-trace outer ellipsoid of
+    r"""Prediction of Liu, Zhao & Wu (2016, eq. (21)): the minimal-trace outer ellipsoid of
     ``A E(q, s2 P) + shift + E(0, QW)``, returned as ``(q, P)`` at the unchanged level ``s2``:
-    ``P = A P A' / (1 - p) + QW / (s2 p)``."""
+    ``P = A P A' / (1 - p) + QW / (s2 p)``.
+
+    Notes
+    -----
+    The estimate is :math:`\{x \mid (x - q)^\top P^{-1} (x - q) \le \sigma^2\}` (level
+    :math:`\sigma^2` = ``s2``).  The prediction of Althoff & Rath (2021, Sec. 2.4, step 1),
+    :math:`A \mathcal{S}_{k-1} \oplus B u_{k-1} \oplus \mathcal{W}`, is enclosed by the
+    member of least trace of the family of outer ellipsoids of a Minkowski sum
+    (``shift`` :math:`= B u_{k-1} + c_W`, :math:`\mathcal{W} = \mathcal{E}(c_W, Q_W)`):
+
+    .. math::
+
+        q^p = A q + B u_{k-1} + c_W, \qquad
+        P^p = \frac{A P A^\top}{1 - p} + \frac{Q_W}{\sigma^2 p}, \qquad
+        p = \frac{\sqrt{\operatorname{tr} Q_W}}
+                 {\sqrt{\operatorname{tr}(\sigma^2 A P A^\top)} + \sqrt{\operatorname{tr} Q_W}} .
+    """
     APA = A @ P @ A.T
     return A @ q + shift, outer_sum(s2 * APA, QW, "min-trace") / s2
 
@@ -74,12 +90,49 @@ def obe_update(
     q: np.ndarray, P: np.ndarray, s2: float, Ct: np.ndarray, yt: np.ndarray, rho: float,
     alpha: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Selective OBE measurement update (Gollamudi et al. 1996; Liu et al. 2016).
+    r"""Selective OBE measurement update (Gollamudi et al. 1996; Liu et al. 2016).
 
     The set is updated only if that can decrease the level, ``s2 + ||delta||^2 > rho``
     (``delta = yt - Ct q``); the weight is ``lam = min(alpha, nu)`` with ``nu`` from
     :func:`~observers.sets.ellipsoid.obe_weight` and ``g = lambda_max(Ct P Ct')``.
     Returns ``(q, P, s2, lam)``, ``lam = 0`` when nothing was updated.
+
+    Notes
+    -----
+    The measurement set is :math:`\{x \mid \|\tilde y - \tilde C x\|^2 \le \rho\}`
+    (ESO-A: :math:`\tilde C = C`, :math:`\tilde y = y_k - c_V`,
+    :math:`\rho = \gamma^2 = \lambda_{\max}(Q_V)`; ESO-B: :math:`\tilde C = T C`,
+    :math:`\tilde y = T (y_k - c_V)`, :math:`T^\top T = Q_V^{-1}`, :math:`\rho = 1`).  Every
+    point of its intersection with the estimate satisfies, for :math:`0 < \lambda < 1`,
+    the convex combination
+    :math:`(1 - \lambda)(x - q)^\top P^{-1} (x - q) + \lambda \|\tilde y - \tilde C x\|^2
+    \le (1 - \lambda)\sigma^2 + \lambda \rho`, an ellipsoid (the correction of eq. (6) of
+    Althoff & Rath 2021 as an outer ellipsoid).  With the innovation
+    :math:`\delta = \tilde y - \tilde C q`:
+
+    .. math::
+
+        K &= P \tilde C^\top \Bigl(\tilde C P \tilde C^\top
+             + \tfrac{1 - \lambda}{\lambda} I\Bigr)^{-1}, \qquad
+        q^+ = q + K \delta, \qquad
+        P^+ = \frac{(I - K \tilde C) P}{1 - \lambda}, \\
+        \sigma^{2+} &= (1 - \lambda) \sigma^2 + \lambda \rho
+             - \delta^\top \Bigl(\frac{\tilde C P \tilde C^\top}{1 - \lambda}
+             + \frac{I}{\lambda}\Bigr)^{-1} \delta .
+
+    The update is made only if :math:`\sigma^2 + \|\delta\|^2 > \rho`, with the weight
+    minimising the bound of :math:`\sigma^{2+}` (Gollamudi et al. 1996), capped at
+    :math:`\alpha`:
+
+    .. math::
+
+        \lambda = \min(\alpha, \nu), \qquad
+        \nu = \frac{1 - \sqrt{g / (1 + \beta (g - 1))}}{1 - g}, \qquad
+        g = \lambda_{\max}(\tilde C P \tilde C^\top), \qquad
+        \beta = \frac{\rho - \sigma^2}{\|\delta\|^2}
+
+    (:math:`\nu = (1 - \beta)/2` for :math:`g = 1`).  The returned set is
+    :math:`\mathcal{E}(q^+, \sigma^{2+} P^+)`.
     """
     delta = yt - Ct @ q
     e = float(delta @ delta)
@@ -320,7 +373,20 @@ def hinf_riccati(
 
 
 def error_system(A, C, E, F, L) -> tuple[np.ndarray, np.ndarray]:
-    """``Ao = A - L C`` and ``D = [E, -L F]`` of the estimation error."""
+    r"""``Ao = A - L C`` and ``D = [E, -L F]`` of the estimation error.
+
+    Notes
+    -----
+    With :math:`w = c_W + E \bar w_1`, :math:`v = c_V + F \bar w_2`,
+    :math:`\bar w = [\bar w_1; \bar w_2] \in [-1, 1]^p`, the error
+    :math:`e_k = x_k - \hat x_k` of the Luenberger observer (Althoff & Rath 2021, eq. (7))
+    evolves as
+
+    .. math::
+
+        e_{k+1} = A_o e_k + D \bar w_k, \qquad A_o = A - L C, \qquad
+        D = \begin{bmatrix} E & -L F \end{bmatrix} .
+    """
     return A - L @ C, np.hstack([E, -L @ F])
 
 
@@ -386,7 +452,7 @@ def _lyapunov_weight(Ao: np.ndarray, Sigma: np.ndarray, what: str) -> np.ndarray
 
 
 def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict:
-    """Algorithm 1 of Loukkas, Martinez & Meslem (2017).
+    r"""Algorithm 1 of Loukkas, Martinez & Meslem (2017).
 
     1. gain of the H-infinity LMI with ``Q = I``;
     2. ``Q = V^-1`` with ``V`` the error covariance of that gain for the disturbance
@@ -395,6 +461,33 @@ def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict
     3. new gain of the LMI with this ``Q``; then ``Q`` maximising ``log det Q`` subject to the
        LMI for that gain (closed form, :func:`schur_bound`);
     4. ``lam`` from :func:`certify`.
+
+    Notes
+    -----
+    The gains solve the H-infinity LMI (Loukkas et al. 2017, eq. (26)) in
+    :math:`P = P^\top \succ 0`, :math:`Y = P L` and :math:`g = \gamma^2`, for a weight
+    :math:`Q \succ 0`, minimising :math:`g`:
+
+    .. math::
+
+        \begin{bmatrix} -P + Q & 0 & A^\top P - C^\top Y^\top \\
+        0 & -g I & D_P^\top \\
+        P A - Y C & D_P & -P \end{bmatrix} \preceq 0, \qquad
+        D_P = \begin{bmatrix} P E & -Y F \end{bmatrix}, \qquad L = P^{-1} Y .
+
+    By a Schur complement it is
+    :math:`V(e^+) - V(e) + e^\top Q e - \gamma^2 \|\bar w\|^2 \le 0` for
+    :math:`V(e) = e^\top P e`.  Step 2 weights it with the inverse error covariance,
+    :math:`Q = \Sigma_e^{-1}`, :math:`A_o \Sigma_e A_o^\top - \Sigma_e + Q_W / \chi^2_n(q) = 0`
+    (:math:`q` = ``quantile``); step 3 replaces :math:`Q` by the largest weight the LMI
+    admits for the new gain (the maximiser of :math:`\log\det Q`),
+
+    .. math::
+
+        Q = P - A_o^\top P A_o - A_o^\top P D \,(\gamma^2 I - D^\top P D)^{-1} D^\top P A_o,
+
+    and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)`, so that
+    :math:`Q \succeq \lambda P` (capped at 1).
     """
     n = A.shape[0]
     _, L, _ = hinf_gain(A, C, E, F, np.eye(n), f"{what} (gain with Q = I)")
@@ -408,12 +501,34 @@ def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict
 
 
 def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D") -> dict:
-    """Algorithm 1 of Martinez, Loukkas & Meslem (2020).
+    r"""Algorithm 1 of Martinez, Loukkas & Meslem (2020).
 
     1. gain of the H-infinity LMI with ``Q = I``;
     2. ``Q = V^-1`` with ``Ao V Ao' - V + D W D' = 0``, ``W = variance I`` (eqs. (63)-(64):
        1/3 is the variance of a uniform distribution on [-1, 1]);
     3. new gain of the LMI with this ``Q``; ``lam`` from :func:`certify`.
+
+    Notes
+    -----
+    Both gains solve the H-infinity LMI of Martinez et al. (2020, Theorem 1; the LMI of
+    :func:`loukkas_design`), in :math:`P \succ 0`, :math:`Y = P L`, :math:`g = \gamma^2`:
+
+    .. math::
+
+        \begin{bmatrix} -P + Q & 0 & A^\top P - C^\top Y^\top \\
+        0 & -g I & D_P^\top \\
+        P A - Y C & D_P & -P \end{bmatrix} \preceq 0, \qquad
+        D_P = \begin{bmatrix} P E & -Y F \end{bmatrix},
+
+    first with :math:`Q = I`, then with the weight of eqs. (63)-(64),
+
+    .. math::
+
+        Q = \Sigma_e^{-1}, \qquad
+        A_o \Sigma_e A_o^\top - \Sigma_e + \tfrac{1}{3} D D^\top = 0,
+
+    and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)` after the
+    certification (:func:`certify`).
     """
     n = A.shape[0]
     _, L, _ = hinf_gain(A, C, E, F, np.eye(n), f"{what} (gain with Q = I)")
@@ -429,9 +544,31 @@ def invariant_step(
     x: np.ndarray, level: float, Ao: np.ndarray, B: np.ndarray, L: np.ndarray, u: np.ndarray,
     y: np.ndarray, offset: np.ndarray, lam: float, drive: float,
 ) -> tuple[np.ndarray, float]:
-    """One step of the observer and of its error level (Loukkas et al., eqs. (46)-(51)):
+    r"""One step of the observer and of its error level (Loukkas et al., eqs. (46)-(51)):
     ``xh+ = Ao xh + B u + L y + offset`` (``offset = c_W - L c_V``) and
-    ``l+ = (1 - lam) l + drive`` (``drive = gamma^2 ||wbar||^2``)."""
+    ``l+ = (1 - lam) l + drive`` (``drive = gamma^2 ||wbar||^2``).
+
+    Notes
+    -----
+    The Luenberger observer of Althoff & Rath (2021, eq. (7)) and the level of its error
+    bound:
+
+    .. math::
+
+        \hat x_{k+1} = (A - L C) \hat x_k + B u_k + L y_k + c_W - L c_V, \qquad
+        \ell_{k+1} = (1 - \lambda) \ell_k + \gamma^2 p ,
+
+    with :math:`p` the number of columns of :math:`[E, F]`
+    (:math:`\|\bar w\|^2 \le p`).  From the LMI and :math:`Q \succeq \lambda P`,
+    :math:`V(e_{k+1}) \le (1 - \lambda) V(e_k) + \gamma^2 p`, so
+    :math:`\ell_0 \ge \max_{x \in \mathcal{X}_0} (x - \hat x_0)^\top P (x - \hat x_0)`
+    keeps :math:`e_k^\top P e_k \le \ell_k` and the estimate is the ellipsoid
+
+    .. math::
+
+        \mathcal{S}_k = \{x \mid (x - \hat x_k)^\top P (x - \hat x_k) \le \ell_k\}
+        = \mathcal{E}(\hat x_k,\ \ell_k P^{-1}) .
+    """
     return Ao @ x + B @ u + L @ y + offset, (1.0 - lam) * level + drive
 
 
@@ -447,8 +584,16 @@ def box_shape(rad: np.ndarray) -> np.ndarray:
 
 
 def ellipsoid_box(q: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Interval hull ``q +- sqrt(diag(Q))`` of the ellipsoid ``E(q, Q)``, widened by a
-    relative 1e-12 (the square roots and the rounding of ``Q``)."""
+    r"""Interval hull ``q +- sqrt(diag(Q))`` of the ellipsoid ``E(q, Q)``, widened by a
+    relative 1e-12 (the square roots and the rounding of ``Q``).
+
+    Notes
+    -----
+    .. math::
+
+        \operatorname{BOX}(\mathcal{E}(q, Q)) = \bigl[q_i - \sqrt{Q_{ii}},\
+        q_i + \sqrt{Q_{ii}}\bigr]_{i = 1}^{n} .
+    """
     r = np.sqrt(np.maximum(np.diag(Q), 0.0)) * (1.0 + 1e-12)
     r = np.nextafter(r + 1e-300, np.inf)
     return np.nextafter(q - r, -np.inf), np.nextafter(q + r, np.inf)
@@ -467,22 +612,64 @@ def absorb(Q: np.ndarray, rad: np.ndarray) -> np.ndarray:
 
 
 def esmf_prediction(q, P, s2, J, d, rad, QW, cW):
-    """Prediction of the extended set-membership filter (Scholte & Campbell 2003): the
+    r"""Prediction of the extended set-membership filter (Scholte & Campbell 2003): the
     dynamics enclosed as ``f(x) in J x + d + [-rad, rad]`` over the box of the estimate, the
     remainder box absorbed into the disturbance ellipsoid (:func:`absorb`), then the
-    ellipsoidal prediction of the linear family (:func:`liu_prediction`)."""
+    ellipsoidal prediction of the linear family (:func:`liu_prediction`).
+
+    Notes
+    -----
+    Over the box of the estimate :math:`\mathcal{E}(q, \sigma^2 P)`,
+    :math:`f(x, u_{k-1}) \in J x + d \pm \rho` (first-order Taylor expansion with the
+    Lagrange remainder; :math:`J = A`, :math:`d = B u_{k-1}`, :math:`\rho = 0` on a linear
+    system).  The remainder box goes into the disturbance shape, then Liu's prediction:
+
+    .. math::
+
+        Q_W' = \frac{Q_W}{1 - p} + \frac{R}{p}, \quad
+        R = \operatorname{diag}(\kappa \rho_i^2), \qquad
+        q^p = J q + d + c_W, \qquad
+        P^p = \frac{J P J^\top}{1 - p'} + \frac{Q_W'}{\sigma^2 p'},
+
+    with :math:`\kappa` the number of non-zero :math:`\rho_i` (the ellipsoid
+    :math:`\mathcal{E}(0, R)` contains the box) and :math:`p, p'` the weights of least trace.
+    """
     return liu_prediction(q, P, s2, J, d + cW, absorb(QW, rad))
 
 
 def esmf_update(q, P, s2, H, y_eff, rad, QV, weight: str = "obe"):
-    """Update of the extended set-membership filter: the output enclosed as
+    r"""Update of the extended set-membership filter: the output enclosed as
     ``h(x) in H x + d + [-rad, rad]`` (``y_eff = y - d - c_V``), the remainder absorbed into
     the noise ellipsoid, the outputs whitened with the widened noise shape, then the
     ellipsoid of :func:`~observers.sets.ellipsoid.quadratic_update` with the weight of
     ``weight``: ``"obe"`` the selective optimal-bounding-ellipsoid update of ESO-B
     (:func:`obe_update`), ``"min-trace"`` the weight minimising the trace of the updated
     shape ``s2+ P+`` (bounded scalar search; the set is kept if no weight shrinks it).
-    Returns ``(q, P, s2, lam)`` as :func:`obe_update` (``lam = 0``: not updated)."""
+    Returns ``(q, P, s2, lam)`` as :func:`obe_update` (``lam = 0``: not updated).
+
+    Notes
+    -----
+    With :math:`h(x) \in H x + d \pm \rho_h` over the box of the prediction
+    (:math:`H = C`, :math:`d = 0`, :math:`\rho_h = 0` for a linear output), the noise shape
+    is widened and the outputs whitened,
+
+    .. math::
+
+        Q_V' = \frac{Q_V}{1 - p} + \frac{R_h}{p}, \qquad
+        \tilde C = T H, \qquad \tilde y = T (y_k - d - c_V), \qquad
+        T^\top T = Q_V'^{-1},
+
+    and the update is the convex combination of :func:`obe_update` with :math:`\rho = 1`
+    (same :math:`K`, :math:`q^+`, :math:`P^+`, :math:`\sigma^{2+}`), with the weight
+
+    .. math::
+
+        \lambda = \operatorname*{arg\,min}_{0 < \lambda < 1}
+        \sigma^{2+}(\lambda) \operatorname{tr} P^+(\lambda)
+
+    for ``"min-trace"`` (kept only if it is below :math:`\sigma^2 \operatorname{tr} P`), or
+    the capped weight :math:`\nu` of :func:`obe_update` for ``"obe"``.
+    """
     Qv = absorb(QV, rad)
     T = np.linalg.inv(np.linalg.cholesky(Qv))
     Ct, yt = T @ H, T @ y_eff

@@ -180,12 +180,31 @@ class ConZonotope:
             self._c, self._G, self._A, self._b, C, y, sigma, Lam))
 
     def intersect_measurement(self, C, y, V, gain=None) -> ConZonotope:
-        """Exact ``{x in self : y - C x in V}`` for a noise zonotope ``V`` (``Zonotope`` or
+        r"""Exact ``{x in self : y - C x in V}`` for a noise zonotope ``V`` (``Zonotope`` or
         ``Interval`` of dimension ``C.shape[0]``).
 
         ``gain`` (n x m, default zero) only chooses the parametrisation: centre
         ``c + L (y - C c - c_V)``, generators ``[(I - L C) G, -L G_V]`` (Alanwar et al. 2022,
         Prop. 3); the set is the same for every gain.
+
+        Notes
+        -----
+        For :math:`\mathcal{Z} = \langle c, G, A_c, b_c \rangle` and
+        :math:`\mathcal{V} = \langle c_V, G_V \rangle`, a new factor :math:`\xi_v` and one
+        constraint row per output (Alanwar et al. 2022, eqs. (23)-(25)):
+
+        .. math::
+
+            \mathcal{Z} \cap \{x \mid y - C x \in \mathcal{V}\} =
+            \left\langle c + L (y - C c - c_V),\
+              \begin{bmatrix} (I - L C) G & -L G_V \end{bmatrix},\
+              \begin{bmatrix} A_c & 0 \\ C G & G_V \end{bmatrix},\
+              \begin{bmatrix} b_c \\ y - C c - c_V \end{bmatrix} \right\rangle .
+
+        Every point :math:`c + G \xi` with :math:`y - C (c + G \xi) = c_V + G_V \xi_v` equals
+        :math:`c + G \xi + L (y - C c - c_V - C G \xi - G_V \xi_v)`, which is why the gain
+        :math:`L` does not change the set; :math:`L = 0` is the generalised intersection of
+        Scott et al. (2016, Prop. 1).
         """
         C = matrix(C, "output matrix C", cols=self.dim)
         m = C.shape[0]
@@ -201,11 +220,31 @@ class ConZonotope:
 
     def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
                ) -> ConZonotope:
-        """Enclosure by reducing the lifted zonotope ``([c; -b], [G; A])`` with the zonotope
+        r"""Enclosure by reducing the lifted zonotope ``([c; -b], [G; A])`` with the zonotope
         strategy ``method`` (Scott et al. 2016, Sec. 4.3).  ``per="state"`` (CORA's
         ``reduce``): at most ``order * n + nc`` generators; ``per="lifted"``: at most
         ``order * (n + nc)``.  The number of constraints does not change; see
-        :meth:`reduce_constraints`."""
+        :meth:`reduce_constraints`.
+
+        Notes
+        -----
+        The constraints are appended to the generators, the lifted zonotope in
+        :math:`\mathbb{R}^{n + n_c}` is reduced and split again (after dropping all-zero
+        rows and columns):
+
+        .. math::
+
+            \begin{bmatrix} \hat G \\ \hat A_c \end{bmatrix}
+            = \operatorname{reduce}\left(\begin{bmatrix} G \\ A_c \end{bmatrix},\
+            \rho\right), \qquad
+            \langle c, G, A_c, b_c \rangle \subseteq \langle c, \hat G, \hat A_c, b_c \rangle,
+
+        with the lifted order :math:`\rho = \max(1, (o\, n + n_c) / (n + n_c))` for
+        ``per="state"`` and :math:`\rho = o` for ``per="lifted"`` (:math:`o` = ``order``).
+        The enclosure holds because :math:`\langle [c; -b_c], [G; A_c] \rangle` is
+        enclosed by the reduced lifted zonotope, and the set is its slice where the last
+        :math:`n_c` coordinates are zero.
+        """
         check_order(order)
         if per not in ops.ORDER_BASES:
             raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
@@ -215,10 +254,32 @@ class ConZonotope:
             self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
 
     def reduce_constraints(self, max_constraints: int, method: str = "fold") -> ConZonotope:
-        """Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
+        r"""Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones
         are eliminated by the named strategy: ``"fold"`` (rescaling, then a least-squares
         shear of generators and kept constraints) or ``"frobenius"`` (Frobenius-optimal gain
-        on the generators); see :mod:`observers.sets.conzono_ops`."""
+        on the generators); see :mod:`observers.sets.conzono_ops`.
+
+        Notes
+        -----
+        With the oldest rows :math:`A_S \xi = b_S` to drop and the kept rows
+        :math:`A_R \xi = b_R`, ``"fold"`` first shrinks the box of :math:`\xi` to the bounds
+        :math:`[l, u]` the constraints imply (exact substitution
+        :math:`\xi = m + \operatorname{diag}(r) \xi'`, :math:`m = (u + l)/2`,
+        :math:`r = (u - l)/2`), then adds :math:`\Lambda (b_S - A_S \xi) = 0` and
+        :math:`N (b_S - A_S \xi) = 0` (true on the set) and drops the folded rows:
+
+        .. math::
+
+            \langle c, G, A_c, b_c \rangle \subseteq
+            \langle c + \Lambda b_S,\ G - \Lambda A_S,\ A_R - N A_S,\ b_R - N b_S \rangle,
+            \qquad
+            \begin{bmatrix} \Lambda \\ N \end{bmatrix}
+            = \begin{bmatrix} G \\ A_R \end{bmatrix} A_S^\top (A_S A_S^\top)^{+} .
+
+        ``"frobenius"`` keeps :math:`A_R, b_R` unchanged (:math:`N = 0`, no rescaling) with
+        :math:`\Lambda = G A_S^\top (A_S A_S^\top)^{+}`, the minimiser of
+        :math:`\|G - \Lambda A_S\|_F`.
+        """
         if isinstance(max_constraints, bool) or not isinstance(
                 max_constraints, (int, np.integer)) or max_constraints < 0:
             raise SetError(f"max_constraints must be a non-negative integer, "
