@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..io import atomic_write_csv, atomic_write_text, environment
+from ..report.citation import citation_lines
 from ..report.markdown import store_footer
 from ..report.numbers import fmt, markdown_table
 from .audit import aggregate
@@ -32,7 +33,8 @@ def soundness_report(df: pd.DataFrame, count: int, provenance: str,
                      footer: list[str] | None = None) -> str:
     """The Markdown report of an audit: ``reports/soundness.md`` (from its store,
     :func:`render_store`) or a direct run's (:func:`write_audit`); ``provenance`` is the line
-    saying how the rows were made, ``footer`` the closing lines."""
+    saying how the rows were made, ``footer`` the closing lines, after which come the lines
+    saying what to cite (the project: the audit reproduces no paper's table)."""
     agg = aggregate(df)
     guaranteed = agg[agg["guaranteed"]]
     baselines = agg[~agg["guaranteed"]]
@@ -93,6 +95,8 @@ def soundness_report(df: pd.DataFrame, count: int, provenance: str,
         _table(baselines) if len(baselines) else "(none registered)",
         "",
         *(footer or []),
+        *citation_lines("soundness"),
+        "",
     ]
     return "\n".join(parts)
 

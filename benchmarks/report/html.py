@@ -7,10 +7,11 @@ names the reference of every table and figure, and shows every state's bounds an
 radius (log scale) over time with the true state and the steps of any violation
 (:func:`~benchmarks.report.figures.bounds_and_radii`, inline SVG whose observers are shown and
 hidden with the legend's check boxes), a heat map of the table's ratios and the per-step times
-beside the papers' times; then a ranking summary and the configuration, environment and git
-commit of the run. Everything is inline (CSS and small scripts for sorting and for the layers,
-no network at view time); the heat map and time figures are matplotlib PNG files beside the
-page, every figure with PNG and PDF copies to download.
+beside the papers' times; then a ranking summary, the configuration, environment and git
+commit of the run, and last what to cite (:mod:`.citation`). Everything is inline (CSS and
+small scripts for sorting and for the layers, no network at view time); the heat map and time
+figures are matplotlib PNG files beside the page, every figure with PNG and PDF copies to
+download.
 
 :func:`write_index` links every report; it writes into the results folder, and rewrites the
 committed ``reports/index.html`` (from the committed Markdown reports only) just when asked.
@@ -33,7 +34,9 @@ from ..errors import ConfigError
 from ..io import atomic_write_text, environment, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
+from .citation import citation_html, citation_lines
 from .figures import LayeredFigure, bounds_and_radii, heat_map, step_times
+from .markdown import shown_tables
 from .numbers import MISSING, Num, format_columns
 from .paper import paper_rows, paper_title
 from .tables import (
@@ -521,7 +524,10 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
              "<pre>" + html.escape(yaml.safe_dump(raw, sort_keys=False) if raw else
                                    "(no meta.json)") + "</pre>",
              "<h3>Environment of the run</h3>", _definition_table(env),
-             "<h3>Environment of this report</h3>", _definition_table(now)]
+             "<h3>Environment of this report</h3>", _definition_table(now),
+             '<h2 id="cite">What to cite</h2>',
+             citation_html(meta.get("config", {}).get("name") or results_dir.name,
+                           shown_tables(summary, meta))]
     atomic_write_text(out, html_page(title, body))
     return out
 
@@ -555,7 +561,7 @@ def write_index(reports_dir: str | Path, results_root: str | Path | None = None,
                 out: str | Path | None = None) -> Path:
     """Write an index page linking every Markdown report of ``reports_dir`` and, where
     ``results_root`` is given, the HTML report ``RESULTS/<name>/index.html`` of the same name
-    where it exists.
+    where it exists; the page ends with the project's citation line (:mod:`.citation`).
 
     Parameters
     ----------
@@ -604,7 +610,9 @@ def write_index(reports_dir: str | Path, results_root: str | Path | None = None,
             f"<p>Every committed report (Markdown, published values in parentheses) {local}."
             "</p>", docs_link(out.parent),
             '<table class="sortable" id="reports"><thead><tr><th>report</th><th>made by</th>'
-            "<th>files</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table>"]
+            "<th>files</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table>",
+            '<p class="cite">' + html.escape(citation_lines(None)[0]) + " Each report ends "
+            "with the paper whose table it reproduces.</p>"]
     atomic_write_text(out, html_page("setobs-bench reports", body))
     return out
 

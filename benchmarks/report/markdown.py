@@ -1,6 +1,6 @@
 """The Markdown report of a results folder (``DIR/report.md``): the papers' tables with
-the published values beside ours (cells from :mod:`.tables`) and links to the bounds figures
-(:func:`.figures.observer_bounds`)."""
+the published values beside ours (cells from :mod:`.tables`), links to the bounds figures
+(:func:`.figures.observer_bounds`) and, last, what to cite (:mod:`.citation`)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from ..io import atomic_write_text, load_results, load_runs, path_component
 from ..metrics import timed_in_parallel
 from . import freshness
 from .aggregate import is_sweep, sweep_tables
+from .citation import citation_lines
 from .figures import observer_bounds
 from .numbers import markdown_table
 from .tables import (
@@ -22,6 +23,7 @@ from .tables import (
     gap_table_caption,
     gap_table_data,
     phase_table_data,
+    published_table,
     scenario_facts,
     scenario_notes,
     scenario_table,
@@ -71,8 +73,21 @@ def store_footer(meta: dict) -> list[str]:
     return [*lines, ""]
 
 
+def shown_tables(summary, meta: dict) -> list[str]:
+    """The published tables whose values a report of ``summary`` shows in parentheses (none for
+    a sweep, whose tables are aggregated over the seeds), in the scenarios' order."""
+    if not len(summary) or is_sweep(summary):
+        return []
+    keys = (published_table(full, meta) for _, full in summary.groupby("scenario", sort=False))
+    return list(dict.fromkeys(k for k in keys if k))
+
+
 def render_report(summary, meta: dict, out: Path, runs=None, name: str = "") -> str:
     """The Markdown report of a summary and its metadata (a run's or a store's), as text.
+
+    Its last lines (before the provenance comment of a run's report) say what to cite: the
+    paper whose table the configuration reproduces and those whose published values it shows,
+    then the project with its version (:func:`.citation.citation_lines`).
 
     Parameters
     ----------
@@ -97,6 +112,8 @@ def render_report(summary, meta: dict, out: Path, runs=None, name: str = "") -> 
                   f" jobs ran concurrently ({ex.get('name', 'parallel')} executor): indicative "
                   "only; a serial run (`run` without `--jobs`) gives the comparable per-step "
                   "times, and `reports/speed.md` is always timed serially.", ""]
+    cite = [*citation_lines(meta.get("config", {}).get("name") or name,
+                            shown_tables(summary, meta)), ""]
     if is_sweep(summary):  # aggregated over the seeds, one row per observer and variant
         parts += ["Sweep: relative RMS radius (mean over the states of eq. 9, against the "
                   "best observer of the same seed) over the seeds: mean, standard deviation, "
@@ -136,13 +153,14 @@ def render_report(summary, meta: dict, out: Path, runs=None, name: str = "") -> 
                 parts += ["Figures (bounds over time with the true state): " + ", ".join(links),
                           ""]
     if "runs" in meta:  # a result store: its runs, no code stamp (the rows carry theirs)
-        parts += store_footer(meta)
+        parts += store_footer(meta) + cite
         return "\n".join(parts)
     versions = meta.get("versions", {})
     if versions:
         parts += ["---", f"Run {meta.get('run_id', '?')} of " + meta.get("created", "") + "; "
                   + ", ".join(
             f"{k} {v}" for k, v in versions.items()), ""]
+    parts += cite  # the last visible lines: the stamp below is a comment
     config = freshness.config_of(meta.get("config", {}).get("name"))
     parts.append(freshness.stamp(freshness.report_command(config, out), config))
     return "\n".join(parts) + "\n"

@@ -202,6 +202,14 @@ def _paper(df: pd.DataFrame, meta: dict) -> tuple[str | None, str, dict[str, Pap
     return key, variant, paper_rows(key, n, variant)
 
 
+def published_table(df: pd.DataFrame, meta: dict) -> str | None:
+    """The key of the published table whose values the scenario table of ``df`` (one
+    scenario) shows in parentheses, ``None`` if it shows none (cited at the end of a report,
+    :mod:`.citation`)."""
+    key, _, paper = _paper(df, meta)
+    return key if paper else None
+
+
 def relative_values(df: pd.DataFrame, meta: dict) -> tuple[pd.Series, str]:
     """The ratios v_i of the scenario table (and of the heat map) for the rows of ``df`` (one
     scenario), and the sentence naming their reference.

@@ -8,7 +8,9 @@ and a figure (``datadriven.png`` beside it, like the paper's Figs. 2 and 3):
 2. containment of the true state by the four data-driven observers at every step over seeds,
    and the share of steps where the Kalman 3-sigma ellipsoid missed it;
 3. set sizes (interval radii, area at the snapshot step) and per-step times against the
-   paper's (indicative: medians over repetitions on a shared 2-core machine).
+   paper's (indicative: medians over repetitions on a shared 2-core machine);
+
+and ends with what to cite (:mod:`benchmarks.report.citation`).
 
 It takes a few minutes; it is not part of the test suite.
 """
@@ -38,6 +40,7 @@ from systems.training import offline_experiment
 from ..io import atomic_write_text
 from ..metrics import median_ms
 from ..report import figures, freshness
+from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt
 from ..report.paper import load_table
 
@@ -270,7 +273,8 @@ PCA; for the constrained-zonotope observers of the lifted zonotope), not the pap
 {chr(10).join(others)}
 """
     command = f"python -m benchmarks.studies.alanwar2022 --out {out}"
-    atomic_write_text(out, f"{text}\n{freshness.stamp(command)}\n")
+    cite = "\n".join(citation_lines("datadriven"))
+    atomic_write_text(out, f"{text}\n{cite}\n\n{freshness.stamp(command)}\n")
     return out
 
 

@@ -45,6 +45,7 @@ from systems import ModelError
 from ..io import atomic_write_csv, atomic_write_text, environment
 from ..metrics import warmup_steps
 from ..report import figures, freshness
+from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
 from ..run.floor import compute_floor, floor_columns, observer_floor
 from ..timing.steps import first_steps, kalman_step_times
@@ -204,7 +205,7 @@ def front_sentence(g: pd.DataFrame) -> str:
 
 
 def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: float) -> str:
-    """The Markdown report."""
+    """The Markdown report; it ends with what to cite (:mod:`benchmarks.report.citation`)."""
     env = environment()
     parts = [
         "# Frontier study: accuracy against cost of the complexity knobs", "",
@@ -236,7 +237,8 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: fl
                          fmt(r.cost_ratio, 3), r.covers_exact, fmt(r.violations),
                          "*" if r.pareto else ""])
         parts += markdown_table(head, rows).splitlines() + [""]
-    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), ""]
+    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
+              *citation_lines("frontier"), ""]
     return "\n".join(parts)
 
 

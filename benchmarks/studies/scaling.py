@@ -52,6 +52,7 @@ from ..io import (
 )
 from ..metrics import add_relative_rms
 from ..report import figures, freshness
+from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
 from ..run.executors import JobFailure, ProcessExecutor
 from ..run.runner import Job, design_observer, execute_job
@@ -261,7 +262,7 @@ def failures(g: pd.DataFrame) -> list[str]:
 
 def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budget,
            run_budget, elapsed: float) -> str:
-    """The Markdown report."""
+    """The Markdown report; it ends with what to cite (:mod:`benchmarks.report.citation`)."""
     env = environment()
     exp = exponents(df)
     parts = [
@@ -311,7 +312,8 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budge
             "", "Relative RMS radius (mean over the states, against the best observer at the "
             "same n):", ""] + _size_table(df, variant, sizes, "rms") + [""]
         parts += failures(g)
-    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), ""]
+    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
+              *citation_lines("scaling"), ""]
     return "\n".join(parts)
 
 

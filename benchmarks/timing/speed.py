@@ -32,6 +32,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..io import atomic_write_json, atomic_write_text, environment
 from ..report import freshness
+from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt
 from ..report.paper import paper_rows
 from .exact_cost import EXACT_CASES, ExactCase, measure_exact, render_exact
@@ -39,6 +40,9 @@ from .steps import TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
 DEFAULT_JSON = Path("reports") / "speed.json"
+#: the published tables of the *paper ms* column (vehicle: Althoff & Rath 2021, Table 3;
+#: tanks: ARCH 2021, Tables 5/6), cited at the end of the report
+PAPER_TABLES = ("automatica2021_table3_vehicle6", "arch2021_table5_6_tank_scaling")
 
 
 @dataclass(frozen=True)
@@ -248,8 +252,9 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
                        exact_cases: tuple[ExactCase, ...] = EXACT_CASES) -> Path:
     """Measure :data:`CASES` and the cold cost of the exact reference
     (:mod:`benchmarks.timing.exact_cost`), compare with ``json_path`` (the previous
-    measurement), write the Markdown report ``out`` (stamped with the commit and machine it
-    measured, :func:`benchmarks.report.freshness.measured`) and overwrite ``json_path`` with this
+    measurement), write the Markdown report ``out`` (ending with what to cite,
+    :mod:`benchmarks.report.citation`, and stamped with the commit and machine it measured,
+    :func:`benchmarks.report.freshness.measured`) and overwrite ``json_path`` with this
     measurement."""
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
@@ -261,6 +266,7 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     text = render(results, previous, previous_git, env)
     if exact:
         text += "\n" + "\n".join(render_exact(exact)) + "\n"
+    text += "\n" + "\n".join(citation_lines("speed", PAPER_TABLES)) + "\n"
     text += "\n" + freshness.measured(command) + "\n"
     atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
