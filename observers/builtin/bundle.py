@@ -22,7 +22,7 @@ from ..sets import HullLP, Zonotope, ZonotopeBundle, get_reduction
               "Automatica 41(6), 2005 and Wang, Puig, Cembrano, Automatica 93, 2018 (gains)",
 )
 class ZonotopeBundleObserver(Observer):
-    """Zonotope bundle: members with different gains and reductions, intersected (online).
+    r"""Zonotope bundle: members with different gains and reductions, intersected (online).
 
     Prediction: ``f`` is enclosed over the interval hull of the bundle (by LP over the
     intersection, tighter than any member's box) as ``J x + d + [-rad, rad]``
@@ -40,6 +40,35 @@ class ZonotopeBundleObserver(Observer):
         all-strips gain, PCA + Alamo's, girard + all-strips.
     order : float
         Zonotope order of every member after reduction.
+
+    Notes
+    -----
+    The estimate is the intersection of its members
+    :math:`\mathcal{Z}_i = \langle c_i, G_i \rangle` (Althoff & Krogh 2011),
+    :math:`\mathcal{S}_k = \bigcap_i \mathcal{Z}_i`.  Prediction (Althoff & Rath 2021,
+    Sec. 2.4, step 1), with :math:`f(x, u) \in J x + d \pm \rho` over the hull of
+    :math:`\mathcal{S}_{k-1}` (:math:`J = A`, :math:`d = B u_{k-1}`, :math:`\rho = 0` on a
+    linear system):
+
+    .. math::
+
+        c_i^p = J c_i + d + c_W, \qquad
+        G_i^p = \begin{bmatrix} J G_i & G_W & \operatorname{diag}(\rho) \end{bmatrix} .
+
+    Correction (eqs. (4)-(6)): every member is intersected with the strips
+    :math:`|C x - (y_k - c_V)| \le \sigma`, :math:`\sigma = |G_V| \mathbf{1}`, by the
+    parametrised enclosure of intersection method II (Sec. 3.1) with its own gain
+    :math:`\Lambda_i` (:func:`~observers.numerics.bundle.member_gain`), then reduced by its
+    own method:
+
+    .. math::
+
+        c_i^+ = c_i^p + \Lambda_i (y_k - c_V - C c_i^p), \qquad
+        G_i^+ = \operatorname{reduce}_i\Bigl(\begin{bmatrix} (I - \Lambda_i C) G_i^p &
+        \Lambda_i \operatorname{diag}(\sigma) \end{bmatrix}\Bigr) .
+
+    Each member contains the intersection, hence so does the bundle; its interval hull is
+    computed by LP over the intersection of the members.
     """
 
     REQUIRES = ("W", "V", "X0")

@@ -244,7 +244,51 @@ class ReverseMapping:
 @register("DD-Z-A1", family="data-driven", set_type="zonotope", ready_for_control=False,
           reference=REFERENCE + ", Prop. 1")
 class DDZA1(ReverseMapping, ZonotopeDD):
-    """Data-driven, zonotopes, reverse mapping: exact intersection, closed-form enclosure."""
+    r"""Data-driven, zonotopes, reverse mapping: exact intersection, closed-form enclosure.
+
+    Notes
+    -----
+    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
+    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
+    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
+    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
+    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
+    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
+
+    .. math::
+
+        \tilde c_k = C_M c_e + c_w, \qquad
+        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
+        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
+        \end{bmatrix}
+
+    (the last block before :math:`G_w` boxes the bilinear terms
+    :math:`\beta_i G_M^{(i)} G_e \xi`).
+
+    *Measurement update* (approach 1): the states consistent with sensor :math:`i`,
+    :math:`\mathcal{Z}_{x|y^i}` of Prop. 1, eq. (16)
+    (:func:`~observers.numerics.datadriven.updates.reverse_map`), are intersected
+    with the prediction exactly as constrained zonotopes (eq. (17)),
+
+    .. math::
+
+        \hat{\mathcal{R}}_k \supseteq \tilde{\mathcal{R}}_k \cap
+        \bigcap_{i=1}^{q} \mathcal{Z}_{x|y^i(k)}, \qquad
+        \langle c, G \rangle \cap \langle c_i, G_i \rangle
+        = \left\langle c,\ \begin{bmatrix} G & 0 \end{bmatrix},\
+          \begin{bmatrix} G & -G_i \end{bmatrix},\ c_i - c \right\rangle,
+
+    and the result :math:`\langle c, G, A, b \rangle` is enclosed by a zonotope by
+    eliminating all its constraints with the Frobenius-optimal gain:
+
+    .. math::
+
+        \hat{\mathcal{R}}_k = \langle c + \Lambda b,\ G - \Lambda A \rangle, \qquad
+        \Lambda = G A^\top (A A^\top)^{+} .
+
+    *Reduction*: :math:`\hat G_k \leftarrow \operatorname{reduce}(\hat G_k, o)` with the
+    scenario's order :math:`o` and method (Alg. 1 of the paper: order 5, Girard).
+    """
 
     def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
         return self._intersection(S, y).to_zonotope("frobenius")
@@ -253,7 +297,49 @@ class DDZA1(ReverseMapping, ZonotopeDD):
 @register("DD-CZ-A1", family="data-driven", set_type="conzonotope", ready_for_control=False,
           reference=REFERENCE + ", Sec. III-C1")
 class DDCZA1(ReverseMapping, ConZonotopeDD):
-    """Data-driven, constrained zonotopes, reverse mapping: exact intersection."""
+    r"""Data-driven, constrained zonotopes, reverse mapping: exact intersection.
+
+    Notes
+    -----
+    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
+    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
+    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
+    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
+    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
+    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
+
+    .. math::
+
+        \tilde c_k = C_M c_e + c_w, \qquad
+        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
+        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
+        \end{bmatrix}
+
+    (the last block before :math:`G_w` boxes the bilinear terms
+    :math:`\beta_i G_M^{(i)} G_e \xi`).  The constraints :math:`\hat A \xi = \hat b` of the estimate
+    carry over, padded with zero columns for the new generators.
+
+    *Measurement update* (approach 1 with constrained zonotopes, Sec. III-C1): the
+    prediction :math:`\tilde{\mathcal{C}}_k = \langle c, G, A, b \rangle` is intersected
+    exactly with the zonotope :math:`\langle c_i, G_i \rangle = \mathcal{Z}_{x|y^i(k)}` of
+    each sensor (Prop. 1, eq. (16),
+    :func:`~observers.numerics.datadriven.updates.reverse_map`), one after the other:
+
+    .. math::
+
+        \hat{\mathcal{C}}_k = \tilde{\mathcal{C}}_k \cap \bigcap_{i=1}^{q}
+        \mathcal{Z}_{x|y^i(k)}, \qquad
+        \langle c, G, A, b \rangle \cap \langle c_i, G_i \rangle
+        = \left\langle c,\ \begin{bmatrix} G & 0 \end{bmatrix},\
+          \begin{bmatrix} A & 0 \\ G & -G_i \end{bmatrix},\
+          \begin{bmatrix} b \\ c_i - c \end{bmatrix} \right\rangle .
+
+    *Reduction*: the oldest constraints beyond the cap are eliminated with the
+    Frobenius-optimal gain, :math:`\langle c + \Lambda b_S, G - \Lambda A_S, A_R, b_R
+    \rangle`, :math:`\Lambda = G A_S^\top (A_S A_S^\top)^+`, the constraint rows are
+    normalised, and the lifted zonotope :math:`\langle [c; -b], [G; A] \rangle` is reduced
+    to order :math:`o` per lifted dimension.
+    """
 
     def update(self, S: ConZonotope, y: np.ndarray) -> ConZonotope:
         return self._intersection(S, y)
@@ -269,7 +355,49 @@ class ImplicitIntersection:
 @register("DD-Z-A2", family="data-driven", set_type="zonotope", ready_for_control=False,
           reference=REFERENCE + ", Prop. 2")
 class DDZA2(ImplicitIntersection, ZonotopeDD):
-    """Data-driven, zonotopes, implicit intersection with the optimal weights (Prop. 2)."""
+    r"""Data-driven, zonotopes, implicit intersection with the optimal weights (Prop. 2).
+
+    Notes
+    -----
+    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
+    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
+    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
+    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
+    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
+    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
+
+    .. math::
+
+        \tilde c_k = C_M c_e + c_w, \qquad
+        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
+        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
+        \end{bmatrix}
+
+    (the last block before :math:`G_w` boxes the bilinear terms
+    :math:`\beta_i G_M^{(i)} G_e \xi`).
+
+    *Measurement update* (approach 2, Prop. 2, eqs. (18)-(19)) with the weights of all
+    sensors stacked into one gain :math:`\Lambda_k = [\lambda_k^1 \cdots \lambda_k^q]`
+    and :math:`\mathcal{Z}_v = \langle c_v, G_v \rangle`
+    (:func:`~observers.numerics.datadriven.updates.implicit_update`):
+
+    .. math::
+
+        \hat c_k = \tilde c_k + \Lambda_k (y_k - C \tilde c_k - c_v), \qquad
+        \hat G_k = \begin{bmatrix} (I - \Lambda_k C) \tilde G_k & -\Lambda_k G_v
+        \end{bmatrix},
+
+    with the minimiser of :math:`\|\hat G_k\|_F^2` (eq. (21)) in closed form
+    (:func:`~observers.numerics.datadriven.updates.implicit_gain`):
+
+    .. math::
+
+        \Lambda_k = \tilde G_k \tilde G_k^\top C^\top
+        \left(C \tilde G_k \tilde G_k^\top C^\top + G_v G_v^\top\right)^{-1} .
+
+    *Reduction*: :math:`\hat G_k \leftarrow \operatorname{reduce}(\hat G_k, o)` with the
+    scenario's order :math:`o` and method (Alg. 1 of the paper: order 5, Girard).
+    """
 
     def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
         L = self._gain(S.G)
@@ -280,7 +408,50 @@ class DDZA2(ImplicitIntersection, ZonotopeDD):
 @register("DD-CZ-A2", family="data-driven", set_type="conzonotope", ready_for_control=False,
           reference=REFERENCE + ", Prop. 3")
 class DDCZA2(ImplicitIntersection, ConZonotopeDD):
-    """Data-driven, constrained zonotopes, implicit intersection (Prop. 3, exact)."""
+    r"""Data-driven, constrained zonotopes, implicit intersection (Prop. 3, exact).
+
+    Notes
+    -----
+    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
+    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
+    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
+    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
+    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
+    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
+
+    .. math::
+
+        \tilde c_k = C_M c_e + c_w, \qquad
+        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
+        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
+        \end{bmatrix}
+
+    (the last block before :math:`G_w` boxes the bilinear terms
+    :math:`\beta_i G_M^{(i)} G_e \xi`).  The constraints :math:`\hat A \xi = \hat b` of the estimate
+    carry over, padded with zero columns for the new generators.
+
+    *Measurement update* (Prop. 3, eqs. (23)-(25)), exact for every gain: for
+    :math:`\tilde{\mathcal{C}}_k = \langle \tilde c_k, \tilde G_k, \tilde A_k,
+    \tilde b_k \rangle` and all sensors at once,
+
+    .. math::
+
+        \hat{\mathcal{C}}_k = \left\langle \tilde c_k + \Lambda_k (y_k - C \tilde c_k - c_v),\
+          \begin{bmatrix} (I - \Lambda_k C) \tilde G_k & -\Lambda_k G_v \end{bmatrix},\
+          \begin{bmatrix} \tilde A_k & 0 \\ C \tilde G_k & G_v \end{bmatrix},\
+          \begin{bmatrix} \tilde b_k \\ y_k - C \tilde c_k - c_v \end{bmatrix}
+        \right\rangle,
+
+    with the gain of DD-Z-A2 (:func:`~observers.numerics.datadriven.updates.implicit_gain`,
+    :math:`\Lambda_k = \tilde G_k \tilde G_k^\top C^\top (C \tilde G_k \tilde G_k^\top
+    C^\top + G_v G_v^\top)^{-1}`), which shapes the generators the reduction acts on.
+
+    *Reduction*: the oldest constraints beyond the cap are eliminated with the
+    Frobenius-optimal gain, :math:`\langle c + \Lambda b_S, G - \Lambda A_S, A_R, b_R
+    \rangle`, :math:`\Lambda = G A_S^\top (A_S A_S^\top)^+`, the constraint rows are
+    normalised, and the lifted zonotope :math:`\langle [c; -b], [G; A] \rangle` is reduced
+    to order :math:`o` per lifted dimension.
+    """
 
     # Prop. 3 adds one well-scaled row per output; keeping more of them pays off (approach 1
     # carries the large null-space generators of Prop. 1 into its rows, and keeps n)

@@ -81,7 +81,7 @@ def _highspy_version() -> str:
               "2016, unreduced); incremental LP, issue 24",
 )
 class Exact(LinearModelObserver):
-    """Exact reference: the interval hulls of the states consistent with the whole record.
+    r"""Exact reference: the interval hulls of the states consistent with the whole record.
 
     ``step`` returns an :class:`~observers.numerics.exact.ExactSet` (the filtered set of step
     k: ``interval()`` its exact hull, ``predicted`` the exact hull before ``y[k]``,
@@ -92,6 +92,38 @@ class Exact(LinearModelObserver):
     cache : bool
         Read and write the on-disk cache of exact hulls (default True; see the module
         docstring).
+
+    Notes
+    -----
+    The set of eq. (3) of Althoff & Rath (2021), unrolled over the whole record from
+    :math:`\mathcal{S}_0 = \mathcal{X}_0`, with :math:`\mathcal{X}_0 = \langle c_0, G_0
+    \rangle`, :math:`\mathcal{W} = \langle c_W, G_W \rangle`,
+    :math:`\mathcal{V} = \langle c_V, G_V \rangle`, is the projection onto :math:`x_k` of
+    the polytope
+
+    .. math::
+
+        \mathcal{F}_k = \left\{ (x_0, \ldots, x_k, \xi, \omega, \nu) \mid
+        \begin{aligned}
+        & x_0 = c_0 + G_0 \xi, \\
+        & x_{j+1} = A x_j + B u_j + c_W + G_W \omega_j, && 0 \le j < k, \\
+        & y_j = C x_j + c_V + G_V \nu_j, && 0 \le j \le k, \\
+        & \|\xi\|_\infty, \|\omega_j\|_\infty, \|\nu_j\|_\infty \le 1
+        \end{aligned} \right\}
+
+    (the filtered set of step :math:`k`; the predicted set drops the measurement rows of
+    :math:`y_k`).  Its interval hull is :math:`2n` linear programs per step,
+
+    .. math::
+
+        \underline{x}_{k,i} = \min_{\mathcal{F}_k} e_i^\top x_k, \qquad
+        \overline{x}_{k,i} = \max_{\mathcal{F}_k} e_i^\top x_k, \qquad i = 1, \ldots, n,
+
+    grown by one block of variables and rows per step and warm started from the previous
+    step's bases (:mod:`observers.numerics.exact`).  Each returned bound is the
+    weak-duality value :math:`b^\top \pi` of a dual point :math:`\pi` of the LP,
+    evaluated with outward rounding, so it is sound whatever the solver returns; an empty
+    :math:`\mathcal{F}_k` (a record inconsistent with the model) ends the run.
     """
 
     OPTIONS = {"cache": Bool(True)}

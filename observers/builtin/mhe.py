@@ -45,7 +45,7 @@ CZN_MARGIN = 1e-7
               "2016), issue 29",
 )
 class MHE(LinearModelObserver):
-    """Moving-horizon set estimator: the exact hull of the last ``window`` steps' data.
+    r"""Moving-horizon set estimator: the exact hull of the last ``window`` steps' data.
 
     ``step`` returns the interval hull (an :class:`~observers.sets.Interval`) of the states
     consistent with ``u[k-L..k-1]``, ``y[k-L..k]`` and a sound box of ``x_{k-L}``.
@@ -64,6 +64,39 @@ class MHE(LinearModelObserver):
     inner : {"none", "FRad-A", "FRad-B", "CZN-A", "CZN-B"}
         An observer run alongside (its default options) whose hull of step ``k - L`` is
         intersected with the estimator's own; ``"none"`` (default) uses the own hull only.
+
+    Notes
+    -----
+    With :math:`L` the window and :math:`s = \max(0, k - L)` its first step, the estimate is
+    the interval hull of the consistent set of eq. (3) of Althoff & Rath (2021) restricted to
+    the window and started from a sound box :math:`\mathcal{P}_s` of :math:`x_s`
+    (:math:`\mathcal{P}_0 = \mathcal{X}_0`; for :math:`k > L` the estimator's own hull of
+    step :math:`s`, intersected with the ``inner`` observer's):
+
+    .. math::
+
+        \mathcal{S}_k = \{x_k \mid x_s \in \mathcal{P}_s,\
+        x_{j+1} = A x_j + B u_j + w_j,\ w_j \in \mathcal{W}\ (s \le j < k),\
+        y_j - C x_j \in \mathcal{V}\ (s \le j \le k)\} .
+
+    Formulation ``"czn"``: the exact constrained-zonotope recursion over the window, nothing
+    reduced (:math:`\mathcal{P}_s = \langle c_s, G_s \rangle`,
+    :math:`\mathcal{W} = \langle c_W, G_W \rangle`,
+    :math:`\mathcal{V} = \langle c_V, \tilde G_V \rangle` with
+    :math:`\tilde G_V = (1 + 10^{-7}) G_V`), one block of factors per step:
+
+    .. math::
+
+        c_{j+1} = A c_j + B u_j + c_W, \qquad
+        G_{j+1} = \begin{bmatrix} A G_j & G_W \end{bmatrix}, \qquad
+        C G_j \xi + \tilde G_V \nu_j = y_j - C c_j - c_V \quad (s \le j \le k),
+
+    so that :math:`\mathcal{S}_k = \{c_k + G_k \xi \mid \text{the } (L+1) m
+    \text{ constraints},\ \|(\xi, \nu)\|_\infty \le 1\}`, and its hull is :math:`2n`
+    LPs, :math:`\underline{x}_{k,i} = \min e_i^\top x_k` and
+    :math:`\overline{x}_{k,i} = \max e_i^\top x_k` over it, each bounded by the
+    weak-duality value of a dual point.  Formulation ``"lp"``: the same LPs with the states
+    as variables (the sparse form of the ``Exact`` reference).
     """
 
     OPTIONS = {"window": Integer(5, low=1, high=1000),

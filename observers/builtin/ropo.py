@@ -17,7 +17,7 @@ from ..sets import Zonotope
               "32(7), 1996",
 )
 class ROPO(LinearModelObserver):
-    """Parallelotopes of least volume, strip by strip (Vicino & Zappa 1996; Chisci et al. 1996).
+    r"""Parallelotopes of least volume, strip by strip (Vicino & Zappa 1996; Chisci et al. 1996).
 
     The estimate is always a parallelotope (a zonotope with n generators): the "reduced
     order" of the name, and a cost per step that does not grow with time (O(n^2) per
@@ -48,6 +48,25 @@ class ROPO(LinearModelObserver):
         very thin parallelotopes with large interval hulls (on the 6-tank system its
         unmeasured x6 reached an RMS radius of 1e7; 2.7 with the bound; see
         :mod:`observers.numerics.ropo`).
+
+    Notes
+    -----
+    The estimate is a parallelotope
+    :math:`\mathcal{P}_k = \{c + T \xi \mid \|\xi\|_\infty \le 1\}`,
+    :math:`T \in \mathbb{R}^{n \times n}`.  Prediction (Althoff & Rath 2021, Sec. 2.4,
+    step 1) enclosed in a parallelotope with axes :math:`B_k` (option ``basis``;
+    :func:`~observers.numerics.ropo.time_update`):
+
+    .. math::
+
+        c^p = A c + B u_{k-1} + c_W, \qquad
+        T^p = B_k \operatorname{diag}\bigl(|B_k^{-1} [A T,\ E]|\, \mathbf{1}\bigr) .
+
+    Correction (eq. (6)) strip by strip, eq. (4) with the hull
+    :math:`[\underline{v}, \overline{v}]` of :math:`\mathcal{V}`:
+    :math:`y_{k,j} - \overline{v}_j \le C_j x \le y_{k,j} - \underline{v}_j`, each time the
+    parallelotope of least volume among the :math:`n + 1` that contain the intersection
+    (:func:`~observers.numerics.ropo.measurement_update`).
     """
 
     OPTIONS = {"basis": Choice("min-volume", BASIS_CHOICES)}

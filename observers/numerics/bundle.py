@@ -88,8 +88,29 @@ def box_gain(G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
 
 
 def member_gain(kind: str, G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """Gain of a member with generators ``G`` (``kind``: ``"alamo"``, ``"box"`` or
-    ``"wang"``)."""
+    r"""Gain of a member with generators ``G`` (``kind``: ``"alamo"``, ``"box"`` or
+    ``"wang"``).
+
+    Notes
+    -----
+    ``"wang"``: all strips at once (Wang, Puig, Cembrano 2018),
+    :math:`\Lambda = P C^\top (C P C^\top + \operatorname{diag}(\sigma)^2)^{-1}`,
+    :math:`P = G G^\top`.  ``"alamo"`` and ``"box"``: strip after strip, row :math:`c_i^\top`
+    with a gain :math:`\lambda_i` on the current generators, composed into one
+    :math:`n \times m` gain with :math:`I - \Lambda C = \prod_i (I - \lambda_i c_i^\top)`
+    (the column of each earlier strip multiplied by the later factors):
+
+    .. math::
+
+        \lambda_i^{\text{alamo}} = \frac{P c_i}{c_i^\top P c_i + \sigma_i^2},
+        \qquad
+        \lambda_{i,j}^{\text{box}} = \operatorname*{arg\,min}_{\lambda}
+        \sum_k |G_{jk} - \lambda g_k| + |\lambda| \sigma_i, \quad g = G^\top c_i,
+
+    the first the F-radius gain of Alamo et al. (2005, Sec. 6), the second, per row
+    :math:`j`, the weighted median that minimises the :math:`j`-th radius of the interval
+    hull of the updated member.
+    """
     if kind == "alamo":
         return sequential_frad_gain(G, C, sigma)
     if kind == "box":

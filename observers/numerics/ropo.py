@@ -165,7 +165,35 @@ def first_best(values: np.ndarray) -> int:
 def measurement_update(
     c: np.ndarray, T: np.ndarray, C: np.ndarray, lo: np.ndarray, hi: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`strip_cut` for every row of ``C`` in turn (bounds ``lo <= C x <= hi``)."""
+    r""":func:`strip_cut` for every row of ``C`` in turn (bounds ``lo <= C x <= hi``).
+
+    Notes
+    -----
+    For the row :math:`g^\top` of :math:`C` and the parallelotope
+    :math:`\{c + T \xi \mid \|\xi\|_\infty \le 1\}`, in the coordinates :math:`\xi` the
+    strip is :math:`\alpha \le q^\top \xi \le \beta` with
+
+    .. math::
+
+        q = T^\top g, \qquad [\alpha, \beta] = [\mathit{lo} - g^\top c,\
+        \mathit{hi} - g^\top c] \cap [-s, s], \qquad s = \|q\|_1 ,
+
+    and each strip :math:`|\xi_j| \le 1` of the parallelotope is tightened to its exact
+    extent over the intersection (:math:`s_j = s - |q_j|`):
+
+    .. math::
+
+        \xi_j \in [l_j, u_j] = [-1, 1] \cap
+        \left\{ t \mid \alpha - s_j \le q_j t \le \beta + s_j \right\} .
+
+    Dropping one of the :math:`n + 1` tightened strips leaves a parallelotope that contains
+    the intersection; its volume is (up to the common factor :math:`|\det T|`)
+    :math:`\prod_j (u_j - l_j)` without the measurement strip and
+    :math:`\frac{\beta - \alpha}{|q_j|} \prod_{i \ne j} (u_i - l_i)` without strip
+    :math:`j`, so the least volume drops the strip :math:`j` of largest
+    :math:`|q_j| (u_j - l_j)` if that exceeds :math:`\beta - \alpha`, else the measurement
+    strip (Vicino & Zappa 1996).
+    """
     for i in range(C.shape[0]):
         c, T = strip_cut(c, T, C[i], float(lo[i]), float(hi[i]))
     return c, T
@@ -278,13 +306,27 @@ def candidate_bases(basis: str, G: np.ndarray, propagated: np.ndarray | None) ->
 
 
 def enclose(G: np.ndarray, basis: str, propagated: np.ndarray | None = None) -> np.ndarray:
-    """Least-volume parallelotope generator matrix (n x n) around the zonotope generators
+    r"""Least-volume parallelotope generator matrix (n x n) around the zonotope generators
     ``G`` among the candidate bases of ``basis`` (:func:`candidate_bases`).
 
     Flat candidates (volume zero) are compared by their squared Frobenius norm.  The
     principal axes are always invertible, so a singular propagated basis falls back to them
     (and, with ``basis="propagated"``, to the coordinate axes).  ``"min-volume"`` considers
-    only axes of condition number up to :data:`MIN_VOLUME_COND_MAX`."""
+    only axes of condition number up to :data:`MIN_VOLUME_COND_MAX`.
+
+    Notes
+    -----
+    For candidate axes :math:`B` (columns), the tightest parallelotope with these axes
+    around :math:`\langle 0, G \rangle` and its volume are
+
+    .. math::
+
+        T_B = B \operatorname{diag}(r), \qquad r = |B^{-1} G|\, \mathbf{1}, \qquad
+        \operatorname{vol} = 2^n |\det B| \prod_i r_i ,
+
+    and the candidate of least volume is returned (axes: propagated :math:`A T`, :math:`n`
+    of the generators by exchange, principal axes, coordinate axes).
+    """
     best = None
     cond_max = MIN_VOLUME_COND_MAX if basis == "min-volume" else COND_MAX
     for B, orthonormal in candidate_bases(basis, G, propagated):
@@ -315,8 +357,18 @@ def _better(new: tuple[float, float], old: tuple[float, float]) -> bool:
 def time_update(
     c: np.ndarray, T: np.ndarray, A: np.ndarray, d: np.ndarray, E: np.ndarray, basis: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Parallelotope enclosing ``A P + d + {E w : |w|_inf <= 1}`` (``d``: ``B u`` plus the
-    centre of ``W``), with axes chosen by :func:`enclose`."""
+    r"""Parallelotope enclosing ``A P + d + {E w : |w|_inf <= 1}`` (``d``: ``B u`` plus the
+    centre of ``W``), with axes chosen by :func:`enclose`.
+
+    Notes
+    -----
+    .. math::
+
+        c^p = A c + d, \qquad
+        A \mathcal{P} \oplus d \oplus E \mathcal{B}^{n_w} \subseteq
+        \{c^p + T^p \xi \mid \|\xi\|_\infty \le 1\}, \qquad
+        T^p = \operatorname{enclose}\bigl([A T,\ E]\bigr) .
+    """
     AT = A @ T
     G = np.hstack([AT, E]) if E.shape[1] else AT
     return A @ c + d, enclose(G, basis, AT)

@@ -57,8 +57,29 @@ def split_sensors(C: np.ndarray, cv: np.ndarray, Gv: np.ndarray, sizes) -> list[
 
 
 def reverse_map(sensor: Sensor, y: np.ndarray, c: np.ndarray, G: np.ndarray):
-    """Prop. 1: centre and generators of ``Z_{x|y_i}``, with the null-space bound of Remark 1,
-    ``M = ||V2' c|| + max_{x in <c, G>} ||x - c||_2`` (bounded by ``sum_j ||g_j||_2``)."""
+    r"""Prop. 1: centre and generators of ``Z_{x|y_i}``, with the null-space bound of Remark 1,
+    ``M = ||V2' c|| + max_{x in <c, G>} ||x - c||_2`` (bounded by ``sum_j ||g_j||_2``).
+
+    Notes
+    -----
+    With the SVD :math:`C_i = [P_1\ P_2] \operatorname{diag}(\Sigma, 0) [V_1\ V_2]^\top`
+    (eq. (12)) and the noise :math:`\langle c_{v,i}, G_{v,i} \rangle`, eq. (16):
+
+    .. math::
+
+        c_{x|y^i} = V_1 \Sigma^{-1} P_1^\top (y^i(k) - c_{v,i}), \qquad
+        G_{x|y^i} = \begin{bmatrix} V_1 \Sigma^{-1} P_1^\top G_{v,i} & M V_2 \end{bmatrix},
+
+    where the null-space generators :math:`M V_2` cover the directions :math:`C_i` does not
+    see, with (Remark 1, for the predicted set :math:`\langle c, G \rangle` it is
+    intersected with; the radius bounded by
+    :math:`\min(\sum_j \|g_j\|_2,\ \||G| \mathbf{1}\|_2)`, enlarged by a relative
+    :math:`10^{-12}`)
+
+    .. math::
+
+        M = \|V_2^\top c\|_2 + \max_{x \in \langle c, G \rangle} \|x - c\|_2 .
+    """
     ci = sensor.Cinv @ (y[sensor.rows] - sensor.cv)
     Gi = sensor.Cinv @ sensor.Gv
     if sensor.V2.shape[1]:
@@ -70,10 +91,29 @@ def reverse_map(sensor: Sensor, y: np.ndarray, c: np.ndarray, G: np.ndarray):
 
 
 def implicit_gain(G: np.ndarray, C: np.ndarray, Gv: np.ndarray) -> np.ndarray:
-    """Closed-form ``argmin ||[(I - L C) G, -L Gv]||_F^2 = G G' C' (C G G' C' + Gv Gv')^-1``."""
+    r"""Closed-form ``argmin ||[(I - L C) G, -L Gv]||_F^2 = G G' C' (C G G' C' + Gv Gv')^-1``.
+
+    Notes
+    -----
+    The objective of eq. (21) is quadratic in :math:`L`; its stationary point is
+
+    .. math::
+
+        L^\ast = \operatorname*{arg\,min}_{L}
+        \left\| \begin{bmatrix} (I - L C) G & -L G_v \end{bmatrix} \right\|_F^2
+        = G G^\top C^\top \left(C G G^\top C^\top + G_v G_v^\top\right)^{-1} .
+    """
     return wang_frad_gain(G @ G.T, None, C, None, Gv)
 
 
 def implicit_update(c, G, L, C, y, cv, Gv):
-    """Prop. 2 (eqs. 18-19): ``c + L (y - C c - cv)``, ``[(I - L C) G, -L Gv]``."""
+    r"""Prop. 2 (eqs. 18-19): ``c + L (y - C c - cv)``, ``[(I - L C) G, -L Gv]``.
+
+    Notes
+    -----
+    .. math::
+
+        \hat c = c + L (y - C c - c_v), \qquad
+        \hat G = \begin{bmatrix} (I - L C) G & -L G_v \end{bmatrix} .
+    """
     return c + L @ (y - C @ c - cv), np.hstack([G - L @ (C @ G), -L @ Gv])
