@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import subprocess
 import sys
 import time
 from importlib import metadata
@@ -22,7 +23,13 @@ from systems import scenario_names
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
 from .gate import audit, history, kernels, policy, regression
-from .io import atomic_write_json, check_output_dir, check_output_file, path_component
+from .io import (
+    atomic_write_json,
+    blas_corename,
+    check_output_dir,
+    check_output_file,
+    path_component,
+)
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
@@ -282,11 +289,64 @@ def _config_title(path: Path) -> str:
     return ""
 
 
-def _version() -> str:
+#: the packages whose versions ``--version`` prints (numerics and solvers)
+VERSION_PACKAGES = ("numpy", "scipy", "highspy", "clarabel", "cvxpy", "numba")
+
+
+def _checkout_commit(root: Path) -> str:
+    """The short commit of the git checkout whose top level is ``root``, with ``" (modified)"``
+    if tracked files differ from it; ``""`` if ``root`` is not the top of a checkout (an
+    installed copy) or git is missing."""
+    def git(*argv: str) -> str:
+        return subprocess.run(["git", *argv], capture_output=True, text=True, cwd=root,
+                              timeout=10).stdout.strip()
+
     try:
-        return metadata.version("setobs-bench")
-    except metadata.PackageNotFoundError:
-        return "unknown (not installed)"
+        top = git("rev-parse", "--show-toplevel")
+        if not top or Path(top).resolve() != root.resolve():
+            return ""  # not a checkout, or a copy installed inside another repository
+        head = git("rev-parse", "--short", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return head + (" (modified)" if head and dirty else "")
+
+
+def _version() -> str:
+    """What ``setobs-bench --version`` prints, one item a line.
+
+    Returns
+    -------
+    str
+        ``setobs-bench VERSION``; ``commit HASH`` (with `` (modified)``) when the package runs
+        from a git checkout; ``NAME VERSION`` of each of :data:`VERSION_PACKAGES`
+        (``missing`` if not installed); ``BLAS OpenBLAS KERNEL`` (the kernel family in use,
+        :func:`benchmarks.io.blas_corename`).
+    """
+    lines = [f"setobs-bench {regression.package_version()}"]
+    commit = _checkout_commit(Path(__file__).resolve().parent.parent)
+    if commit:
+        lines.append(f"commit {commit}")
+    for pkg in VERSION_PACKAGES:
+        try:
+            lines.append(f"{pkg} {metadata.version(pkg)}")
+        except metadata.PackageNotFoundError:
+            lines.append(f"{pkg} missing")
+    kernel = blas_corename()
+    lines.append(f"BLAS {'OpenBLAS ' + kernel if kernel != 'unknown' else 'unknown'}")
+    return "\n".join(lines)
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: print :func:`_version` (computed only when asked) and exit 0."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="print the version, the commit and the numerical libraries, and exit"):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(_version())
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -294,7 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="setobs-bench", allow_abbrev=False,
                                 description="Guaranteed state estimator benchmarks "
                                             "(also: python -m benchmarks)")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument("--version", action=_VersionAction)
     sub = p.add_subparsers(dest="command", required=True)
     _add_parser = sub.add_parser
 

@@ -28,7 +28,7 @@ def test_version_of_the_installed_command():
     assert exe.is_file(), "setobs-bench is not installed (pip install -e .)"
     proc = subprocess.run([str(exe), "--version"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0
-    assert proc.stdout.strip() == f"setobs-bench {_pyproject_version()}"
+    assert proc.stdout.splitlines()[0] == f"setobs-bench {_pyproject_version()}"
 
 
 def test_run_without_a_config(tmp_path, capsys):

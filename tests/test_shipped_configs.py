@@ -72,7 +72,7 @@ def test_run_config_returns_the_verdict():
 
 def _copy_sources(dst: Path) -> None:
     """The files a wheel is built from (no caches, no results)."""
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, dst / name)
     for pkg in ("observers", "systems", "benchmarks"):
         shutil.copytree(ROOT / pkg, dst / pkg, ignore=shutil.ignore_patterns(

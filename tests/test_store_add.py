@@ -33,7 +33,7 @@ class MyObs(FRadA):
 
 def _project(dst: Path) -> None:
     """The files the project's wheel is built from, with the committed stores."""
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, dst / name)
     for pkg in ("observers", "systems", "benchmarks"):
         shutil.copytree(ROOT / pkg, dst / pkg, symlinks=True, ignore=shutil.ignore_patterns(

@@ -3,7 +3,9 @@
 ``python -m benchmarks baseline --update`` runs the subset (``configs/regression.yaml``: every
 registered observer on four small records) and writes one golden file per scenario,
 ``results/baseline/<scenario>.csv`` (observer x state: ``status``, ``rms_radius``,
-``rel_rms``, ``violations``, ``rtol``), plus ``meta.json``.  ``python -m benchmarks check``
+``rel_rms``, ``violations``, ``rtol``), plus ``meta.json`` (with the version of setobs-bench
+that wrote them, :data:`VERSION_KEY`: a change of a golden number is at least a minor version,
+``CHANGELOG.md``).  ``python -m benchmarks check``
 re-runs the subset and compares:
 
 * the set of (scenario, observer) pairs: a pair missing now or new since the baseline fails
@@ -54,6 +56,7 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timezone
+from importlib import metadata
 from pathlib import Path
 
 import pandas as pd
@@ -165,14 +168,71 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
     return frame[BASELINE_COLUMNS + verdicts], cache_note
 
 
+#: the key of ``meta.json`` naming the version of setobs-bench that wrote the golden files
+VERSION_KEY = "setobs_bench_version"
+
+
+def package_version() -> str:
+    """The installed version of setobs-bench (``"unknown"`` when it is not installed).
+
+    Returns
+    -------
+    str
+        The version of the package metadata, e.g. ``"0.2.0"``.
+    """
+    try:
+        return metadata.version("setobs-bench")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def record_version(folder: str | Path, version: str | None = None) -> Path:
+    """Write the package version into the ``meta.json`` of the golden files in ``folder``,
+    changing nothing else (no golden number is rewritten, nothing is run).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A folder of golden files with a ``meta.json`` (e.g. ``results/baseline``).
+    version : str, optional
+        The version to record; default :func:`package_version`.
+
+    Returns
+    -------
+    Path
+        The ``meta.json`` written.
+
+    Raises
+    ------
+    ConfigError
+        If ``folder`` has no ``meta.json`` or it is not a JSON object.
+    """
+    path = Path(folder) / "meta.json"
+    if not path.is_file():
+        raise ConfigError(f"no golden meta data {path} (make the baseline first)")
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"baseline {path} is not valid JSON: {exc.msg}") from None
+    if not isinstance(meta, dict):
+        raise ConfigError(f"baseline {path} is not a JSON object")
+    atomic_write_json(path, _with_version(meta, version))
+    return path
+
+
+def _with_version(meta: dict, version: str | None = None) -> dict:
+    """``meta`` with :data:`VERSION_KEY` set (the one code path of both writers)."""
+    return {**meta, VERSION_KEY: package_version() if version is None else version}
+
+
 def _meta(cfg: BenchConfig, cache_note: str) -> dict:
-    return {
+    return _with_version({
         "config": {"name": cfg.name, "raw": cfg.raw},
         "observers": cfg.observers,
         "design_cache": cache_note,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "versions": environment(),
-    }
+    })
 
 
 def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
@@ -536,6 +596,7 @@ def environment_differences(meta: dict, current: dict | None = None) -> list[str
 def baseline_overview(frame: pd.DataFrame, meta: dict) -> str:
     """Plain-text overview of a stored baseline (``python -m benchmarks baseline``)."""
     lines = [f"baseline of {meta.get('created', '?')} ({meta.get('design_cache', '?')}; "
+             f"setobs-bench {meta.get(VERSION_KEY, '?')}; "
              f"git {meta.get('versions', {}).get('git', '?')})"]
     per = frame.drop_duplicates(["scenario", "observer"])
     for obs, g in per.groupby("observer", sort=False):
