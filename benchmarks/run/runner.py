@@ -543,15 +543,38 @@ def _write(out, runs_df: pd.DataFrame, summary: pd.DataFrame, meta: dict) -> Non
                                "are intact)") from None
 
 
+def largest_first(jobs: list[Job]) -> list[int]:
+    """Job indices ordered by the size of their scenario's record (steps x states), largest
+    first; jobs of equal size keep their order, so that the jobs of one scenario stay
+    together.  Measured on ARCH Table 5 (12-30 tanks, in that order in the configuration):
+    handed out in the configuration's order, the 30-tank jobs came last and one worker ran
+    the last of them alone."""
+    def size(job: Job) -> int:
+        try:
+            sc = _scenario(job)
+            return int(sc.N) * int(sc.system.n)
+        except Exception:  # a scenario that cannot be built fails in its job, not here
+            return 0
+
+    sizes = [size(j) for j in jobs]
+    return sorted(range(len(jobs)), key=lambda i: -sizes[i])
+
+
 def _run_jobs(cfg: BenchConfig, executor, jobs: list[Job], payloads: list[Job], frames: list,
               progress: bool | None) -> None:
     """Run ``payloads`` (the jobs, or the jobs with their scenario) on ``executor`` and put
-    each one's rows (or failure rows) into ``frames``."""
+    each one's rows (or failure rows) into ``frames``.
+
+    The jobs are handed out by :func:`largest_first` (the rows keep the configuration's
+    order), so that the last jobs to finish are short ones and no worker waits long for
+    another at the end."""
+    order = largest_first(jobs)
     with progress_bar(len(jobs), cfg.name, progress) as bar:
         # the jobs of one scenario instance go to a worker together (built once there)
-        for i, outcome in executor.map(execute_job, payloads,
-                                       keys=[scenario_key(j) for j in jobs],
-                                       isolate=[j.isolate for j in jobs]):
+        for pos, outcome in executor.map(execute_job, [payloads[i] for i in order],
+                                         keys=[scenario_key(jobs[i]) for i in order],
+                                         isolate=[jobs[i].isolate for i in order]):
+            i = order[pos]
             if isinstance(outcome, JobFailure):
                 outcome = failed_job(jobs[i], outcome)
             frames[i] = outcome
