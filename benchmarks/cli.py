@@ -14,6 +14,7 @@ import dataclasses
 import subprocess
 import sys
 import time
+import warnings
 from importlib import metadata
 from pathlib import Path
 
@@ -562,10 +563,18 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Show a warning as one line, ``warning: <message>`` on standard error (not Python's
+    two lines with the source line that raised it, which means nothing to a user of the
+    command line)."""
+    print(f"warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code (2 for bad input; see
     :data:`benchmarks.verdicts.EXIT_CODES_HELP`)."""
     args = build_parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
     try:
         return args.func(args)
     except USER_ERRORS as exc:

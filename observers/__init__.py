@@ -8,8 +8,9 @@
 (100, 2)
 
 ``observers.available()`` lists the registered observers; outside packages add their own
-through the entry-point group ``observers`` (see the plugin guide of the documentation,
-``docs/guide/plugins.rst``).  Importing this package does not import the plugins; they are
+through the entry-point group ``setobs_bench.observers`` (see the plugin guide of the
+documentation, ``docs/guide/plugins.rst``).  Importing this package does not import the
+plugins; they are
 loaded on the first registry query.
 """
 

@@ -72,6 +72,9 @@ def test_a_plugin_of_the_old_group_is_listed_with_one_deprecation_line(tmp_path)
     assert "'grp-obs'" in lines[0] and "'grpplug'" in lines[0]
     assert "move it to 'setobs_bench.observers'" in lines[0]
     assert "Traceback" not in done.stderr
+    # one line in all: no source line of the harness under it (the command line's format)
+    assert lines[0].startswith("warning: ")
+    assert "for i in" not in done.stderr and "warnings.warn" not in done.stderr, done.stderr
 
 
 def test_a_plugin_in_both_groups_counts_once_without_a_warning(tmp_path):
