@@ -10,8 +10,7 @@
 ``observers.available()`` lists the registered observers; outside packages add their own
 through the entry-point group ``setobs_bench.observers`` (see the plugin guide of the
 documentation, ``docs/guide/plugins.rst``).  Importing this package does not import the
-plugins; they are
-loaded on the first registry query.
+plugins; they are loaded on the first registry query.
 """
 
 from .base import Observer, RunResult, run
