@@ -150,3 +150,11 @@ def test_committed_golden_files_name_a_released_version():
     assert _version_key(stored) <= _version_key(_pyproject_version())
     changelog = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
     assert f"## [{stored}]" in changelog
+
+
+def test_baseline_overview_names_the_version_of_the_golden_files():
+    frame, meta = regression.load_baseline(ROOT / "results" / "baseline")
+    first = regression.baseline_overview(frame, meta).splitlines()[0]
+    assert f"setobs-bench {meta[regression.VERSION_KEY]};" in first
+    assert "setobs-bench ?;" in regression.baseline_overview(
+        frame, {k: v for k, v in meta.items() if k != regression.VERSION_KEY}).splitlines()[0]
