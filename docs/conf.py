@@ -29,11 +29,14 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.viewcode",
     "numpydoc",
+    "mathml",
     "setobs_docs",
 ]
 
-# no network at build or view time: formulas are written as in the docstrings (plain text in
-# code font), so no MathJax is fetched
+# no network at build or view time: the equations of the docstrings (``.. math::``, ``:math:``)
+# are converted to MathML at build time by docutils' converter (_ext/mathml.py) and typeset by
+# the browser itself, so no MathJax (Sphinx's default, loaded from a CDN) is fetched
+html_math_renderer = "mathml"
 html_theme = "alabaster"
 html_theme_options = {"page_width": "1200px", "sidebar_width": "260px",
                       "description": "benchmark harness for guaranteed state estimators"}

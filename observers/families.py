@@ -306,10 +306,30 @@ class ZonotopeObserver(LinearModelObserver):
 
 
 class StripBasedObserver(ZonotopeObserver):
-    """Predict, intersect with the measurement strips of ``y[k]``, reduce.
+    r"""Predict, intersect with the measurement strips of ``y[k]``, reduce.
 
     A nonlinear output is used through the strips of its enclosure over the box of the
-    predicted zonotope (:meth:`ZonotopeObserver.linearise_output`)."""
+    predicted zonotope (:meth:`ZonotopeObserver.linearise_output`).
+
+    With the estimate :math:`\mathcal{S}_{k-1} = c_{k-1} \oplus G_{k-1}\mathcal{B}^r`, the
+    disturbance set :math:`\mathcal{W} = c_W \oplus E\mathcal{B}^{n_w}` and the noise bounded
+    by the box :math:`[-\sigma, \sigma]`, one step is
+
+    .. math::
+
+        \mathcal{S}^p = A\mathcal{S}_{k-1} \oplus Bu_{k-1} \oplus \mathcal{W}
+        = (Ac_{k-1} + Bu_{k-1} + c_W) \oplus [AG_{k-1},\ E]\,\mathcal{B}^{r+n_w}
+
+        \hat{\mathcal{S}}_j = \{x \in \mathbb{R}^n \mid |C_j x - y_{k,j}| \le \sigma_j\},
+        \quad j = 1, \ldots, n_y
+
+        \mathcal{S}_k \supseteq \mathcal{S}^p \cap \hat{\mathcal{S}}_1 \cap \ldots \cap
+        \hat{\mathcal{S}}_{n_y}
+
+    (the prediction of Sec. 2.4 and eqs. 4-6 of Althoff & Rath 2021), followed by the order
+    reduction of the generators to ``order``.  The subclass chooses the enclosure of the
+    intersection (:meth:`intersect`); the first set is :math:`\mathcal{X}_0` intersected with
+    the strips of :math:`y_0`."""
 
     NONLINEAR_OUTPUT = True
 
@@ -355,7 +375,21 @@ class StripBasedObserver(ZonotopeObserver):
 
 
 class PerStripObserver(StripBasedObserver):
-    """Intersection method I: one strip after the other, each with its own gain."""
+    r"""Intersection method I: one strip after the other, each with its own gain.
+
+    Strip :math:`j` (row :math:`C_j` of :math:`C`) maps the current zonotope
+    :math:`c \oplus G\mathcal{B}^r` with the gain vector :math:`\lambda^j \in \mathbb{R}^n`
+    (:meth:`strip_gain`) to
+
+    .. math::
+
+        \hat{\mathcal{Z}}_j(\lambda^j) = (I - \lambda^j C_j)\,c + \lambda^j y_{k,j}
+        \oplus \left[(I - \lambda^j C_j)\,G,\ \lambda^j \sigma_j\right]\mathcal{B}^{r+1},
+
+    which encloses the intersection with the strip for every :math:`\lambda^j` (method I of
+    Sec. 3.1 of Althoff & Rath 2021); after the last strip
+    :math:`\mathcal{S}_k = \hat{\mathcal{Z}}_{n_y}`, with :math:`n_y` generators more than
+    :math:`\mathcal{S}^p`."""
 
     @abstractmethod
     def strip_gain(self, G: np.ndarray, i: int) -> np.ndarray:
@@ -369,7 +403,19 @@ class PerStripObserver(StripBasedObserver):
 
 
 class AllStripsObserver(StripBasedObserver):
-    """Intersection method II: all strips at once with one gain matrix."""
+    r"""Intersection method II: all strips at once with one gain matrix.
+
+    With the gain :math:`\Lambda \in \mathbb{R}^{n \times n_y}` (:meth:`gain`) the
+    predicted zonotope :math:`c^p \oplus G^p\mathcal{B}^r` becomes
+
+    .. math::
+
+        \mathcal{S}_k(\Lambda) = (I - \Lambda C)\,c^p + \Lambda y_k
+        \oplus \left[(I - \Lambda C)\,G^p,\ \Lambda \operatorname{diag}(\sigma)\right]
+        \mathcal{B}^{r+n_y},
+
+    an enclosure of :math:`\mathcal{S}^p \cap \{x \mid |Cx - y_k| \le \sigma\}` for every
+    :math:`\Lambda` (method II of Sec. 3.1 of Althoff & Rath 2021)."""
 
     @abstractmethod
     def gain(self, c: np.ndarray, G: np.ndarray) -> np.ndarray:
@@ -380,7 +426,29 @@ class AllStripsObserver(StripBasedObserver):
 
 
 class PropagationObserver(ZonotopeObserver):
-    """Luenberger-type set propagation; the estimate of step k+1 needs only ``y[k]``."""
+    r"""Luenberger-type set propagation; the estimate of step k+1 needs only ``y[k]``.
+
+    The set-valued form of the Luenberger update
+    :math:`\hat x_{k+1} = A\hat x_k + Bu_k + w_k + L(y_k - C\hat x_k - v_k)` (eq. 7 of
+    Althoff & Rath 2021) over all :math:`w_k \in \mathcal{W}`, :math:`v_k \in \mathcal{V}`:
+
+    .. math::
+
+        \mathcal{S}_{k+1} = (A - L_kC)\,\mathcal{S}_k \oplus Bu_k \oplus L_ky_k
+        \oplus (-L_k)\,\mathcal{V} \oplus \mathcal{W}
+
+    (eq. 8), exact on zonotopes: with :math:`\mathcal{S}_k = c_k \oplus G_k\mathcal{B}^r`,
+    :math:`\mathcal{V} = c_V \oplus F\mathcal{B}^{n_v}` and
+    :math:`\mathcal{W} = c_W \oplus E\mathcal{B}^{n_w}`,
+
+    .. math::
+
+        c_{k+1} = (A - L_kC)\,c_k + Bu_k + L_k(y_k - c_V) + c_W, \qquad
+        G_{k+1} = \left[(A - L_kC)\,G_k,\ -L_kF,\ E\right],
+
+    then reduced to ``order``.  It contains the true state for any gain :math:`L_k`, which the
+    subclass chooses (:meth:`gain`) to make the set small; the first set is
+    :math:`\mathcal{X}_0`."""
 
     def reset(self) -> None:
         super().reset()
@@ -414,7 +482,14 @@ class PropagationObserver(ZonotopeObserver):
 
 
 class ConstantGainPropagationObserver(PropagationObserver):
-    """Set propagation with an offline gain ``self.L`` (set by ``design``)."""
+    r"""Set propagation with an offline gain ``self.L`` (set by ``design``).
+
+    Eq. 8 of Althoff & Rath 2021 with :math:`L_k = L` for every step:
+
+    .. math::
+
+        \mathcal{S}_{k+1} = (A - LC)\,\mathcal{S}_k \oplus Bu_k \oplus Ly_k
+        \oplus (-L)\,\mathcal{V} \oplus \mathcal{W}."""
 
     KERNEL = StepKernel.PROPAGATION_GIVEN
     L: np.ndarray
@@ -449,9 +524,31 @@ def interval_bound(x: np.ndarray, G_x: np.ndarray, c_wv: np.ndarray, r_wv: np.nd
 
 
 class IntervalObserver(LinearModelObserver):
-    """Alg. 1 with the constant gain ``self.L`` (set by ``design``); returns intervals.
+    r"""Alg. 1 with the constant gain ``self.L`` (set by ``design``); returns intervals.
 
     Subclasses provide ``L`` (n x ny), e.g. through :class:`~observers.offline.OfflineGain`.
+
+    With :math:`M = A - LC`, :math:`\mathcal{D}_0 = \mathcal{W} \oplus (-L)\mathcal{V}`,
+    :math:`\hat x_0` the centre of :math:`\mathcal{X}_0`,
+    :math:`\mathcal{S}_{x,0} = \mathcal{X}_0 - \hat x_0` and :math:`\mathcal{S}_{wv,0} = 0`
+    (Alg. 1 of Althoff & Rath 2021, lines 1-9; the centred initial error is this project's
+    choice, see the module notes):
+
+    .. math::
+
+        [\underline{x}_k, \overline{x}_k] = \hat x_k \oplus \operatorname{BOX}(\mathcal{S}_{x,k})
+        \oplus \mathcal{S}_{wv,k}
+
+        \hat x_{k+1} = A\hat x_k + Bu_k + L(y_k - C\hat x_k)
+
+        \mathcal{S}_{x,k+1} = M\mathcal{S}_{x,k}, \qquad
+        \mathcal{S}_{wv,k+1} = \mathcal{S}_{wv,k} \oplus \operatorname{BOX}(\mathcal{D}_k),
+        \qquad \mathcal{D}_{k+1} = M\mathcal{D}_k,
+
+    so that :math:`\mathcal{S}_{wv,k} = \bigoplus_{i<k}\operatorname{BOX}(M^i\mathcal{D}_0)`:
+    each term is boxed before it is summed, and no wrapping accumulates.  The box of a
+    zonotope :math:`c \oplus G\mathcal{B}^r` is
+    :math:`[c - |G|\mathbf{1},\ c + |G|\mathbf{1}]` (:func:`box_radius`).
     """
 
     OPTIONS = {"convention": Choice("aligned", CONVENTIONS)}

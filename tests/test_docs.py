@@ -1,5 +1,6 @@
-"""The documentation site builds without a warning (``sphinx -W``, as ``make docs``), and every
-code example of the site and of the README is executed:
+"""The documentation site builds without a warning (``sphinx -W``, as ``make docs``), every
+observer page shows its step as typeset equations (MathML made at build time, no script from the
+network), and every code example of the site and of the README is executed:
 
 * Python blocks run, page by page, in a fresh interpreter in an empty folder (each block in its
   own namespace, in the order of the page); the "your own system" example must run every
@@ -106,14 +107,23 @@ def test_readme_is_a_front_page_whose_links_exist():
 
 # -- the build ----------------------------------------------------------------------------
 
-@pytest.mark.slow
-def test_site_builds_without_warnings(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """``(exit code, html folder)`` of one build of the site with ``-W`` (as ``make docs``),
+    shared by the tests of the built pages."""
     sphinx = pytest.importorskip("sphinx.cmd.build",
                                  reason="Sphinx is not installed (pip install -e '.[docs]')")
     pytest.importorskip("numpydoc", reason="numpydoc is not installed (pip install -e '.[docs]')")
-    out = tmp_path / "html"
+    tmp = tmp_path_factory.mktemp("site")
+    out = tmp / "html"
     code = sphinx.build_main(["-W", "--keep-going", "-q", "-b", "html", str(DOCS), str(out),
-                              "-d", str(tmp_path / "doctrees")])
+                              "-d", str(tmp / "doctrees")])
+    return code, out
+
+
+@pytest.mark.slow
+def test_site_builds_without_warnings(site):
+    code, out = site
     assert code == 0
     infos = observers.available()
     for info in infos:  # one page per observer, with its options and where it appears
@@ -125,6 +135,44 @@ def test_site_builds_without_warnings(tmp_path):
     assert "reports/speed.json" in frad_a and "arch2021_table3" in frad_a
     assert (out / "api" / "benchmarks.report.numbers.html").is_file()
     assert "pca-cora" in (out / "guide" / "papers.html").read_text(encoding="utf-8")
+
+
+#: a typeset equation of the built site: a MathML element made by docs/_ext/mathml.py (raw
+#: LaTeX in a page, as MathJax would leave it for the browser to typeset, does not count)
+MATH = re.compile(r'<math xmlns="http://www.w3.org/1998/Math/MathML"[^>]*>(.*?)</math>', re.S)
+
+
+def typeset_equations(html: str) -> int:
+    """Number of MathML formulas of a page that hold at least one token (identifier, number,
+    operator): an empty ``<math>`` is not an equation."""
+    return sum(1 for m in MATH.finditer(html) if re.search(r"<m[ino][ >]", m.group(1)))
+
+
+def test_typeset_equations_are_counted_from_the_markup_not_the_latex():
+    assert typeset_equations(r'<div class="math">\[x_{k+1} = A x_k\]</div>') == 0
+    assert typeset_equations('<math xmlns="http://www.w3.org/1998/Math/MathML"></math>') == 0
+    assert typeset_equations('<math xmlns="http://www.w3.org/1998/Math/MathML" display="block">'
+                             "<mi>x</mi><mo>=</mo><mn>1</mn></math> and "
+                             '<math xmlns="http://www.w3.org/1998/Math/MathML"><mi>A</mi>'
+                             "</math>") == 2
+
+
+@pytest.mark.slow
+def test_every_observer_page_shows_its_step_as_typeset_equations(site):
+    """Every observer page holds at least one equation typeset as MathML, no page refers to
+    a script or style sheet on the network (MathJax from a CDN), and no formula failed to
+    convert (it would be printed as LaTeX in a ``math-error`` code span)."""
+    _, out = site
+    pages = sorted(p for p in (out / "observers").glob("*.html") if p.stem != "index")
+    assert len(pages) == len(observers.available())
+    counts = {p.stem: typeset_equations(p.read_text(encoding="utf-8")) for p in pages}
+    missing = sorted(name for name, n in counts.items() if n == 0)
+    assert not missing, f"observer pages without a typeset equation: {', '.join(missing)}"
+    for page in out.rglob("*.html"):
+        html = page.read_text(encoding="utf-8")
+        assert not re.search(r"<(script|link)[^>]+(src|href)=\"(https?:)?//", html), page
+        assert not re.search(r"<script[^>]*mathjax", html, re.I), page
+        assert 'class="math-error"' not in html, page
 
 
 # -- Python examples ------------------------------------------------------------------------

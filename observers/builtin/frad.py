@@ -16,7 +16,16 @@ from ..registry import register
     reference="Alamo, Bravo, Camacho, Automatica 41(6), 2005, Sec. 6",
 )
 class FRadA(Linearised, PerStripObserver):
-    """Strip by strip with the closed-form F-radius gain of Alamo et al. (online)."""
+    r"""Strip by strip with the closed-form F-radius gain of Alamo et al. (online).
+
+    Intersection method I (Sec. 3.1 of Althoff & Rath 2021, FRad-A of its Table 2) with, for
+    strip :math:`j` and the current generators :math:`G`, the gain of least F-radius
+    :math:`\|[(I - \lambda C_j)G,\ \lambda\sigma_j]\|_F`:
+
+    .. math::
+
+        \lambda^j = \frac{GG^TC_j^T}{C_jGG^TC_j^T + \sigma_j^2}.
+    """
 
     KERNEL = StepKernel.ALAMO
 
@@ -54,7 +63,16 @@ class WangGainVariant:
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
 class FRadB(Linearised, WangGainVariant, AllStripsObserver):
-    """All strips at once with the F-radius gain of Wang et al. (online).
+    r"""All strips at once with the F-radius gain of Wang et al. (online).
+
+    Intersection method II (Sec. 3.1 of Althoff & Rath 2021, FRad-B of its Table 2) with the
+    Kalman-like gain of least F-radius, :math:`P = GG^T` of the predicted set:
+
+    .. math::
+
+        \Lambda_k = RC^T\left(CRC^T + FF^T\right)^{-1}, \qquad
+        R = \begin{cases} APA^T + EE^T & \text{variant "cora"},\\
+        P & \text{variant "textbook"}. \end{cases}
 
     Options
     -------
@@ -73,7 +91,16 @@ class FRadB(Linearised, WangGainVariant, AllStripsObserver):
     reference="Combastel, Automatica 55, 2015, Sec. 4.3",
 )
 class FRadC(Linearised, PropagationObserver):
-    """Set propagation with the online F-radius gain of Combastel (Kalman-like)."""
+    r"""Set propagation with the online F-radius gain of Combastel (Kalman-like).
+
+    Eq. 8 of Althoff & Rath 2021 with, at every step, the gain that minimises the F-radius of
+    :math:`\mathcal{S}_{k+1}` for the current set :math:`\mathcal{S}_k = c_k \oplus
+    G_k\mathcal{B}^r` (FRad-C, their Sec. 3.2):
+
+    .. math::
+
+        L_k = AG_kG_k^TC^T\left(CG_kG_k^TC^T + FF^T\right)^{-1}.
+    """
 
     KERNEL = StepKernel.COMBASTEL
 

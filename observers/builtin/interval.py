@@ -46,7 +46,7 @@ def _hull(S) -> tuple[np.ndarray, np.ndarray]:
               "Benhamou, Goualard, Granvilliers, Puget, ICLP 1999 (HC4 contractor)",
 )
 class IntervalContractor(Observer):
-    """Box observer: inclusion function of f, forward-backward contraction with y (online).
+    r"""Box observer: inclusion function of f, forward-backward contraction with y (online).
 
     Prediction: the intersection of the natural interval extension of ``f`` and its
     mean-value form over the box (exact box image for a linear system), plus the box of W.
@@ -54,6 +54,24 @@ class IntervalContractor(Observer):
     ``y = C x + v``; forward-backward propagation on the expression of ``h`` and the linear
     contractor of its mean-value enclosure for a nonlinear output), repeated while the box
     shrinks.  See :mod:`observers.numerics.interval`.
+
+    Not one of the observers of Althoff & Rath 2021 (it has no equation number there); in the
+    notation of Kieffer, Jaulin and Walter (2002), with :math:`p` and :math:`r` the midpoint
+    and radius of the box :math:`[x]_{k-1}`, :math:`[f]` the natural interval extension and
+    :math:`J([x])` the interval Jacobian:
+
+    .. math::
+
+        [x]^p_k = \Bigl([f]([x]_{k-1}, u_{k-1}) \cap \bigl(f(p, u_{k-1}) +
+        J([x]_{k-1})\,([x]_{k-1} - p)\bigr)\Bigr) + \operatorname{BOX}(\mathcal{W})
+
+        [x]_k = \mathcal{C}\bigl([x]^p_k\bigr), \qquad
+        \mathcal{C}: \text{contract } [x] \text{ with }
+        h(x) \in y_k - \operatorname{BOX}(\mathcal{V})
+
+    (for a linear system the prediction is the exact box :math:`Ap + Bu_{k-1} \pm |A|\,r`
+    plus the box of :math:`\mathcal{W}`); the contraction is repeated while it narrows the
+    box.
 
     Options
     -------

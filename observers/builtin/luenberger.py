@@ -37,7 +37,25 @@ class _OfflineGainPropagation(OfflineGain, ConstantGainPropagationObserver):
     reference="Wang, Zhou, Puig, Cembrano, Wang, CCC 2017, eq. 17 (Althoff & Rath 2021, Sec. 3.2)",
 )
 class PRadE(_OfflineGainPropagation):
-    """Set propagation with the offline P-radius gain of Wang et al. (max trace P, beta as CORA).
+    r"""Set propagation with the offline P-radius gain of Wang et al. (max trace P, beta as CORA).
+
+    Eq. 8 of Althoff & Rath 2021 with the constant gain of their Sec. 3.2 (PRad-E, citing
+    eq. 17 of Wang et al.), :math:`\beta \in (0, 1)` the contraction of the P-radius:
+
+    .. math::
+
+        L = P^{-1}Y, \qquad \max_{P,\,Y}\ \operatorname{tr}P \quad \text{s.t.} \quad
+        \begin{bmatrix} -\beta P & 0 & 0 & A^TP - C^TY^T \\
+        0 & -E^TE & 0 & E^TP \\
+        0 & 0 & -F^TF & F^TY^T \\
+        PA - YC & PE & YF & -P \end{bmatrix} \preceq 0, \quad P \succ 0
+
+    (:func:`~observers.numerics.luenberger.prad_e_design`), then
+
+    .. math::
+
+        \mathcal{S}_{k+1} = (A - LC)\,\mathcal{S}_k \oplus Bu_k \oplus Ly_k \oplus
+        (-L)\,\mathcal{V} \oplus \mathcal{W}.
 
     Options
     -------
@@ -76,7 +94,20 @@ class PRadE(_OfflineGainPropagation):
     reference="Wang, Puig, Cembrano, Automatica 93, 2018, eq. 36 (Althoff & Rath 2021, Sec. 3.2)",
 )
 class NomG(_OfflineGainPropagation):
-    """Set propagation with the nominal gain of decay rate mu (analytic centre of its LMI).
+    r"""Set propagation with the nominal gain of decay rate mu (analytic centre of its LMI).
+
+    Eq. 8 of Althoff & Rath 2021 with the constant gain of their Sec. 3.2 (Nom-G, citing
+    eq. 36 of Wang et al.), which makes the noise-free error decay at the rate
+    :math:`\mu \in (0, 1]`, i.e. :math:`(A - LC)^TP(A - LC) \prec \mu P`:
+
+    .. math::
+
+        L = P^{-1}Y, \qquad
+        \begin{bmatrix} \mu P & (PA - YC)^T \\ PA - YC & P \end{bmatrix} \succ 0,
+        \quad P \succ 0
+
+    (the analytic centre of this set with :math:`\operatorname{tr}P = n`,
+    :func:`~observers.numerics.luenberger.nom_g_design`).
 
     Options
     -------
@@ -110,7 +141,24 @@ class NomG(_OfflineGainPropagation):
               "(Althoff & Rath 2021, Sec. 3.3)",
 )
 class HinfG(OfflineGain, IntervalObserver):
-    """Interval observer (Tang et al., Alg. 1) with the H-infinity gain, min gamma then min trace P.
+    r"""Interval observer (Tang et al., Alg. 1), H-infinity gain: min gamma, then min trace P.
+
+    Alg. 1 of Althoff & Rath 2021 (:class:`~observers.families.IntervalObserver`) with the
+    gain of their Sec. 3.3 (Hinf-G, citing eq. 16 of Tang et al.), :math:`w_k = E\tilde w_k`,
+    :math:`v_k = F\tilde v_k`:
+
+    .. math::
+
+        L = P^{-1}Y, \qquad \min_{P,\,Y,\,\gamma}\ \gamma^2 \quad \text{s.t.} \quad
+        \begin{bmatrix} I - P & 0 & 0 & (PA - YC)^T \\
+        0 & -\gamma^2 I & 0 & (PE)^T \\
+        0 & 0 & -\gamma^2 I & (-YF)^T \\
+        PA - YC & PE & -YF & -P \end{bmatrix} \prec 0, \quad P \succ 0
+
+    then, among the gains with :math:`\gamma \le (1 + s)\,\gamma^\ast` (:math:`\gamma^\ast` the
+    least :math:`\gamma`, :math:`s` = ``gamma_slack``), the one of least
+    :math:`\operatorname{tr}P`
+    (:func:`~observers.numerics.luenberger.hinf_g_design`).
 
     Options
     -------

@@ -147,7 +147,19 @@ class _LeMethod:
     reference="Le, Stoica, Alamo, Camacho, Dumur, Automatica 49(11), 2013, Sec. 4.1",
 )
 class PRadA(_LeMethod, _BetaTol, OfflineGain, PerStripObserver):
-    """Strip by strip with offline P-radius gains, one single-output design per output.
+    r"""Strip by strip with offline P-radius gains, one single-output design per output.
+
+    Intersection method I (Sec. 3.1 of Althoff & Rath 2021, PRad-A of its Table 2) with the
+    constant gain vectors :math:`\lambda^j`, the columns of :math:`\Lambda = [\lambda^1,
+    \ldots, \lambda^{n_y}]`; column :math:`j` is the P-radius design of
+    :func:`~observers.numerics.prad.le_gain` for the single output :math:`C_j` with the box
+    of the noise on it:
+
+    .. math::
+
+        \hat{\mathcal{Z}}_j = (I - \lambda^jC_j)\,c + \lambda^jy_{k,j} \oplus
+        [(I - \lambda^jC_j)\,G,\ \lambda^j\sigma_j]\,\mathcal{B}^{r+1}, \qquad
+        \lambda^j = P_j^{-1}Y_j.
 
     Options
     -------
@@ -220,7 +232,19 @@ class _Centre:
     reference="Le, Stoica, Alamo, Camacho, Dumur, ISIC 2013",
 )
 class PRadB(_LeMethod, _BetaTol, _ConstantAllStrips):
-    """All strips at once with the offline P-radius gain of Le et al. (CORA's SDP).
+    r"""All strips at once with the offline P-radius gain of Le et al. (CORA's SDP).
+
+    Intersection method II (Sec. 3.1 of Althoff & Rath 2021, PRad-B of its Table 2) with a
+    constant :math:`\Lambda = P^{-1}Y` from the SDP of
+    :func:`~observers.numerics.prad.le_gain` (:math:`W_x = \beta P`, :math:`W_w = E^TE`,
+    :math:`W_v = F^TF`, :math:`\max \tau` with
+    :math:`(1 - \beta)P/\epsilon \succeq \tau I`):
+
+    .. math::
+
+        \mathcal{S}_k = (I - \Lambda C)\,c^p + \Lambda y_k \oplus
+        \left[(I - \Lambda C)\,G^p,\ \Lambda\operatorname{diag}(\sigma)\right]
+        \mathcal{B}^{r+n_y}.
 
     Options
     -------
@@ -249,7 +273,22 @@ class PRadB(_LeMethod, _BetaTol, _ConstantAllStrips):
     reference="Wang, Puig, Cembrano, Automatica 93, 2018",
 )
 class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
-    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
+    r"""All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
+
+    Intersection method II (PRad-C-I of Table 2 of Althoff & Rath 2021) with a constant
+    :math:`\Lambda = P^{-1}Y`, where :math:`(P, Y)` satisfy the P-radius inequality
+    :math:`\mathcal{D}(P, Y) \succeq 0` (:func:`~observers.numerics.prad.le_gain`) with
+    :math:`W_x = \beta P` and free diagonal :math:`W_w, W_v`, so that the P-radius of the
+    estimates obeys
+
+    .. math::
+
+        R_k \le \beta R_{k-1} + \operatorname{tr}W_w + \operatorname{tr}W_v, \qquad
+        \limsup_{k \to \infty} R_k \le \frac{\operatorname{tr}W_w + \operatorname{tr}W_v}
+        {1 - \beta};
+
+    ``design`` chooses the point of that cone (its analytic centre, or the least bound with
+    :math:`P \succeq I`).
 
     Options
     -------
@@ -283,7 +322,19 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     reference="Wang, Alamo, Puig, Cembrano, CDC 2018",
 )
 class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
-    """All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
+    r"""All strips at once with an offline P-radius gain of CORA's PRad-C inequality.
+
+    Intersection method II (PRad-C-II of Table 2 of Althoff & Rath 2021) with a constant
+    :math:`\Lambda = P^{-1}Y` from the inequality of PRad-C-I; the ``ellipsoid-trace`` design
+    normalises the weights, so that the estimates end up in the ellipsoid
+    :math:`\{z \mid (z - c_k)^TP(z - c_k) \le 1/(1 - \beta)\}`, and minimises the sum of its
+    squared semi-axes:
+
+    .. math::
+
+        \min_{P,\,Y,\,W_w,\,W_v}\ \frac{\operatorname{tr}(P^{-1})}{1 - \beta} \quad
+        \text{s.t.} \quad \mathcal{D}(P, Y) \succeq 0, \quad
+        \operatorname{tr}W_w + \operatorname{tr}W_v \le 1.
 
     Options
     -------
@@ -308,7 +359,17 @@ class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     reference="Wang, Wang, Puig, Cembrano, IEEE TAC 64(5), 2019",
 )
 class PRadD(_Centre, _ConstantAllStrips):
-    """All strips at once; offline gain maximising P >= gamma^2 I for fixed noise weights.
+    r"""All strips at once; offline gain maximising P >= gamma^2 I for fixed noise weights.
+
+    Intersection method II (PRad-D of Table 2 of Althoff & Rath 2021) with a constant
+    :math:`\Lambda = P^{-1}Y` from the P-radius inequality with fixed weights
+    (:func:`~observers.numerics.prad.wang_d_gain`):
+
+    .. math::
+
+        W_x = \alpha P, \quad W_w = (1 - \alpha)\beta I, \quad
+        W_v = (1 - \alpha)(1 - \beta)I, \qquad \max\ \gamma^2 \text{ s.t. }
+        P \succeq \gamma^2 I.
 
     Options
     -------

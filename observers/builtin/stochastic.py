@@ -59,7 +59,30 @@ def identify_n4sid(u: np.ndarray, z: np.ndarray, C_train: np.ndarray, n: int,
           reference="Van Overschee & De Moor 1994 (N4SID) + Kalman filter, as in Alanwar et "
                     "al., ECC 2022, Sec. IV")
 class KalmanN4SID(Observer):
-    """N4SID model + Kalman filter, ``sigma``-ellipsoid of the posterior (not guaranteed).
+    r"""N4SID model + Kalman filter, ``sigma``-ellipsoid of the posterior (not guaranteed).
+
+    The baseline of Sec. IV of Alanwar et al. 2022 (which states no formula for it), written
+    here as the code runs it.  With the identified :math:`(\hat A, \hat B)`, the centres
+    :math:`c_W`, :math:`c_V` of the disturbance and noise sets and their covariances
+    :math:`Q`, :math:`R` (``tuning``), one step is the prediction
+
+    .. math::
+
+        x^-_k = \hat A\,x_{k-1} + \hat B\,u_{k-1} + c_W, \qquad
+        P^-_k = \hat A\,P_{k-1}\hat A^T + Q,
+
+    the measurement update (Joseph form)
+
+    .. math::
+
+        K_k = P^-_kC^T\left(CP^-_kC^T + R\right)^{-1}, \qquad
+        x_k = x^-_k + K_k\,(y_k - Cx^-_k - c_V),
+
+        P_k = (I - K_kC)\,P^-_k\,(I - K_kC)^T + K_kRK_k^T,
+
+    and the reported set
+    :math:`\{x \mid (x - x_k)^TP_k^{-1}(x - x_k) \le \sigma^2\}`; step 0 updates
+    :math:`(x_0, P_0)` from the centre and covariance of :math:`\mathcal{X}_0`.
 
     Options
     -------

@@ -53,7 +53,18 @@ def _scientific(count: int) -> str:
 )
 
 class VolMinA(Linearised, PerStripObserver):
-    """Strip by strip with the volume-minimising gain of Alamo et al. (one LP per strip).
+    r"""Strip by strip with the volume-minimising gain of Alamo et al. (one LP per strip).
+
+    Intersection method I with, for each strip :math:`j`, the gain of least volume (VolMin-A
+    of Table 2 of Althoff & Rath 2021):
+
+    .. math::
+
+        \lambda^j = \arg\min_{\lambda \in \mathbb{R}^n}
+        \operatorname{vol}\left((I - \lambda C_j)\,c + \lambda y_{k,j} \oplus
+        [(I - \lambda C_j)\,G,\ \lambda\sigma_j]\,\mathcal{B}^{r+1}\right),
+
+    a linear program (:func:`~observers.numerics.volmin.volume_lp_gain`).
 
     Options
     -------
@@ -86,7 +97,27 @@ class VolMinA(Linearised, PerStripObserver):
     reference="Bravo, Alamo, Camacho, IEEE TAC 51(7), 2006, Sec. III.B",
 )
 class VolMinB(Linearised, StripBasedObserver):
-    """Strip by strip, choosing Bravo's candidate zonotope of least det(T T') (online)."""
+    r"""Strip by strip, choosing Bravo's candidate zonotope of least det(T T') (online).
+
+    Intersection method III (Sec. 3.1 of Althoff & Rath 2021, VolMin-B of its Table 2): for
+    strip :math:`i` with row :math:`C_i` and :math:`a = C_iG`, candidate :math:`j \ge 1`
+    removes generator :math:`g^j` (where :math:`a_j \ne 0`),
+
+    .. math::
+
+        \lambda_j = \frac{g^j}{a_j}, \qquad
+        c(j) = c + \lambda_j\,(y_{k,i} - C_ic), \qquad
+        G(j) = (I - \lambda_jC_i)\,G \text{ with column } j \text{ replaced by }
+        \sigma_i\lambda_j,
+
+    candidate 0 is :math:`(c, G)` unchanged, and the step keeps
+
+    .. math::
+
+        j^\ast = \arg\min_{0 \le j \le r} \det\left(G(j)\,G(j)^T\right),
+
+    a volume measure of the candidate (:func:`~observers.numerics.volmin.bravo_scores_gram`).
+    """
 
     KERNEL = StepKernel.BRAVO
 

@@ -13,10 +13,22 @@ from .linalg import psd_solve
 
 
 def alamo_frad_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray:
-    """F-radius-minimising gain of one strip (Alamo et al. 2005, Sec. 6):
+    r"""F-radius-minimising gain of one strip (Alamo et al. 2005, Sec. 6):
     ``lambda = G G' c' / (c G G' c' + sigma^2)``; zero where the denominator is zero (the set
     is flat along ``c`` and the strip exact: it cannot shrink the set, and any gain gives the
-    same set)."""
+    same set).
+
+    The gain of the strip :math:`|c\,x - y| \le \sigma` (:math:`c` a row of :math:`C`) that
+    minimises the F-radius :math:`\|[(I - \lambda c)G,\ \lambda\sigma]\|_F` of the
+    enclosure of intersection method I (Sec. 3.1 of Althoff & Rath 2021, FRad-A of its
+    Table 2): setting the gradient of
+    :math:`\operatorname{trace}\bigl((I - \lambda c)GG^T(I - \lambda c)^T\bigr) +
+    \sigma^2\lambda^T\lambda` to zero gives
+
+    .. math::
+
+        \lambda^\ast = \frac{GG^Tc^T}{c\,GG^Tc^T + \sigma^2}.
+    """
     Gc = G.T @ c_row
     den = Gc @ Gc + sigma**2
     return (G @ Gc) / den if den > 0 else np.zeros(G.shape[0])
@@ -25,8 +37,18 @@ def alamo_frad_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarra
 def wang_frad_gain(
     P: np.ndarray, A: np.ndarray | None, C: np.ndarray, E: np.ndarray, F: np.ndarray
 ) -> np.ndarray:
-    """F-radius gain for all strips at once (Wang, Puig, Cembrano, Automatica 2018):
+    r"""F-radius gain for all strips at once (Wang, Puig, Cembrano, Automatica 2018):
     ``Lam = R C' (C R C' + F F')^{-1}`` with ``R = A P A' + E E'``.
+
+    The gain :math:`\Lambda` of intersection method II (FRad-B of Table 2 of Althoff &
+    Rath 2021) that minimises the F-radius of the corrected set, in the form of a Kalman
+    gain with the generator "covariance" :math:`GG^T` in place of a covariance:
+
+    .. math::
+
+        R = APA^T + EE^T, \qquad \Lambda = RC^T\left(CRC^T + FF^T\right)^{-1},
+
+    with :math:`P = GG^T` (:math:`R = P` when ``A`` is ``None``).
 
     ``P`` is ``G G'`` of the set the gain is computed from.  With ``A=None`` the prior
     covariance ``R = P`` is used unchanged (for callers passing the predicted set's ``G G'``).
@@ -37,8 +59,17 @@ def wang_frad_gain(
 
 
 def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """F-radius-minimising gain of the set-propagation observer (Combastel, Automatica 2015,
-    Sec. 4.3): ``L = A P C' (C P C' + F F')^{-1}`` with ``P = G G'`` of the current set."""
+    r"""F-radius-minimising gain of the set-propagation observer (Combastel, Automatica 2015,
+    Sec. 4.3): ``L = A P C' (C P C' + F F')^{-1}`` with ``P = G G'`` of the current set.
+
+    The gain of FRad-C (Sec. 3.2 of Althoff & Rath 2021, citing Combastel's Sec. 4.3), the
+    one that minimises the F-radius of :math:`\mathcal{S}_{k+1}` in eq. 8 for the current
+    set :math:`\mathcal{S}_k = c \oplus G\mathcal{B}^r`:
+
+    .. math::
+
+        L_k = AGG^TC^T\left(CGG^TC^T + FF^T\right)^{-1}.
+    """
     S = C @ P @ C.T + F @ F.T
     return A @ psd_solve(S, C @ P).T
 
@@ -46,8 +77,20 @@ def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -
 def alamo_frad_strips(
     c: np.ndarray, G: np.ndarray, C: np.ndarray, y: np.ndarray, sigma: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """All strips of ``|C x - y| <= sigma``, one after the other, each with the F-radius gain
+    r"""All strips of ``|C x - y| <= sigma``, one after the other, each with the F-radius gain
     of :func:`alamo_frad_gain` (FRad-A), computed on ``P = G G'`` instead of ``G``.
+
+    For strip :math:`i` with row :math:`c_i`:
+
+    .. math::
+
+        p = Pc_i^T, \quad s = c_ip + \sigma_i^2, \quad \lambda_i = p / s, \quad
+        c \leftarrow c + \lambda_i(y_i - c_ic),
+
+        P \leftarrow P - pp^T / s, \quad L \leftarrow [(I - \lambda_ic_i)L,\ \lambda_i],
+
+    and the generators of the result are
+    :math:`[(I - LC)G,\ L\operatorname{diag}(\sigma)]`.
 
     Strip ``i`` with row ``c_i``, ``p = P c_i`` and ``s = c_i' p + sigma_i^2`` has the gain
     ``lambda_i = p / s``; the update ``G <- [(I - lambda_i c_i') G, sigma_i lambda_i]`` of

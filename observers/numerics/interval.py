@@ -81,8 +81,16 @@ def _sum_slack(terms: np.ndarray, axis: int = -1) -> np.ndarray:
 
 def linear_box(A: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Interval hull of ``{A x + shift : lo <= x <= hi}`` (exact up to outward rounding):
-    ``A p + shift +- |A| r``."""
+    r"""Interval hull of ``{A x + shift : lo <= x <= hi}`` (exact up to outward rounding):
+    ``A p + shift +- |A| r``.
+
+    .. math::
+
+        \operatorname{BOX}\{Ax + s \mid \underline{x} \le x \le \overline{x}\}
+        = [Ap + s - |A|\,r,\ Ap + s + |A|\,r], \qquad
+        p = \tfrac{1}{2}(\underline{x} + \overline{x}),\ r = \tfrac{1}{2}(\overline{x} -
+        \underline{x}).
+    """
     p, r = midpoint_radius(lo, hi)
     Ap = A * p
     c = Ap.sum(axis=1) + shift
@@ -93,9 +101,16 @@ def linear_box(A: np.ndarray, lo: np.ndarray, hi: np.ndarray,
 
 def mean_value_box(fp: Ival, Jlo: np.ndarray, Jhi: np.ndarray,
                    r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The mean-value form ``[f(p)] + J([x]) ([x] - p)`` over a box of radius ``r`` around
+    r"""The mean-value form ``[f(p)] + J([x]) ([x] - p)`` over a box of radius ``r`` around
     ``p``: ``[f(p)] +- mag(J([x])) r`` (``fp``: an enclosure of ``f(p)``; ``Jlo <= J <= Jhi``
-    over the box)."""
+    over the box).
+
+    .. math::
+
+        f([x]) \subseteq [f(p)] + J([x])\,([x] - p) \subseteq
+        [f(p)] + [-1, 1]\,\operatorname{mag}(J([x]))\,r, \qquad
+        \operatorname{mag}(J)_{ij} = \max(|\underline{J}_{ij}|, |\overline{J}_{ij}|).
+    """
     mag = np.maximum(np.abs(Jlo), np.abs(Jhi))
     terms = mag * r
     rad = terms.sum(axis=1)
@@ -117,11 +132,17 @@ def intersect(lo: np.ndarray, hi: np.ndarray, lo2: np.ndarray,
 
 def contract_linear(lo: np.ndarray, hi: np.ndarray, C: np.ndarray, ylo: np.ndarray,
                     yhi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Contract the box ``[lo, hi]`` with ``ylo <= C x <= yhi``, row after row (one
+    r"""Contract the box ``[lo, hi]`` with ``ylo <= C x <= yhi``, row after row (one
     Gauss-Seidel sweep).
 
     For row ``i`` and every ``j`` with ``C_ij != 0``:
-    ``x_j in ([ylo_i, yhi_i] - sum_{k != j} C_ik [x_k]) / C_ij``, intersected with ``[x_j]``.
+    ``x_j in ([ylo_i, yhi_i] - sum_{k != j} C_ik [x_k]) / C_ij``, intersected with ``[x_j]``:
+
+    .. math::
+
+        [x_j] \leftarrow [x_j] \cap \frac{1}{C_{ij}}\Bigl([\underline{y}_i, \overline{y}_i] -
+        \sum_{k \ne j} C_{ik}\,[x_k]\Bigr).
+
     The sums are taken in floating point and widened by a bound of their rounding error, the
     quotient is rounded outward.  Raises :class:`EmptySet` if a component becomes empty (no
     state of the box is consistent with the measurement).

@@ -66,7 +66,25 @@ def prad_e_lmi(A, C, E, F, beta, P, Y):
 
 
 def prad_e_design(A, C, E, F, beta: float, solver: str = "auto") -> GainDesign:
-    """PRad-E gain: ``L = P^{-1} Y`` with ``P`` of maximal trace subject to the PRad-E LMI.
+    r"""PRad-E gain: ``L = P^{-1} Y`` with ``P`` of maximal trace subject to the PRad-E LMI.
+
+    The design of Sec. 3.2 of Althoff & Rath 2021 (PRad-E; eq. 17 of Wang et al., CCC 2017):
+
+    .. math::
+
+        L = P^{-1}Y, \qquad \max_{P,\,Y}\ \operatorname{tr}P \quad \text{s.t.} \quad
+        \begin{bmatrix} -\beta P & 0 & 0 & A^TP - C^TY^T \\
+        0 & -E^TE & 0 & E^TP \\
+        0 & 0 & -F^TF & F^TY^T \\
+        PA - YC & PE & YF & -P \end{bmatrix} \preceq 0, \quad P \succ 0
+
+    or, equivalently with :math:`X = P^{-1}` and ``solver="riccati"``, the stabilising
+    solution of
+
+    .. math::
+
+        X = \frac{1}{\beta}(A - LC)X(A - LC)^T + Q_E + LQ_FL^T, \qquad
+        L = AXC^T\left(CXC^T + \beta Q_F\right)^{-1}.
 
     Parameters
     ----------
@@ -164,7 +182,21 @@ def nom_g_lmi(A, C, mu, P, Y):
 
 
 def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
-    """Nom-G gain: the analytic centre of the Nom-G LMI normalised by ``trace(P) = n``.
+    r"""Nom-G gain: the analytic centre of the Nom-G LMI normalised by ``trace(P) = n``.
+
+    The LMI of Sec. 3.2 of Althoff & Rath 2021 (Nom-G; eq. 36 of Wang et al., Automatica
+    2018), here with the analytic-centre objective:
+
+    .. math::
+
+        L = P^{-1}Y, \qquad
+        \begin{bmatrix} \mu P & (PA - YC)^T \\ PA - YC & P \end{bmatrix} \succ 0,
+        \quad P \succ 0
+
+    .. math::
+
+        (P, Y) = \arg\max\ \log\det\begin{bmatrix} \mu P & (PA - YC)^T \\
+        PA - YC & P \end{bmatrix} \quad \text{s.t.} \quad \operatorname{tr}P = n.
 
     The LMI ``[[mu P, *], [P A - Y C, P]] > 0`` (equivalently
     ``(A - L C)' P (A - L C) < mu P``) only asks for a decay rate ``sqrt(mu)`` of the nominal
@@ -277,9 +309,23 @@ HINF_G_RICCATI_ABOVE = 30
 
 
 def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") -> GainDesign:
-    """Hinf-G gain in two stages, both SDPs with cvxpy + Clarabel (``method="sdp"``; ``"auto"``
+    r"""Hinf-G gain in two stages, both SDPs with cvxpy + Clarabel (``method="sdp"``; ``"auto"``
     up to :data:`HINF_G_RICCATI_ABOVE` states), or from Riccati equations (``"riccati"``,
     ``"auto"`` above; :func:`_hinf_g_riccati`).
+
+    Stage 1 is the problem of Sec. 3.3 of Althoff & Rath 2021 (Hinf-G; eq. 16 of Tang et al.,
+    TAC 2019):
+
+    .. math::
+
+        L = P^{-1}Y, \qquad \min_{P,\,Y,\,\gamma}\ \gamma^2 \quad \text{s.t.} \quad
+        \begin{bmatrix} I - P & 0 & 0 & (PA - YC)^T \\
+        0 & -\gamma^2 I & 0 & (PE)^T \\
+        0 & 0 & -\gamma^2 I & (-YF)^T \\
+        PA - YC & PE & -YF & -P \end{bmatrix} \prec 0, \quad P \succ 0
+
+    and stage 2 keeps the same inequality with :math:`\gamma^2 \le (1 + s)^2\gamma^{\ast 2}`
+    (:math:`s` = ``gamma_slack``) and minimises :math:`\operatorname{tr}P`.
 
     1. ``gamma*^2 = min gamma^2`` subject to the Hinf-G LMI (the problem the paper states;
        CORA instead scans ``gamma`` on ``linspace(1, 50, 100)`` and keeps the first

@@ -156,7 +156,29 @@ def le_method(n: int, F, method: str = "auto") -> str:
 
 def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B",
             solver: str | None = None, method: str = "sdp") -> GainDesign:
-    """P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
+    r"""P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
+
+    The shared P-radius inequality (*) of this module, with the gain recovered from
+    :math:`Y = P\Lambda`:
+
+    .. math::
+
+        \mathcal{D}(P, Y) = \begin{bmatrix} \operatorname{diag}(W_x, W_w, W_v) & M^T \\
+        M & P \end{bmatrix} \succeq 0, \qquad
+        M = \begin{bmatrix} (P - YC)A & (P - YC)E & YF \end{bmatrix}, \qquad
+        \Lambda = P^{-1}Y,
+
+    which makes the P-radius :math:`R_k = \max_{z \in \mathcal{S}_k}\|z - c_k\|_P^2` of the
+    estimates of intersection method II satisfy
+    :math:`R_k \le \beta R_{k-1} + \operatorname{tr}W_w + \operatorname{tr}W_v` when
+    :math:`W_x = \beta P`.  This design (PRad-B of Table 2 of Althoff & Rath 2021; PRad-A
+    per output) solves
+
+    .. math::
+
+        \max_{P,\,Y,\,\tau}\ \tau \quad \text{s.t.} \quad
+        \mathcal{D}(P, Y) \succeq 0 \text{ with } W_x = \beta P,\ W_w = E^TE,\
+        W_v = F^TF, \quad \frac{1 - \beta}{\epsilon}P \succeq \tau I, \quad \tau \ge 0.
 
     Weights ``Wx = beta P``, ``Ww = E'E``, ``Wv = F'F`` (fixed, which pins the scale of P);
     maximise ``tau`` subject to (*), ``P >= 0``, ``(1 - beta) P / epsilon >= tau I`` and
@@ -314,7 +336,18 @@ class _WeightedLMI:
 
 def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None,
                  rate: float | None = None) -> GainDesign:
-    """PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
+    r"""PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
+
+    With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
+    :math:`\Lambda = P^{-1}Y`:
+
+    .. math::
+
+        \min_{P,\,Y,\,W_w,\,W_v}\ \operatorname{tr}W_w + \operatorname{tr}W_v
+        \quad \text{s.t.} \quad \mathcal{D}(P, Y) \succeq 0 \text{ with } W_x = \beta P,
+        \quad W_w, W_v \text{ diagonal} \succeq 0, \quad P \succeq I,
+
+    so that :math:`\limsup_k R_k \le (\operatorname{tr}W_w + \operatorname{tr}W_v)/(1 - \beta)`.
 
     Weights ``Wx = beta P`` and free diagonal ``Ww = diag(gw) >= 0``, ``Wv = diag(gv) >= 0``
     (CORA's ``G``, ``O``); normalisation ``P >= I``.  For fixed ``beta`` minimise
@@ -331,7 +364,20 @@ def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None,
 
 
 def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None) -> GainDesign:
-    """PRad-C-II: smallest bounding ellipsoid in the trace sense (Wang, Alamo et al. 2018).
+    r"""PRad-C-II: smallest bounding ellipsoid in the trace sense (Wang, Alamo et al. 2018).
+
+    With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
+    :math:`\Lambda = P^{-1}Y`:
+
+    .. math::
+
+        \min_{P,\,Y,\,X,\,W_w,\,W_v}\ \operatorname{tr}X \quad \text{s.t.} \quad
+        \mathcal{D}(P, Y) \succeq 0 \text{ with } W_x = \beta P, \quad
+        \begin{bmatrix} X & I \\ I & P \end{bmatrix} \succeq 0, \quad
+        \operatorname{tr}W_w + \operatorname{tr}W_v \le 1,
+
+    i.e. :math:`\min \operatorname{tr}(P^{-1})`, then :math:`\beta` minimising
+    :math:`\operatorname{tr}(P^{-1})/(1 - \beta)`.
 
     The LMI of :func:`wang_c1_gain` (CORA's PRad-C inequality) with the normalisation
     ``tr(Ww) + tr(Wv) <= 1``, so that the estimates end up in the ellipsoid
@@ -356,7 +402,18 @@ def wang_d_gain(
     A, C, E, F, alpha: float | None = None, beta: float = 0.5, what: str = "PRad-D",
     search: dict | None = None,
 ) -> GainDesign:
-    """PRad-D: largest P for fixed noise weights (Wang, Wang, Puig, Cembrano, TAC 2019).
+    r"""PRad-D: largest P for fixed noise weights (Wang, Wang, Puig, Cembrano, TAC 2019).
+
+    With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
+    :math:`\Lambda = P^{-1}Y`:
+
+    .. math::
+
+        \max_{P,\,Y,\,t}\ t \quad \text{s.t.} \quad \mathcal{D}(P, Y) \succeq 0
+        \text{ with } W_x = \alpha P,\ W_w = (1 - \alpha)\beta I,\
+        W_v = (1 - \alpha)(1 - \beta) I, \quad P \succeq tI,
+
+    which bounds the squared radius by :math:`(\beta n_w + (1 - \beta)n_v)/t`.
 
     Weights ``Wx = alpha P``, ``Ww = (1 - alpha) beta I``, ``Wv = (1 - alpha)(1 - beta) I``
     (CORA's ``E_new``/``F_new`` blocks reduce to these), so that ``limsup R_k <= r_inf =
@@ -415,7 +472,17 @@ CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
 
 def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
                 solver: str = "auto") -> GainDesign:
-    """Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
+    r"""Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
+
+    The cone is :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` with
+    :math:`W_x = \beta P` (:math:`\beta` = ``rate``) and free diagonal weights
+    :math:`W_w, W_v`; in the limit explained below the gain :math:`\Lambda = P^{-1}Y` comes
+    from the analytic centre of its noise-free part, sliced by :math:`\operatorname{tr}P = 1`:
+
+    .. math::
+
+        \max_{P,\,Y}\ \log\det\begin{bmatrix} \beta P & ((P - YC)A)^T \\ (P - YC)A & P
+        \end{bmatrix} + \log\det P \quad \text{s.t.} \quad \operatorname{tr}P = 1.
 
     CORA's PRad-C SDP (``Wx = beta P``, free diagonal noise weights ``Ww``, ``Wv``, objective
     ``max tr P``) is homogeneous in ``(P, Y, Ww, Wv)``: a cone, so the SDP is unbounded.  CORA

@@ -125,9 +125,21 @@ def bravo_scores(
 def bravo_scores_gram(
     G: np.ndarray, M: np.ndarray, c_row: np.ndarray, sigma: float, basis: np.ndarray
 ) -> np.ndarray:
-    """:func:`bravo_scores` from the Gram matrix ``M = G G'`` (kept up to date across the
+    r""":func:`bravo_scores` from the Gram matrix ``M = G G'`` (kept up to date across the
     strips of a step by :func:`gram_update`), at ``n^2 r`` flops per strip instead of about
     ``4 n^2 r``.
+
+    The scores of Bravo's candidates (intersection method III of Althoff & Rath 2021,
+    Sec. 3.1) through the matrix determinant lemma, with :math:`a = cG`,
+    :math:`q = a^Ta`, :math:`B` an orthonormal basis of the null space of :math:`c`,
+    :math:`S_0 = \tilde G\tilde G^T` and :math:`t_j` the columns of
+    :math:`\tilde G = B^TG(I - aa^T/q)`:
+
+    .. math::
+
+        \det\left(T_jT_j^T\right) = \frac{\sigma^2}{\|c\|^2}\left(\det S_0 +
+        \frac{q}{a_j^2}\,t_j^T\operatorname{adj}(S_0)\,t_j\right),
+        \qquad j = 1, \ldots, r.
 
     With ``u = M c'``, ``q = c M c' = a'a`` and the basis ``B`` of :func:`bravo_scores`,
     ``S0 = Gt Gt' = B' (M - u u' / q) B`` and ``t_j = B' (g_j - u a_j / q)``, so with
@@ -166,10 +178,16 @@ def bravo_scores_gram(
 def gram_update(
     M: np.ndarray, G: np.ndarray, c_row: np.ndarray, sigma: float, j: int
 ) -> np.ndarray:
-    """``G_j G_j'`` of Bravo's candidate ``j`` (:func:`bravo_update`) from ``M = G G'``:
+    r"""``G_j G_j'`` of Bravo's candidate ``j`` (:func:`bravo_update`) from ``M = G G'``:
     ``M - lam u' - u lam' + (q + sigma^2) lam lam'`` with ``lam = g_j / a_j``, ``u = M c'``,
     ``q = c M c'`` (column ``j`` of ``(I - lam c) G`` is zero and is replaced by
-    ``sigma lam``); ``O(n^2)`` instead of ``O(n^2 r)``."""
+    ``sigma lam``); ``O(n^2)`` instead of ``O(n^2 r)``.
+
+    .. math::
+
+        G(j)\,G(j)^T = M - \lambda u^T - u\lambda^T + (q + \sigma^2)\,\lambda\lambda^T,
+        \qquad \lambda = \frac{g_j}{a_j},\ u = Mc^T,\ q = cMc^T.
+    """
     if j == 0:
         return M
     c_row = np.asarray(c_row, dtype=float).reshape(-1)
@@ -190,7 +208,18 @@ def bravo_choice(
 def bravo_update(
     c: np.ndarray, G: np.ndarray, c_row: np.ndarray, y: float, sigma: float, j: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Bravo's candidate ``j`` (1-based generator index; 0 returns ``(c, G)`` unchanged)."""
+    r"""Bravo's candidate ``j`` (1-based generator index; 0 returns ``(c, G)`` unchanged).
+
+    With :math:`a = cG` and :math:`\lambda = g_j / a_j` (intersection method III of
+    Althoff & Rath 2021, Sec. 3.1):
+
+    .. math::
+
+        c(j) = c_0 + \lambda\,(y - c\,c_0), \qquad
+        G(j) = \left[\tilde g_1, \ldots, \tilde g_r\right], \quad
+        \tilde g_o = \begin{cases} g_o - \lambda a_o, & o \ne j,\\
+        \sigma\lambda, & o = j. \end{cases}
+    """
     if j == 0:
         return c, G
     c_row = np.asarray(c_row, dtype=float).reshape(-1)
@@ -244,7 +273,7 @@ def _cofactor_normals(G: np.ndarray, idx: np.ndarray, chunk: int = 50_000) -> np
 
 
 def volume_lp_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray:
-    """Gain ``lambda`` of least volume of ``strip_update(c0, G, lambda)`` (Alamo et al. 2005).
+    r"""Gain ``lambda`` of least volume of ``strip_update(c0, G, lambda)`` (Alamo et al. 2005).
 
     The enclosure has generators ``[(I - lambda c) G, sigma lambda]`` and, up to the factor
     ``2^n``, volume ``a |1 - c lambda| + sigma * sum_B |nu_B' lambda|`` with
@@ -252,6 +281,15 @@ def volume_lp_gain(G: np.ndarray, c_row: np.ndarray, sigma: float) -> np.ndarray
     cross product of every (n-1)-subset B.  Minimising it is the LP::
 
         min a t + sigma sum_B ||nu_B|| z_B   s.t.  t >= |1 - c lambda|,  z_B >= |v_B' lambda|
+
+    that is, typeset:
+
+    .. math::
+
+        \frac{\operatorname{vol}}{2^n} = a\,|1 - c\lambda| + \sigma\sum_B |\nu_B^T\lambda|,
+        \qquad
+        \min_{\lambda,\,t,\,z}\ a\,t + \sigma\sum_B \|\nu_B\|\,z_B
+        \quad \text{s.t.} \quad t \ge |1 - c\lambda|,\ z_B \ge |v_B^T\lambda|
 
     with unit normals ``v_B = nu_B / ||nu_B||`` (subsets of rank < n-1 drop out), solved by
     HiGHS.  Any gain yields a sound enclosure (``strip_update`` is exact for the family), so
