@@ -31,6 +31,7 @@ from .io import (
     check_output_file,
     path_component,
 )
+from .report import citation
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
@@ -324,7 +325,7 @@ def _version() -> str:
         (``missing`` if not installed); ``BLAS OpenBLAS KERNEL`` (the kernel family in use,
         :func:`benchmarks.io.blas_corename`).
     """
-    lines = [f"setobs-bench {regression.package_version()}"]
+    lines = [f"setobs-bench {citation.project_version()}"]
     commit = _checkout_commit(Path(__file__).resolve().parent.parent)
     if commit:
         lines.append(f"commit {commit}")

@@ -155,7 +155,7 @@ def test_the_project_line_carries_the_installed_version(monkeypatch):
         raise metadata.PackageNotFoundError(name)
 
     monkeypatch.setattr(citation.metadata, "version", missing)
-    assert citation.project_line() == "setobs-bench version unknown (CITATION.cff)"
+    assert citation.project_line() == "setobs-bench unknown (CITATION.cff)"
 
 
 def test_the_committed_reports_of_the_stores_carry_the_citation():

@@ -56,7 +56,6 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timezone
-from importlib import metadata
 from pathlib import Path
 
 import pandas as pd
@@ -66,6 +65,7 @@ import observers
 from ..errors import ConfigError
 from ..io import atomic_write_csv, atomic_write_json, environment, path_component
 from ..metrics import add_relative_rms
+from ..report.citation import project_version
 from ..report.numbers import fmt, text_table
 from ..run.config import BenchConfig, load_config
 from ..run.runner import is_project_module, run_config
@@ -172,20 +172,6 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
 VERSION_KEY = "setobs_bench_version"
 
 
-def package_version() -> str:
-    """The installed version of setobs-bench (``"unknown"`` when it is not installed).
-
-    Returns
-    -------
-    str
-        The version of the package metadata, e.g. ``"0.2.0"``.
-    """
-    try:
-        return metadata.version("setobs-bench")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def record_version(folder: str | Path, version: str | None = None) -> Path:
     """Write the package version into the ``meta.json`` of the golden files in ``folder``,
     changing nothing else (no golden number is rewritten, nothing is run).
@@ -195,7 +181,7 @@ def record_version(folder: str | Path, version: str | None = None) -> Path:
     folder : str or Path
         A folder of golden files with a ``meta.json`` (e.g. ``results/baseline``).
     version : str, optional
-        The version to record; default :func:`package_version`.
+        The version to record; default :func:`benchmarks.report.citation.project_version`.
 
     Returns
     -------
@@ -222,7 +208,7 @@ def record_version(folder: str | Path, version: str | None = None) -> Path:
 
 def _with_version(meta: dict, version: str | None = None) -> dict:
     """``meta`` with :data:`VERSION_KEY` set (the one code path of both writers)."""
-    return {**meta, VERSION_KEY: package_version() if version is None else version}
+    return {**meta, VERSION_KEY: project_version() if version is None else version}
 
 
 def _meta(cfg: BenchConfig, cache_note: str) -> dict:

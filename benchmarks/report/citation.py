@@ -104,11 +104,12 @@ SHOWN = "published values shown beside ours"
 
 
 def project_version() -> str:
-    """Version of the installed package (``"version unknown"`` if it is not installed)."""
+    """Version of the installed package, e.g. ``"0.2.0"`` (``"unknown"`` if it is not
+    installed): the one lookup of the version (reports, ``--version``, the golden files)."""
     try:
         return metadata.version(PROJECT)
     except metadata.PackageNotFoundError:
-        return "version unknown"
+        return "unknown"
 
 
 def project_line() -> str:
