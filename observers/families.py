@@ -62,12 +62,20 @@ from .sets.reduction import compiled_name
 def strip_update(
     c: np.ndarray, G: np.ndarray, Lam: np.ndarray, C: np.ndarray, y: np.ndarray, sigma: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Zonotope enclosing ``(c, G)`` intersected with the strips ``|C x - y| <= sigma``.
+    r"""Zonotope enclosing ``(c, G)`` intersected with the strips ``|C x - y| <= sigma``.
 
     For any gain ``Lam`` (n x m) this is the parameterised family of Alamo et al. (2005,
     Property 3) and Le et al. (2013):
     ``c + Lam (y - C c)`` with generators ``[(I - Lam C) G, Lam diag(sigma)]`` (computed as
-    ``G - Lam (C G)`` when ``2 m < n``, else with ``I - Lam C`` formed first: fewer flops).
+    ``G - Lam (C G)`` when ``2 m < n``, else with ``I - Lam C`` formed first: fewer flops):
+
+    .. math::
+
+        (c \oplus G\mathcal{B}^r) \cap \{x \mid |Cx - y| \le \sigma\} \subseteq
+        c + \Lambda(y - Cc) \oplus \left[(I - \Lambda C)\,G,\
+        \Lambda\operatorname{diag}(\sigma)\right]\mathcal{B}^{r+m}
+
+    (method II of Sec. 3.1 of Althoff & Rath 2021; method I is one strip at a time).
     """
     c_new = c + Lam @ (y - C @ c)
     n, r = G.shape
@@ -93,11 +101,17 @@ def propagate(
     W: tuple[np.ndarray, np.ndarray],
     R: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """One set-propagation step ``S+ = (A - L C) S + d + L y + (-L) V + W (+ R)`` (eq. 8 of
+    r"""One set-propagation step ``S+ = (A - L C) S + d + L y + (-L) V + W (+ R)`` (eq. 8 of
     Althoff & Rath 2021 with ``d = B u``), exact on zonotopes; generators
     ``[(A-LC) G, -L G_V, G_W, R]``.  For a nonlinear system ``A, d`` are the linearisation
     at the centre and ``R`` the generators of its remainder box
-    (:mod:`observers.prediction`)."""
+    (:mod:`observers.prediction`).
+
+    .. math::
+
+        c^+ = (A - LC)\,c + d + L(y - c_V) + c_W, \qquad
+        G^+ = \left[(A - LC)\,G,\ -LG_V,\ G_W,\ R\right]
+    """
     cV, GV = V
     cW, GW = W
     M = A - L @ C
@@ -508,7 +522,8 @@ def box_radius(G: np.ndarray) -> np.ndarray:
 
 
 def luenberger_step(x: np.ndarray, A, B, C, L, u: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Point estimate update ``A x + B u + L (y - C x)`` (Alg. 1, line 6)."""
+    r"""Point estimate update ``A x + B u + L (y - C x)`` (Alg. 1, line 6):
+    :math:`\hat x_{k+1} = A\hat x_k + Bu_k + L(y_k - C\hat x_k)`."""
     return A @ x + B @ u + L @ (y - C @ x)
 
 

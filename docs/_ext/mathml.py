@@ -10,6 +10,7 @@ warning, so ``sphinx -W`` fails on it instead of printing raw LaTeX.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 from docutils import nodes
 from docutils.utils.math import latex2mathml
@@ -66,6 +67,13 @@ def visit_displaymath(self, node: nodes.math_block) -> None:
     raise nodes.SkipNode
 
 
+def _add_static(app) -> None:
+    """Serve ``mathml_static/mathml.css`` (the math font) beside the site's own static files."""
+    app.config.html_static_path.append(str(Path(__file__).resolve().parent / "mathml_static"))
+
+
 def setup(app):
     app.add_html_math_renderer("mathml", (visit_math, None), (visit_displaymath, None))
+    app.connect("builder-inited", _add_static)
+    app.add_css_file("mathml.css")
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
