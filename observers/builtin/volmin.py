@@ -106,7 +106,8 @@ class VolMinB(Linearised, StripBasedObserver):
     .. math::
 
         \lambda_j = \frac{g^j}{a_j}, \qquad
-        c(j) = c + \lambda_j\,(y_{k,i} - C_ic), \qquad
+        c(j) = c + \lambda_j\,(y_{k,i} - C_ic),
+
         G(j) = (I - \lambda_jC_i)\,G \text{ with column } j \text{ replaced by }
         \sigma_i\lambda_j,
 
