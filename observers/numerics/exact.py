@@ -50,13 +50,14 @@ record's LP.
 
 Cost (measured, one core, both floors, whole records)
 ------------------------------------------------------
-6-tank (261 steps): 9 s CPU; 6-state vehicle (350 steps): 32 s; 30-tank (261 steps):
-7.2 min (434 s CPU).  A step costs 2n warm LP solves per floor; the solves grow with the
-record (the LP grows by one block per step, and rotating the objective from ``x_{k-1}`` to
-``x_k`` crosses more of the exact set's many small facets: 17 simplex iterations per LP on
-average on the 6-tank record, 67 at the end of the 30-tank one), so the total grows faster
-than linearly with the record length.  The naive re-solve (the dense LP from scratch) took
-about 80 s for one step at the end of the 6-tank record.
+6-tank (261 steps): 6.6 s; 30-tank (261 steps): 140 s (13 simplex iterations per predicted
+LP and 14 per filtered LP on average; 357 s with the dual simplex for the predicted LPs, 434 s
+before the blocks allocated ahead were placed); 6-state vehicle, first 200 steps: 0.23 million
+iterations (0.40 million before).  A step costs 2n warm LP solves per floor; the solves grow
+with the record (the LP grows by one block per step, and a new measurement cuts off more of
+the exact set's many small facets), so the total grows faster than linearly with the record
+length.  The naive re-solve (the dense LP from scratch) took about 80 s for one step at the
+end of the 6-tank record.
 
 Finite column bounds
 --------------------
