@@ -165,3 +165,14 @@ def test_the_committed_reports_of_the_stores_carry_the_citation():
     meta = json.loads((ROOT / "results" / "soundness" / "meta.json").read_text())
     assert meta  # the audit's store is there, and so is its report's line:
     assert (ROOT / "reports" / "soundness.md").read_text().endswith(PROJECT_LINE + "\n")
+
+
+def test_every_committed_report_ends_with_the_project_line():
+    """Issue 42: every committed report (stores, audit, studies and timing reports) ends with
+    what to cite; a measured report keeps its provenance stamp as the very last line."""
+    reports = sorted(p for p in (ROOT / "reports").glob("*.md") if p.name != "README.md")
+    assert len(reports) >= 18
+    for path in reports:
+        lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
+                 if ln.strip() and not ln.startswith("<!--")]
+        assert citation.project_line() in lines[-1], path.name
