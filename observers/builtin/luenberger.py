@@ -40,17 +40,10 @@ class PRadE(_OfflineGainPropagation):
     r"""Set propagation with the offline P-radius gain of Wang et al. (max trace P, beta as CORA).
 
     Eq. 8 of Althoff & Rath 2021 with the constant gain of their Sec. 3.2 (PRad-E, citing
-    eq. 17 of Wang et al.), :math:`\beta \in (0, 1)` the contraction of the P-radius:
-
-    .. math::
-
-        L = P^{-1}Y, \qquad \max_{P,\,Y}\ \operatorname{tr}P \quad \text{s.t.} \quad
-        \begin{bmatrix} -\beta P & 0 & 0 & A^TP - C^TY^T \\
-        0 & -E^TE & 0 & E^TP \\
-        0 & 0 & -F^TF & F^TY^T \\
-        PA - YC & PE & YF & -P \end{bmatrix} \preceq 0, \quad P \succ 0
-
-    (:func:`~observers.numerics.luenberger.prad_e_design`), then
+    eq. 17 of Wang et al.), :math:`\beta \in (0, 1)` the contraction of the P-radius: the
+    gain :math:`L = P^{-1}Y` of the LMI of
+    :func:`~observers.numerics.luenberger.prad_e_design` (maximal :math:`\operatorname{tr}P`;
+    its equations below), then
 
     .. math::
 
