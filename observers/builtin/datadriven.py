@@ -359,22 +359,8 @@ class DDZA2(ImplicitIntersection, ZonotopeDD):
 
     Notes
     -----
-    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
-    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
-    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
-    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
-    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
-    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
-
-    .. math::
-
-        \tilde c_k = C_M c_e + c_w, \qquad
-        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
-        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
-        \end{bmatrix}
-
-    (the last block before :math:`G_w` boxes the bilinear terms
-    :math:`\beta_i G_M^{(i)} G_e \xi`).
+    *Time update*: as :class:`~observers.builtin.datadriven.DDZA1` (DD-Z-A1; Alanwar et
+    al. 2022, Theorem 1, eq. (15)).
 
     *Measurement update* (approach 2, Prop. 2, eqs. (18)-(19)) with the weights of all
     sensors stacked into one gain :math:`\Lambda_k = [\lambda_k^1 \cdots \lambda_k^q]`
@@ -412,23 +398,8 @@ class DDCZA2(ImplicitIntersection, ConZonotopeDD):
 
     Notes
     -----
-    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
-    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
-    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
-    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
-    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
-    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
-
-    .. math::
-
-        \tilde c_k = C_M c_e + c_w, \qquad
-        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
-        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
-        \end{bmatrix}
-
-    (the last block before :math:`G_w` boxes the bilinear terms
-    :math:`\beta_i G_M^{(i)} G_e \xi`).  The constraints :math:`\hat A \xi = \hat b` of the estimate
-    carry over, padded with zero columns for the new generators.
+    *Time update*: as :class:`~observers.builtin.datadriven.DDCZA1` (DD-CZ-A1; Alanwar et
+    al. 2022, Theorem 1, eq. (15)).
 
     *Measurement update* (Prop. 3, eqs. (23)-(25)), exact for every gain: for
     :math:`\tilde{\mathcal{C}}_k = \langle \tilde c_k, \tilde G_k, \tilde A_k,

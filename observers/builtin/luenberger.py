@@ -138,20 +138,10 @@ class HinfG(OfflineGain, IntervalObserver):
 
     Alg. 1 of Althoff & Rath 2021 (:class:`~observers.families.IntervalObserver`) with the
     gain of their Sec. 3.3 (Hinf-G, citing eq. 16 of Tang et al.), :math:`w_k = E\tilde w_k`,
-    :math:`v_k = F\tilde v_k`:
-
-    .. math::
-
-        L = P^{-1}Y, \qquad \min_{P,\,Y,\,\gamma}\ \gamma^2 \quad \text{s.t.} \quad
-        \begin{bmatrix} I - P & 0 & 0 & (PA - YC)^T \\
-        0 & -\gamma^2 I & 0 & (PE)^T \\
-        0 & 0 & -\gamma^2 I & (-YF)^T \\
-        PA - YC & PE & -YF & -P \end{bmatrix} \prec 0, \quad P \succ 0
-
-    then, among the gains with :math:`\gamma \le (1 + s)\,\gamma^\ast` (:math:`\gamma^\ast` the
-    least :math:`\gamma`, :math:`s` = ``gamma_slack``), the one of least
-    :math:`\operatorname{tr}P`
-    (:func:`~observers.numerics.luenberger.hinf_g_design`).
+    :math:`v_k = F\tilde v_k`: the gain :math:`L = P^{-1}Y` of least
+    :math:`\gamma` and then, within ``gamma_slack`` of it, of least
+    :math:`\operatorname{tr}P`, from the LMIs of its design
+    :func:`~observers.numerics.luenberger.hinf_g_design` (equations below).
 
     Options
     -------
