@@ -175,3 +175,22 @@ def test_eso_d_with_riccati_gains_contains_the_truth(monkeypatch, tmp_path):
     res = observers.run(obs, sc.u, sc.y)
     assert res.status == "ok"
     assert np.all(res.lo <= sc.x_true + 1e-9) and np.all(sc.x_true <= res.hi + 1e-9)
+
+
+def test_eso_c_and_eso_d_share_their_first_gain(monkeypatch, tmp_path):
+    # step 1 of both designs (the H-infinity gain with Q = I) is one SDP, cached once: the
+    # second observer loads it, and its design equals the one that solves it afresh
+    from observers import offline
+    from observers.numerics import ellipsoidal as el
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    sc = systems.scenario("vehicle4d-sim")
+    s = sc.system
+    observers.create("ESO-C", s)
+    loads = offline.CACHE_LOADS.get("ESO-first-gain", 0)
+    esod = observers.create("ESO-D", s)
+    assert offline.CACHE_LOADS.get("ESO-first-gain", 0) == loads + 1
+    assert len(list(tmp_path.glob("ESO-first-gain-*.npz"))) == 1
+    fresh = el.martinez_design(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G)
+    np.testing.assert_allclose(esod.L, fresh["L"], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(esod.P, fresh["P"], rtol=1e-12, atol=0)

@@ -451,10 +451,18 @@ def _lyapunov_weight(Ao: np.ndarray, Sigma: np.ndarray, what: str) -> np.ndarray
     return sym(np.linalg.inv(V))
 
 
-def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict:
+def first_gain(A, C, E, F, what: str = "ESO-C/ESO-D") -> np.ndarray:
+    """Step 1 of both designs below: the gain of the H-infinity LMI with the weight ``Q = I``
+    (:func:`hinf_gain`).  It depends on ``A, C, E, F`` only, so ESO-C and ESO-D on one
+    system share it (their plugins cache it once)."""
+    return hinf_gain(A, C, E, F, np.eye(A.shape[0]), f"{what} (gain with Q = I)")[1]
+
+
+def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C",
+                   L1: np.ndarray | None = None) -> dict:
     r"""Algorithm 1 of Loukkas, Martinez & Meslem (2017).
 
-    1. gain of the H-infinity LMI with ``Q = I``;
+    1. gain of the H-infinity LMI with ``Q = I`` (:func:`first_gain`; ``L1`` if given);
     2. ``Q = V^-1`` with ``V`` the error covariance of that gain for the disturbance
        covariance ``QW / chi2inv(quantile, n)`` (``QW`` the shape of an ellipsoid containing
        ``W``, read as the ``quantile`` confidence ellipsoid of a Gaussian);
@@ -490,7 +498,7 @@ def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict
     :math:`Q \succeq \lambda P` (capped at 1).
     """
     n = A.shape[0]
-    _, L, _ = hinf_gain(A, C, E, F, np.eye(n), f"{what} (gain with Q = I)")
+    L = first_gain(A, C, E, F, what) if L1 is None else L1
     Ao, _ = error_system(A, C, E, F, L)
     Q = _lyapunov_weight(Ao, QW / chi2.ppf(quantile, n), what)
     P, L, gamma2 = hinf_gain(A, C, E, F, Q, f"{what} (gain with the covariance weight)")
@@ -500,10 +508,11 @@ def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C") -> dict
     return {"L": L, "P": P, "Q": Q, "gamma2": np.array(gamma2), "lam": np.array(lam)}
 
 
-def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D") -> dict:
+def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D",
+                    L1: np.ndarray | None = None) -> dict:
     r"""Algorithm 1 of Martinez, Loukkas & Meslem (2020).
 
-    1. gain of the H-infinity LMI with ``Q = I``;
+    1. gain of the H-infinity LMI with ``Q = I`` (:func:`first_gain`; ``L1`` if given);
     2. ``Q = V^-1`` with ``Ao V Ao' - V + D W D' = 0``, ``W = variance I`` (eqs. (63)-(64):
        1/3 is the variance of a uniform distribution on [-1, 1]);
     3. new gain of the LMI with this ``Q``; ``lam`` from :func:`certify`.
@@ -530,8 +539,7 @@ def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D"
     and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)` after the
     certification (:func:`certify`).
     """
-    n = A.shape[0]
-    _, L, _ = hinf_gain(A, C, E, F, np.eye(n), f"{what} (gain with Q = I)")
+    L = first_gain(A, C, E, F, what) if L1 is None else L1
     Ao, D = error_system(A, C, E, F, L)
     Q = _lyapunov_weight(Ao, variance * (D @ D.T), what)
     P, L, gamma2 = hinf_gain(A, C, E, F, Q, f"{what} (gain with the covariance weight)")
