@@ -205,6 +205,7 @@ class _BatchLP:
         K = cost.shape[0]
         N = r + p
         self.p, self.r, self.N, self.K = p, r, N, K
+        self.A = A
         M = self.M = np.hstack([A, np.eye(p)])
         self.MT = np.ascontiguousarray(M.T)
         self.b = b
@@ -408,7 +409,7 @@ class _BatchLP:
         feasible = (np.abs(xB) - self.uB).max(axis=1) <= PRIMAL_TOL
         r = self.r
         g = self.c[:, :r]
-        d = g - mu @ self.M[:, :r]
+        d = g - mu @ self.A
         dz = d * self.z[:, :r]
         gap = 2.0 * np.where(dz < 0.0, -dz, 0.0).sum(axis=1)
         size = np.abs(self.b) @ np.abs(mu).T + np.abs(g).sum(axis=1)
