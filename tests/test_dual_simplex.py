@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -216,3 +217,23 @@ def test_solver_choice_follows_the_cost_model():
     # 30 and 44 tanks over long records (HiGHS's warm starts degrade; measured 9x and 8x)
     assert batched_is_cheaper(60, 42)
     assert batched_is_cheaper(88, 66)
+
+
+def test_phase_seconds_are_exclusive_and_add_up_to_at_most_the_solve():
+    # a refactorisation inside the pivots counts as "refactor" only (never twice)
+    A, b, Gd, _ = _instance("generic", 0)
+    t0 = time.perf_counter()
+    res = ds.solve(A, b, Gd)
+    elapsed = time.perf_counter() - t0
+    assert set(res.seconds) >= {"setup", "pivots", "refactor", "certify"}
+    assert all(s >= 0.0 for s in res.seconds.values())
+    assert sum(res.seconds.values()) <= elapsed
+    clock = ds.Clock()
+    t0 = time.perf_counter()
+    with clock.phase("outer"):
+        time.sleep(0.01)
+        with clock.phase("inner"):
+            time.sleep(0.02)
+    total = time.perf_counter() - t0
+    inner, outer = clock.seconds["inner"], clock.seconds["outer"]
+    assert inner >= 0.02 and outer >= 0.01 and outer + inner <= total

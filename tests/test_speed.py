@@ -19,6 +19,7 @@ from benchmarks.cli import main
 from benchmarks.report import freshness
 from benchmarks.timing import speed
 from benchmarks.timing.exact_cost import ExactCase
+from benchmarks.timing.hull_profile import HullCase
 from benchmarks.timing.steps import first_steps
 from observers.families import strip_update
 from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
@@ -116,8 +117,17 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
     js.write_text(json.dumps({"environment": {"git": "abc1234"}, "results": [
         {"case": "FRad-A, 2-D vehicle, ms", "observer": "FRad-A", "value": 2.0}]}))
     speed.write_speed_report(out, js, cases, progress=False,
-                             exact_cases=(ExactCase("alamo2d", 1e9),))
+                             exact_cases=(ExactCase("alamo2d", 1e9),),
+                             hull_cases=(HullCase("vehicle6d-cora", "CZN-A", repeat=1),))
     text = out.read_text()
+    # the hull profile: both strategies on the steady set, the batched bounds never looser
+    # than HiGHS's by more than 1e-9 of the radius, phase shares that add up to at most 1
+    prof = [ln.split("|") for ln in text.splitlines() if ln.startswith("| CZN-A, vehicle6d")]
+    assert [r[6].strip() for r in prof] == ["batched", "highs"]
+    n = systems.scenario("vehicle6d-cora").system.n
+    for r in json.loads(js.read_text())["hulls"]:
+        assert r["status"] == "ok" and r["lps"] == 2 * n and r["looser"] <= 1e-9
+        assert 0.0 < sum(r["shares"].values()) <= 1.0 + 1e-9
     # the exact reference's cold cost: every step of the record, solved to optimality
     exact = [ln.split("|") for ln in text.splitlines() if ln.startswith("| alamo2d |")]
     assert len(exact) == 1 and exact[0][3].strip() == str(systems.scenario("alamo2d").N)
@@ -142,7 +152,7 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
     if prad["status"] != "ok":
         assert prad["value"] is None
         assert rows["FRad-A, 2-D vehicle/PRad-A"][3].strip() == prad["status"]
-    assert "`make bench` from a cold design cache" in text
+    assert "`make bench-cold`" in text
     # a measurement of this machine: stamped with its commit and machine, not a code hash
     stamp = text.splitlines()[-1]
     assert stamp.startswith("<!-- measured: commit=") and "command=python -m benchmarks " \

@@ -14,7 +14,8 @@ and writes one Markdown table with
   before it is overwritten with the new measurement.
 
 A second section times the exact reference (the accuracy floor) cold on the records and
-budgets of :data:`benchmarks.timing.exact_cost.EXACT_CASES`.
+budgets of :data:`benchmarks.timing.exact_cost.EXACT_CASES`; a third profiles where a
+constrained zonotope's interval hull spends its time (:mod:`benchmarks.timing.hull_profile`).
 
 Every time is a median over repeated runs in one process; the ratio to the Kalman step is
 measured right after the observer in the same process, so it survives a busy machine better
@@ -36,6 +37,7 @@ from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt
 from ..report.paper import paper_rows
 from .exact_cost import EXACT_CASES, ExactCase, measure_exact, render_exact
+from .hull_profile import HULL_CASES, HullCase, measure_hulls, render_hulls
 from .steps import TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
@@ -121,9 +123,9 @@ NOT_MEASURED = (
     ("VolMin-B, 200 tanks", "<= 500 ms", "not run: its step costs about n^2 r m, i.e. n^5 at "
      "full order (r = 100 n generators, m ~ 0.7 n strips), seconds per step from 100 tanks on; "
      "the 60-tank row gives its measured cost"),
-    ("`make bench` from a cold design cache", "<= 20 min",
-     "not measured by this command (it is part of make bench): README.md gives the time of "
-     "`rm -rf ~/.cache/setobs-bench && make bench` on this machine"),
+    ("`make bench-cold` (every row from an empty design and floor cache)", "<= 20 min",
+     "not measured by this command: README.md and docs/guide/start.rst give its time on this "
+     "machine, end to end, with its parts"),
 )
 _UNIT = {"ratio": "x", "ratio_hull": "x", "ms": " ms", "ms_hull": " ms"}
 
@@ -249,7 +251,8 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
 
 def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
                        cases: tuple[Case, ...] = CASES, progress: bool = True,
-                       exact_cases: tuple[ExactCase, ...] = EXACT_CASES) -> Path:
+                       exact_cases: tuple[ExactCase, ...] = EXACT_CASES,
+                       hull_cases: tuple[HullCase, ...] = HULL_CASES) -> Path:
     """Measure :data:`CASES` and the cold cost of the exact reference
     (:mod:`benchmarks.timing.exact_cost`), compare with ``json_path`` (the previous
     measurement), write the Markdown report ``out`` (ending with what to cite,
@@ -259,6 +262,7 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     previous, previous_git = load_previous(json_path)
     results = measure(cases, progress)
     exact = measure_exact(exact_cases, progress)
+    hulls = measure_hulls(hull_cases, progress)
     env = environment()
     command = "python -m benchmarks speed"
     if Path(out) != DEFAULT_REPORT or Path(json_path) != DEFAULT_JSON:
@@ -266,10 +270,13 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     text = render(results, previous, previous_git, env)
     if exact:
         text += "\n" + "\n".join(render_exact(exact)) + "\n"
+    if hulls:
+        text += "\n" + "\n".join(render_hulls(hulls)) + "\n"
     text += "\n" + "\n".join(citation_lines("speed", PAPER_TABLES)) + "\n"
     text += "\n" + freshness.measured(command) + "\n"
     atomic_write_text(out, text)
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]
-    atomic_write_json(json_path, {"environment": env, "results": clean, "exact": exact})
+    atomic_write_json(json_path, {"environment": env, "results": clean, "exact": exact,
+                                  "hulls": hulls})
     return Path(out)

@@ -331,9 +331,8 @@ def time_observer_fast_forward(name: str, sc: Scenario, options: dict, timed: in
     k = 0
     try:
         obs.reset()
-        while k < sc.N and not (len(sizes) >= MIN_STEADY_STEPS
-                                and len(set(sizes[-MIN_STEADY_STEPS:])) == 1):
-            sizes.append(set_size(obs.step(u[k - 1] if k else None, y[k])))
+        for S in to_steady_state(obs, sc):
+            sizes.append(set_size(S))
             k += 1
         first = k
         while k < min(first + timed, sc.N):
@@ -363,6 +362,21 @@ def time_observer_fast_forward(name: str, sc: Scenario, options: dict, timed: in
     return _timing_row(name, obs, np.array(steps), np.array(hull_times),
                        _kalman_median_ms(sc, 1, first), first + 1, steady,
                        [] if stats is None else [stats])
+
+
+def to_steady_state(obs: Any, sc: Scenario):
+    """Step ``obs`` (reset) over ``sc``'s record without interval hulls, yielding each set,
+    until its size (:func:`set_size`) has not changed for :data:`MIN_STEADY_STEPS` steps or
+    the record ends; exceptions of ``step()`` propagate."""
+    u, y = sc.u, sc.y
+    sizes: list[tuple[int, ...]] = []
+    k = 0
+    while k < sc.N and not (len(sizes) >= MIN_STEADY_STEPS
+                            and len(set(sizes[-MIN_STEADY_STEPS:])) == 1):
+        S = obs.step(u[k - 1] if k else None, y[k])
+        sizes.append(set_size(S))
+        k += 1
+        yield S
 
 
 def first_steps(sc: Scenario, steps: int | None) -> Scenario:

@@ -46,7 +46,9 @@ HiGHS (:class:`observers.sets._lp.HullLP`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from time import perf_counter
 
 import numpy as np
 
@@ -69,13 +71,39 @@ _INF_KEY = np.array(np.inf).view(np.uint64)[()]
 
 @dataclass
 class DualSimplexResult:
-    """Dual points ``mu`` (K x p), which problems reached optimality, and the work done
-    (lock-step iterations, and iterations summed over the problems)."""
+    """Dual points ``mu`` (K x p), which problems reached optimality, the work done
+    (lock-step iterations, and iterations summed over the problems) and its seconds by phase
+    (``setup``, ``pivots``, ``refactor``, ``certify``; see :class:`Clock`)."""
 
     mu: np.ndarray
     converged: np.ndarray
     iterations: int
     problem_iterations: int
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+class Clock:
+    """Seconds spent by phase, exclusive: a phase timed inside another (a refactorisation
+    during the pivots) is counted in its own phase only."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._open: list[str] = []
+
+    @contextmanager
+    def phase(self, name: str):
+        """Time the block as phase ``name``."""
+        t0 = perf_counter()
+        self._open.append(name)
+        try:
+            yield
+        finally:
+            self._open.pop()
+            dt = perf_counter() - t0
+            self.seconds[name] = self.seconds.get(name, 0.0) + dt
+            if self._open:
+                outer = self._open[-1]
+                self.seconds[outer] = self.seconds.get(outer, 0.0) - dt
 
 
 def use_compiled() -> bool:
@@ -115,23 +143,30 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = N
         max_iter = max_iterations(p)
     if p == 0:
         return DualSimplexResult(np.zeros((K, 0)), np.ones(K, bool), 0, 0)
+    clock = Clock()
     pert = Gd * (1.0 + PERTURBATION * _jitter(Gd.shape, seed))  # away from zero: |g| grows
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        lp = _BatchLP(A, b, pert)
-        its = lp.iterate(max_iter)
+        with clock.phase("setup"):
+            lp = _BatchLP(A, b, pert, clock=clock)
+        with clock.phase("pivots"):
+            its = lp.iterate(max_iter)
         lp.refactor()
-        lp.c[:, :lp.r] = Gd
-        mu = lp.duals()
-        good = lp.certified(mu)
+        with clock.phase("certify"):
+            lp.c[:, :lp.r] = Gd
+            mu = lp.duals()
+            good = lp.certified(mu)
         if not good.all() and its < max_iter:  # clean-up with the exact costs
             sub = np.nonzero(~good)[0]
-            clean = _BatchLP(A, b, Gd[sub], start=lp.subset(sub))
-            its += clean.iterate(max_iter - its)
+            with clock.phase("setup"):
+                clean = _BatchLP(A, b, Gd[sub], start=lp.subset(sub), clock=clock)
+            with clock.phase("pivots"):
+                its += clean.iterate(max_iter - its)
             clean.refactor()
-            mu[sub] = clean.duals()
-            good[sub] = clean.certified(mu[sub])
+            with clock.phase("certify"):
+                mu[sub] = clean.duals()
+                good[sub] = clean.certified(mu[sub])
             lp.work += clean.work
-    return DualSimplexResult(mu, good, its, lp.work)
+    return DualSimplexResult(mu, good, its, lp.work, clock.seconds)
 
 
 _STREAMS: dict[int, np.ndarray] = {}
@@ -200,7 +235,9 @@ class _BatchLP:
     """
 
     def __init__(self, A: np.ndarray, b: np.ndarray, cost: np.ndarray,
-                 start: tuple[np.ndarray, np.ndarray] | None = None):
+                 start: tuple[np.ndarray, np.ndarray] | None = None,
+                 clock: Clock | None = None):
+        self.clock = Clock() if clock is None else clock
         p, r = A.shape
         K = cost.shape[0]
         N = r + p
@@ -255,7 +292,11 @@ class _BatchLP:
         return self.basis[rows], self.z[rows]
 
     def refactor(self) -> None:
-        """Recompute ``B^-1`` from the basis columns."""
+        """Recompute ``B^-1`` from the basis columns (timed as the phase ``refactor``)."""
+        with self.clock.phase("refactor"):
+            self._refactor()
+
+    def _refactor(self) -> None:
         B = self.M[:, self.basis].transpose(1, 0, 2)
         try:
             self.Binv = np.linalg.inv(B)

@@ -16,7 +16,8 @@ solver does not finish.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from time import perf_counter
 
 import numpy as np
 import scipy.sparse as sp
@@ -137,11 +138,16 @@ class HullLPStats:
         Simplex iterations, summed over the LPs.
     fallbacks : int
         LPs that the batched dual simplex did not finish and handed to HiGHS.
+    seconds : dict
+        Seconds by phase: those of the batched dual simplex (``setup``, ``pivots``,
+        ``refactor``, ``certify``; :class:`observers.sets._dual_simplex.Clock`), ``bounds``
+        (the weak-duality bounds of its dual points) and ``highs`` (LPs solved by HiGHS).
     """
 
     solves: int
     iterations: int
     fallbacks: int
+    seconds: dict[str, float] = field(default_factory=dict)
 
     @property
     def iterations_per_solve(self) -> float:
@@ -194,11 +200,17 @@ class HullLP:
         self.solves = 0
         self.iterations = 0
         self.fallbacks = 0
+        self._seconds: dict[str, float] = {}
 
     @property
     def stats(self) -> HullLPStats:
-        """LPs solved, simplex iterations and HiGHS fallbacks so far (a read-only snapshot)."""
-        return HullLPStats(self.solves, self.iterations, self.fallbacks)
+        """LPs solved, simplex iterations, HiGHS fallbacks and seconds by phase so far (a
+        read-only snapshot)."""
+        return HullLPStats(self.solves, self.iterations, self.fallbacks, dict(self._seconds))
+
+    def _add_seconds(self, seconds: dict[str, float]) -> None:
+        for phase, s in seconds.items():
+            self._seconds[phase] = self._seconds.get(phase, 0.0) + s
 
     def load(self, A: np.ndarray, b: np.ndarray) -> None:
         """Make ``A xi = b, -1 <= xi <= 1`` the feasible set (no-op if already loaded)."""
@@ -220,11 +232,14 @@ class HullLP:
         if scale == 0.0:
             return dual_bound(g, A, b, np.zeros(A.shape[0]))
         h = self._h
+        t0 = perf_counter()
         h.changeColsCost(A.shape[1], self._idx, -g / scale)
         h.run()
         self.solves += 1
         self.iterations += h.getInfo().simplex_iteration_count
-        return dual_bound(g, A, b, _dual_point(h, A.shape[0]) * scale)
+        bound = dual_bound(g, A, b, _dual_point(h, A.shape[0]) * scale)
+        self._add_seconds({"highs": perf_counter() - t0})
+        return bound
 
     def maximize_many(self, Gd: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Sound upper bounds on ``max Gd[k]'xi  s.t.  A xi = b, -1 <= xi <= 1`` for every row
@@ -235,7 +250,9 @@ class HullLP:
                 self.solver == "auto" and not batched_is_cheaper(K, p)):
             return np.array([self.maximize(g, A, b) for g in Gd])
         res = _dual_simplex.solve(A, b, Gd)
+        t0 = perf_counter()
         bounds = dual_bounds(Gd, A, b, res.mu)
+        self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})
         self.solves += Gd.shape[0]
         self.iterations += res.problem_iterations
         for k in np.nonzero(~res.converged)[0]:  # not finished: HiGHS (both bounds are valid)

@@ -1,0 +1,154 @@
+"""Where the interval hull of a constrained zonotope spends its time (a section of
+``reports/speed.md``, written by ``python -m benchmarks speed``).
+
+The hull of a constrained zonotope ``{c + G xi : A xi = b, |xi| <= 1}`` is 2n LPs with one
+feasible set (:class:`observers.sets.HullLP`).  For each case of :data:`HULL_CASES` the
+observer is stepped to its steady state without hulls (:func:`.steps.to_steady_state`), and
+the hull of that set is solved ``repeat`` times by each solver strategy (the batched dual
+simplex and warm HiGHS); the fastest repetition is reported with its work counters (LPs,
+simplex iterations per LP, HiGHS fallbacks) and the share of its time in each phase
+(:attr:`observers.sets.HullLPStats.seconds`: set-up of the batch, pivots, refactorisations,
+certification, the weak-duality bounds, HiGHS).  Both solvers' bounds are sound; the table
+gives how much looser and how much tighter the batched bounds are than HiGHS's at most,
+relative to the set's radius (HiGHS's dual points are accurate to its tolerances, ~1e-7).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from time import perf_counter
+from typing import Any
+
+import numpy as np
+
+import systems
+from observers.sets import HullLP
+
+from ..report.numbers import fmt
+from ..run.config import merge_options
+from ..run.runner import design_observer
+from .steps import to_steady_state
+
+
+@dataclass(frozen=True)
+class HullCase:
+    """One profiled hull: ``observer`` at its steady state on ``scenario``; ``repeat`` timed
+    solves per solver strategy (the fastest is reported)."""
+
+    scenario: str
+    observer: str
+    repeat: int = 5
+
+
+#: the profiled hulls: the 30-tank set of ARCH 2021 Table 5 (the cold bench's costliest hulls)
+#: and the 100-tank set of the speed table
+HULL_CASES: tuple[HullCase, ...] = (
+    HullCase("tank30-linear", "CZN-A"),
+    HullCase("tank100-linear", "CZN-A", repeat=1),
+)
+#: the solver strategies compared (:attr:`observers.sets.HullLP.SOLVERS`)
+SOLVERS = ("batched", "highs")
+#: the phases of :attr:`observers.sets.HullLPStats.seconds`, in the order of the table
+PHASES = ("setup", "pivots", "refactor", "certify", "bounds", "highs")
+
+
+def steady_hull_problem(case: HullCase) -> tuple[dict[str, Any], tuple[np.ndarray, ...]]:
+    """``(facts, (G, A, b))`` of the steady-state set of ``case`` (facts: step, n, p, r, or
+    ``status``/``message`` if the observer failed on the way)."""
+    sc = systems.scenario(case.scenario)
+    obs, status, message = design_observer(case.observer, sc, merge_options(case.observer, sc))
+    if obs is None:
+        return {"status": status, "message": message}, ()
+    obs.reset()
+    k, last = 0, None
+    try:
+        for S in to_steady_state(obs, sc):
+            k, last = k + 1, S
+    except Exception as exc:  # a failure is the row's status, never the report's end
+        return {"status": "error", "message": f"step {k + 1}: {type(exc).__name__}: {exc}"}, ()
+    if last is None or not hasattr(last, "arrays"):
+        return {"status": "error", "message": "no constrained zonotope to profile"}, ()
+    _, G, A, b = last.arrays()
+    return {"status": "ok", "step": k, "n": G.shape[0], "p": A.shape[0], "r": G.shape[1]}, (
+        G, A, b)
+
+
+def profile_hull(case: HullCase) -> list[dict[str, Any]]:
+    """One row per solver strategy of :data:`SOLVERS` for ``case`` (see the module
+    docstring)."""
+    facts, problem = steady_hull_problem(case)
+    base = {"scenario": case.scenario, "observer": case.observer, **facts}
+    if facts["status"] != "ok":
+        return [dict(base, solver=s) for s in SOLVERS]
+    G, A, b = problem
+    Gd = np.vstack([G, -G])
+    radius = np.abs(G).sum(axis=1)
+    rows, bounds = [], {}
+    for solver in SOLVERS:
+        best = None
+        for _ in range(case.repeat):
+            lp = HullLP(solver)
+            t0 = perf_counter()
+            ub = lp.maximize_many(Gd, A, b)
+            seconds = perf_counter() - t0
+            if best is None or seconds < best[0]:
+                best = (seconds, lp.stats, ub)
+        seconds, stats, bounds[solver] = best
+        rows.append(dict(base, solver=solver, ms=1e3 * seconds, lps=stats.solves,
+                         iterations=stats.iterations_per_solve, fallbacks=stats.fallbacks,
+                         shares={ph: stats.seconds.get(ph, 0.0) / seconds for ph in PHASES}))
+    n = G.shape[0]
+    # positive where the batched bound is the looser one (both are sound upper bounds)
+    diff = (bounds[SOLVERS[0]] - bounds[SOLVERS[1]]) / np.concatenate([radius, radius])
+    for row in rows:
+        row["looser"] = float(diff.max()) if n else math.nan
+        row["tighter"] = float(-diff.min()) if n else math.nan
+    return rows
+
+
+def measure_hulls(cases: tuple[HullCase, ...] = HULL_CASES, progress: bool = True
+                  ) -> list[dict[str, Any]]:
+    """:func:`profile_hull` of every case."""
+    out = []
+    for case in cases:
+        if progress:
+            print(f"profiling the hull of {case.observer} on {case.scenario}", flush=True)
+        out += profile_hull(case)
+    return out
+
+
+def render_hulls(rows: list[dict[str, Any]]) -> list[str]:
+    """The Markdown section of the profile."""
+    lines = [
+        "## Where a constrained zonotope's interval hull spends its time",
+        "",
+        "The observer stepped to its steady state without hulls, then the hull of that set "
+        "(2n LPs over its r generators and p constraints) solved by each strategy of "
+        "`HullLP`: *batched*, the batched dual simplex (compiled; every problem pivots in "
+        "lock step, the pivot rows of all of them one matrix product); *highs*, one warm "
+        "HiGHS run per direction. Fastest of the repetitions; *phases*: share of its time in "
+        "the set-up of the batch (crash basis, reduced costs), the pivots, the "
+        "refactorisations, the certification of the optimum, the weak-duality bounds and "
+        "HiGHS (LPs the batch did not finish, or every LP with *highs*). *batched looser / "
+        "tighter*: the largest amount by which the batched bounds exceed / undercut HiGHS's, "
+        "over the set's radius (both are sound bounds of dual points; HiGHS's are accurate "
+        "to its tolerances).",
+        "",
+        "| set | step | n | p | r | solver | ms per hull | ms per LP | iterations per LP "
+        "| HiGHS fallbacks | setup | pivots | refactor | certify | bounds | HiGHS "
+        "| batched looser | batched tighter |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        head = f"| {r['observer']}, {r['scenario']} "
+        if r["status"] != "ok":
+            lines.append(head + f"| {r['status']}: {r['message']} |" + " |" * 16)
+            continue
+        shares = " | ".join(f"{100 * r['shares'][ph]:.0f} %" for ph in PHASES)
+        lines.append(
+            head + f"| {r['step']} | {r['n']} | {r['p']} | {r['r']} | {r['solver']} | "
+            f"{fmt(r['ms'], 3)} | {fmt(r['ms'] / max(r['lps'], 1), 3)} | "
+            f"{fmt(r['iterations'], 3)} | {r['fallbacks']} | {shares} | "
+            f"{fmt(r['looser'], 2)} | {fmt(r['tighter'], 2)} |")
+    return lines
