@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import subprocess
+import os
 import sys
 import time
 import warnings
@@ -31,7 +31,7 @@ from .io import (
     check_output_file,
     path_component,
 )
-from .report import citation
+from .report import citation, freshness
 from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
@@ -298,20 +298,9 @@ VERSION_PACKAGES = ("numpy", "scipy", "highspy", "clarabel", "cvxpy", "numba")
 def _checkout_commit(root: Path) -> str:
     """The short commit of the git checkout whose top level is ``root``, with ``" (modified)"``
     if tracked files differ from it; ``""`` if ``root`` is not the top of a checkout (an
-    installed copy) or git is missing."""
-    def git(*argv: str) -> str:
-        return subprocess.run(["git", *argv], capture_output=True, text=True, cwd=root,
-                              timeout=10).stdout.strip()
-
-    try:
-        top = git("rev-parse", "--show-toplevel")
-        if not top or Path(top).resolve() != root.resolve():
-            return ""  # not a checkout, or a copy installed inside another repository
-        head = git("rev-parse", "--short", "HEAD")
-        dirty = git("status", "--porcelain", "--untracked-files=no")
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return head + (" (modified)" if head and dirty else "")
+    installed copy) or git is missing (:func:`benchmarks.report.freshness.checkout_state`)."""
+    head, modified = freshness.checkout_state(root, top_only=True)
+    return head + (" (modified)" if modified else "")
 
 
 def _version() -> str:
@@ -574,10 +563,21 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code (2 for bad input; see
     :data:`benchmarks.verdicts.EXIT_CODES_HELP`)."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:  # the reader left (``setobs-bench list | head``): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # no second error when Python flushes stdout
+        return 141  # 128 + SIGPIPE, as a shell reports a command killed by a closed pipe
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     warnings.showwarning = _one_line_warning
     try:
         return args.func(args)
+    except BrokenPipeError:
+        raise
     except USER_ERRORS as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

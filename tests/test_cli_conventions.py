@@ -143,3 +143,14 @@ def test_add_is_its_own_option():
 
     args = build_parser().parse_args(["run", "arch2021_table3", "--add", "My-Obs"])
     assert args.add == "My-Obs" and args.address is None
+
+
+def test_a_reader_that_leaves_early_ends_the_command_quietly():
+    # ``setobs-bench list | head -1``: the pipe closes before the command writes; it stops
+    # with 141 (128 + SIGPIPE) and no traceback
+    proc = subprocess.Popen([sys.executable, "-m", "benchmarks", "list"], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "Exception ignored" not in err

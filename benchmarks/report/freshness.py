@@ -104,18 +104,33 @@ def machine() -> dict[str, str]:
             "blas_coretype": blas_corename()}
 
 
+def checkout_state(root: Path = ROOT, paths: tuple[str, ...] = (),
+                   top_only: bool = False) -> tuple[str, bool]:
+    """``(short commit, modified)`` of the git checkout at ``root``: ``modified`` if tracked
+    files (under ``paths``, default all) differ from the commit; ``("", False)`` outside a
+    checkout, where git is missing, or (``top_only``) where ``root`` is not the checkout's
+    top level (a copy installed inside another repository)."""
+    def git(*argv: str) -> str:
+        return subprocess.run(["git", *argv], capture_output=True, text=True, cwd=root,
+                              timeout=10).stdout.strip()
+
+    try:
+        if top_only:
+            top = git("rev-parse", "--show-toplevel")
+            if not top or Path(top).resolve() != Path(root).resolve():
+                return "", False
+        head = git("rev-parse", "--short", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", *paths)
+    except (OSError, subprocess.SubprocessError):
+        return "", False
+    return head, bool(head and dirty)
+
+
 def commit(root: Path = ROOT) -> str:
     """The commit of the checkout at ``root`` (``+dirty`` where tracked code differs), or
     ``""`` outside a git checkout."""
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, cwd=root, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
-                                "observers", "systems", "benchmarks"], capture_output=True,
-                               text=True, cwd=root, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return head + ("+dirty" if head and dirty else "")
+    head, dirty = checkout_state(root, ("observers", "systems", "benchmarks"))
+    return head + ("+dirty" if dirty else "")
 
 
 def measured(command: str) -> str:
