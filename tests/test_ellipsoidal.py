@@ -194,3 +194,51 @@ def test_eso_c_and_eso_d_share_their_first_gain(monkeypatch, tmp_path):
     fresh = el.martinez_design(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G)
     np.testing.assert_allclose(esod.L, fresh["L"], rtol=1e-12, atol=0)
     np.testing.assert_allclose(esod.P, fresh["P"], rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("name", ["vehicle6d-cora", "tank6-linear"])
+def test_hinf_central_is_the_unique_point_of_the_central_path(name):
+    # issue 37: the least gamma pins only gamma, and an SDP solver stopped anywhere on the
+    # optimal face (ESO-C on the 6-D vehicle: 11 % between OpenBLAS kernels).  The design point
+    # maximises log det(-M) - t g, strictly concave: it is characterised by its optimality
+    # conditions (Boyd & Vandenberghe, Sec. 11.2.2), checked here in numpy with S = (-M)^-1:
+    # tr(S dM/dz) = 0 for every entry z of (P, Y), tr(S) over the g block = t, and
+    # gamma^2 - gamma*^2 <= k / t = gap gamma*^2.
+    from observers.numerics import ellipsoidal as el
+
+    s = systems.scenario(name).system
+    A, C, E, F = np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G
+    Q = np.eye(s.n)
+    _, _, g_star = el.hinf_lmi(A, C, E, F, Q, "least gamma")
+    P, L, g = el.hinf_central(A, C, E, F, Q, "central")
+    assert g_star * (1 - 1e-6) <= g <= g_star * (1 + el.HINF_CENTRAL_GAP) * (1 + 1e-6)
+    n, m, p = s.n, C.shape[0], E.shape[1] + F.shape[1]
+    Y = P @ L
+    PAo, DP = P @ A - Y @ C, np.hstack([P @ E, -Y @ F])
+    negM = -np.block([[-P + Q, np.zeros((n, p)), PAo.T], [np.zeros((p, n)), -g * np.eye(p), DP.T],
+                      [PAo, DP, -P]])
+    negM = 0.5 * (negM + negM.T)
+    assert np.linalg.eigvalsh(negM)[0] > 0  # strictly inside the LMI
+    S = np.linalg.inv(negM)
+    k = negM.shape[0]
+    t = k / (el.HINF_CENTRAL_GAP * g_star)
+    # derivative of -M in P[i, j] (symmetric) and Y[i, l], by finite differences of the
+    # affine map (exact: -M is affine), and the stationarity of log det(-M) - t g
+    def neg_m(Pv, Yv, gv):
+        PA, D = Pv @ A - Yv @ C, np.hstack([Pv @ E, -Yv @ F])
+        M = np.block([[-Pv + Q, np.zeros((n, p)), PA.T], [np.zeros((p, n)), -gv * np.eye(p),
+                                                             D.T], [PA, D, -Pv]])
+        return -0.5 * (M + M.T)
+    base = neg_m(P, Y, g)
+    scale = np.abs(S).max() * np.abs(base).max()
+    for i in range(n):
+        for j in range(i, n):
+            dP = np.zeros((n, n))
+            dP[i, j] = dP[j, i] = 1.0
+            assert abs(np.sum(S * (neg_m(P + dP, Y, g) - base))) < 1e-6 * scale
+    for i in range(n):
+        for j in range(m):
+            dY = np.zeros((n, m))
+            dY[i, j] = 1.0
+            assert abs(np.sum(S * (neg_m(P, Y + dY, g) - base))) < 1e-6 * scale
+    assert np.sum(S * (neg_m(P, Y, g + 1.0) - base)) == pytest.approx(t, rel=1e-6)

@@ -220,6 +220,13 @@ class ESOB(EllipsoidalStripObserver):
         return q, P, s2
 
 
+def _hinf_params(n: int) -> dict:
+    """``hinf: riccati`` in a design key where the H-infinity gains of ``n`` states come from
+    the Riccati equation (above :data:`~observers.numerics.ellipsoidal.HINF_RICCATI_ABOVE`
+    states), else nothing (the smaller designs keep their key)."""
+    return {"hinf": "riccati"} if n > HINF_RICCATI_ABOVE else {}
+
+
 class InvariantSetObserver(Observer):
     """Luenberger observer with an ellipsoidal bound ``e'Pe <= l_k`` of its error.
 
@@ -233,7 +240,9 @@ class InvariantSetObserver(Observer):
     #: regression-gate tolerance: the design is an SDP solution (see ``OfflineGain``)
     REGRESSION_RTOL = 1e-4
 
-    DESIGN_VERSION = "1"
+    #: "2": the H-infinity gains are the central-path point of :func:`~observers.numerics.
+    #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at
+    DESIGN_VERSION = "2"
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         """``E``, ``F`` with ``w = E wbar``, ``v = F vbar``, ``|wbar|, |vbar| <= 1``: the
@@ -248,18 +257,14 @@ class InvariantSetObserver(Observer):
         """Step 1 of both designs (:func:`~observers.numerics.ellipsoidal.first_gain`), cached
         under its own key: ESO-C and ESO-D on one system solve its SDP once (at 30 states
         it is half of each design: about 20 s)."""
-        params = {"hinf": "riccati"} if A.shape[0] > HINF_RICCATI_ABOVE else {}
-        return cached_design("ESO-first-gain", "1", {"A": A, "C": C, "E": E, "F": F}, params,
+        return cached_design("ESO-first-gain", self.DESIGN_VERSION,
+                             {"A": A, "C": C, "E": E, "F": F}, _hinf_params(A.shape[0]),
                              lambda: {"L": first_gain(A, C, E, F)})["L"]
 
     def design_params(self) -> dict:
         """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
-        equation (above :data:`~observers.numerics.ellipsoidal.HINF_RICCATI_ABOVE` states; the
-        smaller designs keep their former cache key)."""
-        params = dict(self.options)
-        if self.system.n > HINF_RICCATI_ABOVE:
-            params["hinf"] = "riccati"
-        return params
+        equation (:func:`_hinf_params`)."""
+        return {**self.options, **_hinf_params(self.system.n)}
 
     def design(self) -> None:
         s = self.system

@@ -217,8 +217,10 @@ def analytic_centre(
     what: str,
     tol: float = 1e-13,
     max_iter: int = 200,
+    linear: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Maximise ``sum_j log det F_j(x)`` subject to ``a_eq' x = a_eq' x0`` by damped Newton.
+    """Maximise ``sum_j log det F_j(x) [- linear' x]`` subject to ``a_eq' x = a_eq' x0`` by
+    damped Newton (with ``linear``: a point of the central path of the SDP ``min linear' x``).
 
     ``F_j(x) = sum_i x_i blocks[j][i]`` are linear symmetric matrix functions (``blocks[j]``:
     an array of shape ``(N, k_j, k_j)``, one symmetric matrix per variable) and ``x0`` must be
@@ -249,6 +251,13 @@ def analytic_centre(
                 return None
         return out
 
+    c = np.zeros(x.size) if linear is None else np.asarray(linear, dtype=float)
+
+    def objective(z: np.ndarray):
+        """``(factors, value)`` at ``z`` (``None`` if infeasible), for the line search."""
+        chol_z = factors(z)
+        return chol_z, (None if chol_z is None else value(chol_z) - float(c @ z))
+
     def value(chol: list[np.ndarray]) -> float:
         """``sum_j log det F_j`` from the factors of the ``F_j``."""
         total = 0.0
@@ -259,10 +268,10 @@ def analytic_centre(
     chol = factors(x)
     if chol is None:
         raise DesignFailed(f"{what}: the starting point of the analytic centre is infeasible")
-    f = value(chol)
+    f = value(chol) - float(c @ x)
     N = x.size
     for _ in range(max_iter):
-        g = np.zeros(N)
+        g = -c.copy()
         H = np.zeros((N, N))
         for B, Lc in zip(blocks, chol, strict=True):
             Li = np.linalg.inv(Lc)
@@ -278,7 +287,8 @@ def analytic_centre(
             break
         if decrement < tol:  # one last full step: quadratic convergence from here
             return x + step if factors(x + step) is not None else x
-        found = _backtrack(x, step, f, decrement, factors, value)
+        found = _backtrack(x, step, f, decrement, factors,
+                           value if linear is None else None, objective)
         if found is None:  # no progress at rounding level: accept a point near the optimum
             if decrement < 1e-8:
                 return x
@@ -288,16 +298,22 @@ def analytic_centre(
 
 
 # -- analytic centre of the decay cone, with a structured Hessian --------------------------------
-def _backtrack(x: np.ndarray, step: np.ndarray, f: float, decrement: float, factors, value):
+def _backtrack(x: np.ndarray, step: np.ndarray, f: float, decrement: float, factors, value,
+               objective=None):
     """Backtracking (Armijo) line search of the damped Newton methods of the analytic
     centres: the first ``t`` of 1, 1/2, 1/4, ... (down to 1e-12) at which the LMI still
     holds (``factors`` not None) and the concave objective rises by at least a quarter of the
-    predicted ``t * decrement``; ``(x + t step, f_t, factors_t)``, or None if no such ``t``."""
+    predicted ``t * decrement``; ``(x + t step, f_t, factors_t)``, or None if no such ``t``.
+    ``objective(z) -> (factors, value)`` replaces ``factors`` and ``value`` where the
+    objective also depends on ``z`` itself (a linear term)."""
     t = 1.0
     while t > 1e-12:
-        chol_t = factors(x + t * step)
+        if objective is None:
+            chol_t = factors(x + t * step)
+            f_t = None if chol_t is None else value(chol_t)
+        else:
+            chol_t, f_t = objective(x + t * step)
         if chol_t is not None:
-            f_t = value(chol_t)
             if f_t >= f + 0.25 * t * decrement:
                 return x + t * step, f_t, chol_t
         t *= 0.5

@@ -77,10 +77,31 @@ import numpy as np
 from ._jit import AVAILABLE, njit
 
 #: singular values closer than this (relative to the largest) form one cluster (repeated), in
-#: the principal axes of the PCA reduction (:func:`.reduction.principal_axes` and here)
-CLUSTER_RTOL = 1e-9
+#: the principal axes of the PCA reduction (:func:`.reduction.principal_axes` and here).  A
+#: singular subspace is determined by the matrix to about ``eps * s_max / gap`` (Wedin's
+#: theorem), and a filter that reduces at every step can amplify that sensitivity from step
+#: to step: axes kept apart at gaps of at least ``1e-2 * s_max`` move by at most about 2e-14
+#: with the rounding of the kernel; closer ones get the basis of their common subspace, which
+#: depends on that subspace only.  (At 1e-9 the axes of near-repeated values moved by up to
+#: 1e-7 with the OpenBLAS kernel, and the filters amplified it: 5e-5 in CZN-B's 6-tank radii,
+#: 3e-3 in DD-CZ-A2's; at 1e-3 DD-CZ-A2's 30-row lifted reductions still amplified it to
+#: 7e-4; at 1e-2 every spread of the regression subset is below 1e-8.)
+CLUSTER_RTOL = 1e-2
+#: a width of the PCA box below this (relative to its widest) is set to exactly zero: the width
+#: along an axis the reduced generators do not span is zero in exact arithmetic and rounding
+#: noise in floating point (exactly zero on one BLAS kernel, a column later dropped, and 1e-19
+#: on another, kept), which changed the generator count and so which generators every later
+#: reduction picked (VolMin-A/B on Van der Pol: 3e-4 and 2e-3 between kernels).  The sliver
+#: given up is at most 1e-12 of the box, far inside the 1e-9 membership tolerance of the
+#: containment checks, like the rounding of every other floating-point operation.
+BOX_ZERO_RTOL = 1e-12
 #: pivot ties of the cluster basis: diagonal entries within this (relative) count as equal
 PIVOT_RTOL = 1e-6
+#: which generators a reduction picks: metrics within this (relative) of the threshold count
+#: as equal and go by column index.  Generators of one box mapped by the same matrices tie in
+#: exact arithmetic and differ in the last bits by the BLAS kernel; ranked by those bits, one
+#: kernel reduced one of them and another kernel the other (DD-CZ-A1 on the 6-tank: 1e-5)
+TIE_RTOL = 1e-9
 
 # the gain formulas of the step kernels and the reduction methods of :func:`reduce`, by number
 # (numba branches on integers); outside this module they are named (:func:`prepare`)
@@ -193,9 +214,11 @@ def _pairwise_sum(a, m):
 def _smallest(h, r, k):
     """Indices of the ``k`` smallest of ``h[:r]`` in the order of a stable sort (ties by
     index), then the others: ``argsort(h[:r], kind="stable")`` with the first ``k`` found by
-    insertion into a sorted buffer (``k`` is usually a few percent of ``r``)."""
+    insertion into a sorted buffer (``k`` is usually a few percent of ``r``); then the
+    choice at the threshold made independent of rounding (:func:`_tie_band`)."""
     if 4 * k >= r:
-        return np.argsort(h[:r], kind="mergesort")
+        out = np.argsort(h[:r], kind="mergesort")
+        return _tie_band(h, r, k, out)
     buf = np.empty(k, dtype=np.int64)
     m = 0
     for j in range(r):
@@ -212,6 +235,37 @@ def _smallest(h, r, k):
         m += 1
     out = np.empty(r, dtype=np.int64)
     out[:k] = buf
+    return _tie_band(h, r, k, out)
+
+
+def _tie_band(h, r, k, out):
+    """``out[:k]`` (the ``k`` smallest of ``h[:r]``, sorted) re-chosen so that values within
+    ``TIE_RTOL`` (relative) of the ``k``-th smallest count as equal and go by index
+    (:func:`.reduction._smallest`), kept in stable-sorted order."""
+    if k == 0 or k >= r:
+        return out
+    thr = h[out[k - 1]]
+    band = TIE_RTOL * abs(thr)
+    chosen = np.empty(k, dtype=np.int64)
+    m = 0
+    for j in range(r):
+        if h[j] < thr - band:
+            chosen[m] = j
+            m += 1
+    for j in range(r):
+        if m == k:
+            break
+        if abs(h[j] - thr) <= band:
+            chosen[m] = j
+            m += 1
+    for i in range(1, k):  # stable insertion sort of the chosen by value
+        j = chosen[i]
+        q = i
+        while q > 0 and h[j] < h[chosen[q - 1]]:
+            chosen[q] = chosen[q - 1]
+            q -= 1
+        chosen[q] = j
+    out[:k] = chosen
     return out
 
 
@@ -382,12 +436,15 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol, jacobi_dim):
             red[i, q] = G[i, j]
     U = _principal_axes(red, cluster_rtol, pivot_rtol, jacobi_dim)
     proj = np.dot(np.ascontiguousarray(U.T), red)
+    box = np.zeros(n)
     for a in range(n):
-        box = 0.0
         for q in range(n_red):
-            box += abs(proj[a, q])
+            box[a] += abs(proj[a, q])
+    negligible = BOX_ZERO_RTOL * box.max()
+    for a in range(n):
+        w = box[a] if box[a] > negligible else 0.0
         for i in range(n):
-            out[i, n_keep + a] = U[i, a] * box
+            out[i, n_keep + a] = U[i, a] * w
     return out, True
 
 
@@ -898,10 +955,10 @@ def _bravo_step_py(c, G, d, y, args):
 
 
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
-    (_pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
+    (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
      _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
      _solve_t) = (njit(f) for f in (
-         _pairwise_block, _pairwise_sum, _smallest, _cluster_basis_into, _jacobi_left,
+         _pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
          _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
          _solve_t))
     # the formulas of the kernels keep the kernels' error model (a division by zero gives

@@ -286,7 +286,12 @@ CONSTRAINT_ELIMINATIONS: dict[str, Callable[..., Arrays]] = {
 
 
 def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Least-squares ``K`` minimising ``||Y - K X||_F``: ``Y X' (X X')^+`` (least squares on
-    the small k x k Gram matrix, minimum-norm if it is singular; any ``K`` keeps the
-    constraint eliminations sound)."""
-    return np.linalg.lstsq(X @ X.T, X @ Y.T, rcond=None)[0].T
+    """Least-squares ``K`` minimising ``||Y - K X||_F``, i.e. ``Y X' (X X')^+`` (minimum norm
+    where ``X`` has dependent rows; any ``K`` keeps the constraint eliminations sound).
+
+    Solved as the least-squares problem ``X' K' = Y'`` (SVD of the r x k matrix ``X'``), not
+    through the Gram matrix ``X X'``, whose condition number is the square of ``X``'s: with
+    the nearly dependent rows of old measurement constraints the Gram route's ``K`` moved
+    with the BLAS kernel by ``cond(X)^2 eps`` and the constrained zonotopes that keep
+    eliminating rows amplified it (DD-CZ-A1 on the 6-tank: 1e-5 of an RMS radius)."""
+    return np.linalg.lstsq(X.T, Y.T, rcond=None)[0].T

@@ -12,7 +12,9 @@ and ``pca``):
 2. nothing else happens if the zonotope has at most ``n * order`` generators;
 3. otherwise ``floor(n * (order - 1))`` generators are kept unchanged (in their original order)
    and the remaining ones, those with the smallest ``||g||_1 - ||g||_inf`` (ties broken by the
-   original column index, i.e. a stable sort), are replaced by a box of ``n`` generators;
+   original column index, i.e. a stable sort; values within ``TIE_RTOL`` = 1e-9, relative, of
+   the threshold count as ties, so that rounding cannot order generators that tie in exact
+   arithmetic), are replaced by a box of ``n`` generators;
 4. the result is ``[G_unreduced, G_box]``.
 
 ``girard`` encloses the reduced generators by an axis-aligned box (Girard, HSCC 2005);
@@ -37,8 +39,18 @@ therefore makes the basis a function of the subspace only:
    ``P_jj`` (the lowest index among those within ``PIVOT_RTOL`` of the largest, so rounding
    cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
 
-For a single singular value this only fixes the sign (largest component positive).  The two
-tolerances are defined with the compiled kernel that shares them (:mod:`._step_jit`).
+For a single singular value this only fixes the sign (largest component positive).  The
+cluster tolerance is wide (``1e-2 * s_max``) on purpose: an axis is determined by the matrix
+only to ``eps * s_max / gap``, and axes of values closer than that moved with the BLAS kernel
+by enough for the filters to amplify (see :data:`._step_jit.CLUSTER_RTOL`).
+
+Deterministic box.  A width of the PCA box below ``BOX_ZERO_RTOL`` (1e-12) of the widest is
+set to exactly zero: the width along an axis the reduced generators do not span is zero in
+exact arithmetic and rounding noise in floating point (exactly zero on one kernel, a column
+later dropped, and 1e-19 on another), which changed the generator count and so every later
+choice.  The sliver given up is at most 1e-12 of the box, inside the 1e-9 membership
+tolerance of the containment checks.  The tolerances are defined with the compiled kernel that
+shares them (:mod:`._step_jit`).
 """
 
 from __future__ import annotations
@@ -49,7 +61,7 @@ from typing import Protocol
 import numpy as np
 
 from . import _jit, _step_jit
-from ._step_jit import CLUSTER_RTOL, PIVOT_RTOL
+from ._step_jit import BOX_ZERO_RTOL, CLUSTER_RTOL, PIVOT_RTOL, TIE_RTOL
 from .errors import SetError
 
 
@@ -102,16 +114,19 @@ def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the ``k`` smallest entries of ``h`` in the order of a stable sort, and the
-    other indices in increasing order: ``argsort(h, kind="stable")`` split at ``k``, found
-    with a partition and a sort of the ``k`` picked entries only (``k`` is usually small)."""
+    other indices in increasing order, where values within ``TIE_RTOL`` (relative) of the
+    ``k``-th smallest count as equal and go by index (ties of exact arithmetic that the last
+    bits of the BLAS kernel would otherwise order); found with a partition and a sort of the
+    ``k`` picked entries only (``k`` is usually small)."""
     if k >= h.size:
         return np.argsort(h, kind="stable"), np.arange(0)
     thr = np.partition(h, k - 1)[k - 1]  # the k-th smallest value
     if thr != thr:  # NaN among the k smallest: the plain stable sort decides
         ranked = np.argsort(h, kind="stable")
         return ranked[:k], np.sort(ranked[k:])
-    sel = h < thr
-    ties = np.flatnonzero(h == thr)  # equal values go by index, as in a stable sort
+    band = TIE_RTOL * abs(thr)
+    sel = h < thr - band
+    ties = np.flatnonzero(np.abs(h - thr) <= band)  # equal values go by index
     sel[ties[: k - np.count_nonzero(sel)]] = True
     picked = np.flatnonzero(sel)
     return picked[np.argsort(h[picked], kind="stable")], np.flatnonzero(~sel)
@@ -207,7 +222,7 @@ class PCA:
         # symmetry): its eigenvectors are the left singular vectors of red
         U = principal_axes(red)
         box = np.abs(U.T @ red).sum(axis=1)
-        return np.hstack([keep, U * box])
+        return np.hstack([keep, U * np.where(box > BOX_ZERO_RTOL * box.max(), box, 0.0)])
 
 
 def cora_principal_axes(red: np.ndarray) -> np.ndarray:
