@@ -153,7 +153,8 @@ def load_costs(folder: str | Path) -> JobBudgets | None:
     return JobBudgets(out, str(path))
 
 
-def _cpu() -> str:
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), else what ``platform`` knows."""
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:
@@ -183,7 +184,7 @@ def write_costs(folder: str | Path, seconds: dict[tuple[str, str], float], comma
         "command": command,
         "executor": COST_EXECUTOR,
         "design_cache": design_cache,
-        "machine": {"cpu": _cpu(), "cores": os.cpu_count(), "platform": env.get("platform"),
+        "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "platform": env.get("platform"),
                     "python": env.get("python"), "blas_coretype": env.get("blas_coretype"),
                     "load_average_1min": list(load) if load else None},
         "total_seconds": round(sum(seconds.values()), 1),

@@ -267,7 +267,7 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
                  "anyway)")
         res.code = 1
         return res
-    files = regression.write_baseline(frame, baseline, cfg, cache_note)
+    files = regression.write_baseline(frame, baseline, cfg, cache_note, names)
     kernels.write_sensitivity(frame, baseline, names)
     budget.write_costs(baseline, executor.seconds, "baseline --update", cache_note, load)
     res.say(f"wrote {len(files)} golden files, SENSITIVITY.md and {budget.COST_FILE} to "

@@ -70,7 +70,7 @@ from ..report.numbers import fmt, text_table
 from ..run.config import BenchConfig, load_config
 from ..run.runner import is_project_module, run_config
 from ..verdicts import HULL_AND_EXACT, NO, SOUNDNESS_COLUMNS
-from .budget import GATE_TIMEOUT, GateExecutor
+from .budget import GATE_TIMEOUT, GateExecutor, cpu_model
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "regression.yaml"
 DEFAULT_BASELINE = Path("results") / "baseline"
@@ -211,19 +211,25 @@ def _with_version(meta: dict, version: str | None = None) -> dict:
     return {**meta, VERSION_KEY: project_version() if version is None else version}
 
 
-def _meta(cfg: BenchConfig, cache_note: str) -> dict:
+def _meta(cfg: BenchConfig, cache_note: str, kernels_compared: list[str] | None) -> dict:
+    env = environment()
     return _with_version({
         "config": {"name": cfg.name, "raw": cfg.raw},
         "observers": cfg.observers,
         "design_cache": cache_note,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "versions": environment(),
+        "versions": env,
+        # which machine and BLAS kernel produced the golden numbers, and the kernels whose
+        # runs measured their spread (SENSITIVITY.md)
+        "machine": {"cpu": cpu_model(), "blas_coretype": env.get("blas_coretype"),
+                    "kernels_compared": list(kernels_compared or [])},
     })
 
 
 def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
-                   cache_note: str) -> list[Path]:
-    """Write one golden CSV per scenario (atomically), remove stale ones, write meta.json."""
+                   cache_note: str, kernels_compared: list[str] | None = None) -> list[Path]:
+    """Write one golden CSV per scenario (atomically), remove stale ones, write meta.json
+    (with the machine, its BLAS kernel and ``kernels_compared``)."""
     folder = Path(folder)
     written = []
     for sc, g in frame.groupby("scenario", sort=False):
@@ -235,7 +241,7 @@ def write_baseline(frame: pd.DataFrame, folder: str | Path, cfg: BenchConfig,
         written.append(path)
     for stale in set(folder.glob("*.csv")) - set(written):
         stale.unlink()
-    atomic_write_json(folder / "meta.json", _meta(cfg, cache_note))
+    atomic_write_json(folder / "meta.json", _meta(cfg, cache_note, kernels_compared))
     return written
 
 

@@ -125,6 +125,10 @@ class Num:
     prefix : str
         Written before a number (not before :data:`MISSING`), e.g. ``"<= "`` for an upper
         bound.
+    caveat : str or None
+        Written in brackets right after our value (before a published value), e.g. the
+        measured spread of a value that depends on the BLAS kernel
+        (:mod:`benchmarks.report.spread`).
     """
 
     value: Any
@@ -133,6 +137,7 @@ class Num:
     unit: str = ""
     bold: bool = False
     prefix: str = ""
+    caveat: str | None = None
 
     def numbers(self) -> list[Any]:
         """The values that decide the column's notation."""
@@ -143,6 +148,8 @@ class Num:
         text = fmt(self.value, digits, self.unit, notation)
         if self.prefix and text != MISSING:
             text = self.prefix + text
+        if self.caveat is not None and text != MISSING:
+            text += f" [{self.caveat}]"
         if self.paper is not None:
             text += f" ({fmt(self.paper, digits, notation=notation)})"
         elif self.note is not None:

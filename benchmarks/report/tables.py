@@ -30,6 +30,7 @@ from ..metrics import PHASE_COLUMNS, timed_in_parallel
 from ..verdicts import NA, NO, contained_column, reference_rows, violating
 from .numbers import Num, fmt, format_columns, markdown_table, text_table
 from .paper import PaperRow, paper_rows, paper_status, paper_title
+from .spread import CHAOTIC_BY_NATURE, spread_note
 
 #: the paragraph that opens the Markdown and the HTML report
 INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state: the RMS "
@@ -246,6 +247,10 @@ def scenario_table_caption(df: pd.DataFrame, meta: dict) -> str:
                                                    if times else "."))
     else:
         parts.append("No published table for this scenario.")
+    if any(o.split("[")[0] in CHAOTIC_BY_NATURE for o in df["observer"].unique()):
+        parts.append("In brackets: how far a value moves across OpenBLAS kernels, for an "
+                     "observer whose published design is undetermined (results/baseline/"
+                     "SENSITIVITY.md); every other value is the same on every kernel to 1e-6.")
     par = timed_in_parallel(df)
     parts.append("Times: median per step on this machine" + (
         ", measured while jobs ran in parallel (indicative only)." if par else "."))
@@ -284,8 +289,10 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
         r = g["_rel"].to_numpy(float)
         cells: list[Any] = [f"**{obs}** (unsound)" if g["_bad"].any() else obs]
+        ok = g["status"].iloc[0] == "ok"
         for i in show:
-            cells.append(Num(r[i], p.v[i] if p and p.v else None))
+            cells.append(Num(r[i], p.v[i] if p and p.v else None,
+                             caveat=spread_note(obs, sc, i) if ok else None))
         avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
         if paper and p is None and not pstat:  # not part of the published comparison
@@ -331,7 +338,9 @@ def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         g = df[df["observer"] == obs].sort_values("state")
         p = paper.get(obs)
         r = g["rms_radius"].to_numpy(float)
-        rows.append([obs] + [Num(r[i], p.absolute[i] if p and p.absolute else None)
+        ok = g["status"].iloc[0] == "ok"
+        rows.append([obs] + [Num(r[i], p.absolute[i] if p and p.absolute else None,
+                                 caveat=spread_note(obs, sc, i) if ok else None)
                              for i in range(n)])
     return head, format_columns(rows)
 

@@ -44,6 +44,7 @@ from ..prediction import _box_generators
 from ..registry import register
 from ..sets import ConZonotope, HullLP, HullLPStats
 from ..sets import conzono_ops as ops
+from ..sets.reduction import get_reduction, lifted_reduction
 from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m
@@ -123,6 +124,8 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
 
     def design(self) -> None:
         super().design()
+        # every reduction here acts on the lifted zonotope: the strategy's variant for it
+        self._reduce = lifted_reduction(get_reduction(self.options["reduction"])).reduce
         k = self.options["max_constraints"]
         m = self.V.dim
         self.max_constraints = DEFAULT_CONSTRAINT_STEPS * m if k == "auto" else k

@@ -77,16 +77,21 @@ import numpy as np
 from ._jit import AVAILABLE, njit
 
 #: singular values closer than this (relative to the largest) form one cluster (repeated), in
-#: the principal axes of the PCA reduction (:func:`.reduction.principal_axes` and here).  A
-#: singular subspace is determined by the matrix to about ``eps * s_max / gap`` (Wedin's
-#: theorem), and a filter that reduces at every step can amplify that sensitivity from step
-#: to step: axes kept apart at gaps of at least ``1e-2 * s_max`` move by at most about 2e-14
-#: with the rounding of the kernel; closer ones get the basis of their common subspace, which
-#: depends on that subspace only.  (At 1e-9 the axes of near-repeated values moved by up to
-#: 1e-7 with the OpenBLAS kernel, and the filters amplified it: 5e-5 in CZN-B's 6-tank radii,
-#: 3e-3 in DD-CZ-A2's; at 1e-3 DD-CZ-A2's 30-row lifted reductions still amplified it to
-#: 7e-4; at 1e-2 every spread of the regression subset is below 1e-8.)
-CLUSTER_RTOL = 1e-2
+#: the principal axes of the PCA reduction of a zonotope (:func:`.reduction.principal_axes` and
+#: here): exact ties only (the boxes of ``W`` or ``X0``), so that the axes are CORA's wherever
+#: CORA's are defined (FRad-A/B reproduce ARCH 2021 Table 3 to 0.05 %)
+CLUSTER_RTOL = 1e-9
+#: the cluster tolerance of the PCA reductions of constrained zonotopes (their lifted
+#: zonotopes ``[G; A]``, :meth:`.ConZonotope.reduce`).  A singular subspace is determined by
+#: the matrix to about ``eps * s_max / gap`` (Wedin's theorem), and the constrained-zonotope
+#: filters, whose sets feed LP hulls and constraint eliminations back into the next step,
+#: amplified that from step to step: at 1e-9 the axes of near-repeated values moved by up
+#: to 1e-7 with the OpenBLAS kernel and the radii by 5e-5 (CZN-B, 6-tank) to 3e-3 (DD-CZ-A2);
+#: at 1e-3 DD-CZ-A2's 30-row lifted reductions still moved by 7e-4.  With clusters of values
+#: within 1e-2 of the largest, axes kept apart move by at most about 2e-14 and every spread
+#: of the regression subset is below 1e-8; closer values get the basis of their common
+#: subspace, which depends on that subspace only.
+LIFTED_CLUSTER_RTOL = 1e-2
 #: a width of the PCA box below this (relative to its widest) is set to exactly zero: the width
 #: along an axis the reduced generators do not span is zero in exact arithmetic and rounding
 #: noise in floating point (exactly zero on one BLAS kernel, a column later dropped, and 1e-19

@@ -9,7 +9,7 @@ from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
 from ._lp import HullLP, box_feasible
 from .errors import EmptySet, SetError
 from .interval import Interval
-from .reduction import Reduction, check_order, get_reduction
+from .reduction import Reduction, check_order, get_reduction, lifted_reduction
 from .zonotope import Zonotope
 
 
@@ -224,7 +224,9 @@ class ConZonotope:
         strategy ``method`` (Scott et al. 2016, Sec. 4.3).  ``per="state"`` (CORA's
         ``reduce``): at most ``order * n + nc`` generators; ``per="lifted"``: at most
         ``order * (n + nc)``.  The number of constraints does not change; see
-        :meth:`reduce_constraints`.
+        :meth:`reduce_constraints`.  A strategy with a variant for lifted zonotopes (a
+        ``lifted()`` method: :meth:`.reduction.PCA.lifted`, wider clusters of singular values)
+        reduces with that variant.
 
         Notes
         -----
@@ -249,7 +251,7 @@ class ConZonotope:
         if per not in ops.ORDER_BASES:
             raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
                            f"got {per!r}")
-        strategy = get_reduction(method)
+        strategy = lifted_reduction(get_reduction(method))
         return ConZonotope._trusted(*ops.lifted_reduce(
             self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
 

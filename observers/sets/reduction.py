@@ -39,10 +39,11 @@ therefore makes the basis a function of the subspace only:
    ``P_jj`` (the lowest index among those within ``PIVOT_RTOL`` of the largest, so rounding
    cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
 
-For a single singular value this only fixes the sign (largest component positive).  The
-cluster tolerance is wide (``1e-2 * s_max``) on purpose: an axis is determined by the matrix
-only to ``eps * s_max / gap``, and axes of values closer than that moved with the BLAS kernel
-by enough for the filters to amplify (see :data:`._step_jit.CLUSTER_RTOL`).
+For a single singular value this only fixes the sign (largest component positive).  For the
+lifted zonotopes of constrained zonotopes the cluster tolerance is wide (``1e-2 * s_max``,
+:meth:`PCA.lifted`) on purpose: an axis is determined by the matrix only to
+``eps * s_max / gap``, and axes of values closer than that moved with the BLAS kernel by enough
+for those filters to amplify (see :data:`._step_jit.LIFTED_CLUSTER_RTOL`).
 
 Deterministic box.  A width of the PCA box below ``BOX_ZERO_RTOL`` (1e-12) of the widest is
 set to exactly zero: the width along an axis the reduced generators do not span is zero in
@@ -61,7 +62,7 @@ from typing import Protocol
 import numpy as np
 
 from . import _jit, _step_jit
-from ._step_jit import BOX_ZERO_RTOL, CLUSTER_RTOL, PIVOT_RTOL, TIE_RTOL
+from ._step_jit import BOX_ZERO_RTOL, CLUSTER_RTOL, LIFTED_CLUSTER_RTOL, PIVOT_RTOL, TIE_RTOL
 from .errors import SetError
 
 
@@ -138,13 +139,14 @@ def use_compiled() -> bool:
     return _jit.use_compiled()
 
 
-def _compiled(G: np.ndarray, order: float, method: str) -> np.ndarray | None:
+def _compiled(G: np.ndarray, order: float, method: str,
+              cluster_rtol: float = CLUSTER_RTOL) -> np.ndarray | None:
     """The compiled reduction ``method`` (a name of :data:`._step_jit.REDUCTIONS`) of ``G``
     (``order`` trusted), or ``None`` where the numpy path must decide (numba off, not a float
     matrix, or a non-finite entry)."""
     if not _jit.use_compiled() or G.dtype != np.float64 or G.ndim != 2:
         return None
-    out, ok = _step_jit.reduce(G, float(order), _step_jit.REDUCTIONS[method], CLUSTER_RTOL,
+    out, ok = _step_jit.reduce(G, float(order), _step_jit.REDUCTIONS[method], cluster_rtol,
                                PIVOT_RTOL, 0)
     return out if ok else None
 
@@ -189,9 +191,10 @@ def _cluster_basis(V: np.ndarray) -> np.ndarray:
     return out
 
 
-def principal_axes(red: np.ndarray) -> np.ndarray:
+def principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -> np.ndarray:
     """Principal axes (n x n, orthonormal) of the generators ``red``, in a deterministic basis
-    where singular values repeat (see the module docstring)."""
+    where singular values repeat (within ``cluster_rtol`` of the largest; see the module
+    docstring)."""
     n, r = red.shape
     if r > n:  # G_red = R' Q' (QR of G_red'): same left singular vectors and values as R',
         # an n x n matrix, without forming the r x r right factor (3-10x faster when r >> n)
@@ -199,7 +202,7 @@ def principal_axes(red: np.ndarray) -> np.ndarray:
     else:
         U, s, _ = np.linalg.svd(red, full_matrices=True)
     s = np.concatenate([s, np.zeros(n - s.size)])
-    tol = CLUSTER_RTOL * s[0]
+    tol = cluster_rtol * s[0]
     starts = np.flatnonzero(np.concatenate([[True], s[:-1] - s[1:] > tol]))
     ends = np.append(starts[1:], n)
     return np.hstack([_cluster_basis(U[:, a:b]) for a, b in zip(starts, ends, strict=True)])
@@ -207,12 +210,22 @@ def principal_axes(red: np.ndarray) -> np.ndarray:
 
 class PCA:
     """Replace the reduced generators by a box aligned with their principal components
-    (:func:`principal_axes`: deterministic where singular values repeat)."""
+    (:func:`principal_axes`: deterministic where singular values repeat, i.e. lie within
+    ``cluster_rtol`` of the largest; :data:`._step_jit.CLUSTER_RTOL` by default, exact ties).
+    """
 
     name = "pca"
 
+    def __init__(self, cluster_rtol: float = CLUSTER_RTOL):
+        self.cluster_rtol = cluster_rtol
+
+    def lifted(self) -> PCA:
+        """The strategy for the lifted zonotopes of constrained zonotopes: wider clusters
+        (:data:`._step_jit.LIFTED_CLUSTER_RTOL`, whose comment says why)."""
+        return PCA(LIFTED_CLUSTER_RTOL)
+
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        out = _compiled(G, order, "pca")
+        out = _compiled(G, order, "pca", self.cluster_rtol)
         if out is not None:
             return out
         keep, red, abs_red = _split(G, order)
@@ -220,9 +233,17 @@ class PCA:
             return keep
         # the covariance of [red, -red] is proportional to red @ red.T (zero mean by
         # symmetry): its eigenvectors are the left singular vectors of red
-        U = principal_axes(red)
+        U = principal_axes(red, self.cluster_rtol)
         box = np.abs(U.T @ red).sum(axis=1)
         return np.hstack([keep, U * np.where(box > BOX_ZERO_RTOL * box.max(), box, 0.0)])
+
+
+def lifted_reduction(strategy: Reduction) -> Reduction:
+    """The strategy to reduce the lifted zonotope of a constrained zonotope with: the
+    strategy's own variant for lifted zonotopes where it has one (a ``lifted()`` method:
+    :meth:`PCA.lifted`), else the strategy itself."""
+    lifted = getattr(strategy, "lifted", None)
+    return lifted() if callable(lifted) else strategy
 
 
 def cora_principal_axes(red: np.ndarray) -> np.ndarray:
