@@ -39,6 +39,7 @@ from ..options import (
 )
 from ..registry import register
 from ..sets import ConZonotope, Zonotope, get_reduction
+from ..sets.reduction import DATA_DRIVEN_CLUSTER_RTOL, lifted_reduction
 
 REFERENCE = "Alanwar, Berndt, Johansson, Sandberg, ECC 2022"
 _MODEL_CACHE: dict[str, tuple] = {}
@@ -220,7 +221,9 @@ class ConZonotopeDD(DataDrivenObserver):
         nc = self.options["constraints"]
         nc = self.CONSTRAINTS_PER_STATE * self.n if nc is None else int(nc)
         S = S.reduce_constraints(nc, "frobenius").normalize_constraints()
-        return S.reduce(self.order, self._reduction, per="lifted")
+        # PCA with the wide clusters these lifted zonotopes need (DATA_DRIVEN_CLUSTER_RTOL)
+        strategy = lifted_reduction(self._reduction, cluster_rtol=DATA_DRIVEN_CLUSTER_RTOL)
+        return S.reduce(self.order, strategy, per="lifted")
 
 
 class ReverseMapping:

@@ -40,7 +40,7 @@ therefore makes the basis a function of the subspace only:
    cannot flip a tie), the axis ``P e_j / sqrt(P_jj)``, deflate ``P`` and repeat.
 
 For a single singular value this only fixes the sign (largest component positive).  For the
-lifted zonotopes of constrained zonotopes the cluster tolerance is wide (``1e-2 * s_max``,
+lifted zonotopes of constrained zonotopes the cluster tolerance is wider (``1e-3 * s_max``,
 :meth:`PCA.lifted`) on purpose: an axis is determined by the matrix only to
 ``eps * s_max / gap``, and axes of values closer than that moved with the BLAS kernel by enough
 for those filters to amplify (see :data:`._step_jit.LIFTED_CLUSTER_RTOL`).
@@ -62,7 +62,13 @@ from typing import Protocol
 import numpy as np
 
 from . import _jit, _step_jit
-from ._step_jit import BOX_ZERO_RTOL, CLUSTER_RTOL, LIFTED_CLUSTER_RTOL, PIVOT_RTOL, TIE_RTOL
+from ._step_jit import (
+    BOX_ZERO_RTOL,
+    CLUSTER_RTOL,
+    LIFTED_CLUSTER_RTOL,
+    PIVOT_RTOL,
+    TIE_RTOL,
+)
 from .errors import SetError
 
 
@@ -219,10 +225,11 @@ class PCA:
     def __init__(self, cluster_rtol: float = CLUSTER_RTOL):
         self.cluster_rtol = cluster_rtol
 
-    def lifted(self) -> PCA:
-        """The strategy for the lifted zonotopes of constrained zonotopes: wider clusters
-        (:data:`._step_jit.LIFTED_CLUSTER_RTOL`, whose comment says why)."""
-        return PCA(LIFTED_CLUSTER_RTOL)
+    def lifted(self, cluster_rtol: float = LIFTED_CLUSTER_RTOL) -> PCA:
+        """The strategy for the lifted zonotopes of constrained zonotopes: clusters at least
+        as wide as ``cluster_rtol`` (:data:`._step_jit.LIFTED_CLUSTER_RTOL`, whose comment
+        says why)."""
+        return PCA(max(self.cluster_rtol, cluster_rtol))
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
         out = _compiled(G, order, "pca", self.cluster_rtol)
@@ -238,12 +245,12 @@ class PCA:
         return np.hstack([keep, U * np.where(box > BOX_ZERO_RTOL * box.max(), box, 0.0)])
 
 
-def lifted_reduction(strategy: Reduction) -> Reduction:
+def lifted_reduction(strategy: Reduction, **options) -> Reduction:
     """The strategy to reduce the lifted zonotope of a constrained zonotope with: the
-    strategy's own variant for lifted zonotopes where it has one (a ``lifted()`` method:
-    :meth:`PCA.lifted`), else the strategy itself."""
+    strategy's own variant for lifted zonotopes where it has one (a ``lifted(**options)``
+    method: :meth:`PCA.lifted`), else the strategy itself."""
     lifted = getattr(strategy, "lifted", None)
-    return lifted() if callable(lifted) else strategy
+    return lifted(**options) if callable(lifted) else strategy
 
 
 def cora_principal_axes(red: np.ndarray) -> np.ndarray:
