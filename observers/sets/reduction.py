@@ -71,6 +71,10 @@ from ._step_jit import (
 )
 from .errors import SetError
 
+#: the cluster tolerance of the data-driven observers' lifted reductions (defined with the
+#: compiled kernel, :data:`._step_jit.DATA_DRIVEN_CLUSTER_RTOL`, which says why)
+DATA_DRIVEN_CLUSTER_RTOL = _step_jit.DATA_DRIVEN_CLUSTER_RTOL
+
 
 class Reduction(Protocol):
     """Interface of an order-reduction strategy.
