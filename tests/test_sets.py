@@ -225,3 +225,75 @@ def test_empty_conzonotope_is_reported():
     CZ = ConZonotope([0.0], [[1.0]], [[1.0]], [2.0])  # xi = 2 outside the box
     with pytest.raises(SetError, match="empty"):
         CZ.interval()
+
+
+# -- rounding-independent reductions (issue 37) ---------------------------------------------------
+@pytest.mark.parametrize("compiled", ["1", "0"])
+def test_pca_box_width_of_an_unspanned_axis_is_exactly_zero(compiled, monkeypatch):
+    # reduced generators along one line (rank 1) leave the other principal axis a width that
+    # is zero in exact arithmetic; a rounding-level perturbation (1e-19) must not turn it into
+    # a kept column on one machine and a dropped one on another
+    monkeypatch.setenv("SETOBS_NUMBA", compiled)
+    d = np.array([0.6, 0.8])
+    base = np.outer(d, [4.0, 3.0, 1.0, 2.0, 0.5, 0.25])
+    for tiny in (0.0, 1e-19, -1e-19):
+        G = base.copy()
+        G[1, 3] += tiny  # a generator nudged off the line by rounding
+        out = get_reduction("pca").reduce(G, 2.0)  # keeps 4d and 3d, boxes the others
+        box = out[:, 2:]
+        widths = np.linalg.norm(box, axis=0)
+        assert np.count_nonzero(widths) == 1
+        assert widths.max() == pytest.approx(3.75)  # |1 + 2 + 0.5 + 0.25| along d
+
+
+@pytest.mark.parametrize("compiled", ["1", "0"])
+def test_reduction_ranks_generators_that_tie_to_rounding_by_index(compiled, monkeypatch):
+    # two generators whose metric ||g||_1 - ||g||_inf ties in exact arithmetic but differs in
+    # the last bit: the one with the lower index is reduced, whichever bit pattern we got
+    monkeypatch.setenv("SETOBS_NUMBA", compiled)
+    big = np.array([[4.0, 0.0], [0.0, 4.0]])
+    for eps in (1e-15, -1e-15):
+        g1 = np.array([1.0, 1.0])
+        g2 = np.array([-1.0, 1.0 + eps])  # same metric up to rounding, another direction
+        G = np.column_stack([big, g1, g2])
+        out = get_reduction("girard").reduce(G, 1.5)  # keeps floor(2 * 0.5) = 1 column
+        # the metrics are 0, 0 (the axis-aligned ones), 1 and 1 + eps: g1 (index 2) is
+        # reduced and g2 kept whatever the sign of eps (without the tie band: the smaller)
+        np.testing.assert_allclose(out[:, 0], [-1.0, 1.0], atol=1e-12)
+
+
+def test_constraint_elimination_regresses_without_squaring_the_condition_number():
+    # ||G - L A_S||_F minimised by L = G A_S' (A_S A_S')^+: with nearly dependent rows the
+    # Gram route loses cond(A_S)^2 eps; the least-squares route matches the exact solution
+    from observers.sets.conzono_ops import _regress
+
+    X = np.array([[1.0, 1.0, 0.0, 0.0], [1.0, 1.0 + 1e-7, 0.0, 0.0]])
+    Y = np.array([[2.0, 3.0, 1.0, 0.0]])
+    # exact (hand): X' K' = Y' in least squares; rows of X span e1 + e2 and e2 (1e-7 scaled)
+    K_exact = Y @ np.linalg.pinv(X, rcond=1e-15)
+    np.testing.assert_allclose(_regress(Y, X), K_exact, rtol=1e-8)
+
+
+def test_lifted_pca_uses_wider_clusters():
+    from observers.sets.reduction import (
+        CLUSTER_RTOL,
+        DATA_DRIVEN_CLUSTER_RTOL,
+        LIFTED_CLUSTER_RTOL,
+        PCA,
+        lifted_reduction,
+    )
+
+    assert CLUSTER_RTOL < LIFTED_CLUSTER_RTOL < DATA_DRIVEN_CLUSTER_RTOL
+    assert lifted_reduction(get_reduction("pca")).cluster_rtol == LIFTED_CLUSTER_RTOL
+    wide = lifted_reduction(get_reduction("pca"), cluster_rtol=DATA_DRIVEN_CLUSTER_RTOL)
+    assert wide.cluster_rtol == DATA_DRIVEN_CLUSTER_RTOL
+    assert lifted_reduction(wide).cluster_rtol == DATA_DRIVEN_CLUSTER_RTOL  # never narrower
+    assert lifted_reduction(get_reduction("girard")) is get_reduction("girard")
+    # within a cluster the axes depend on the subspace only: two singular values 1e-4 apart
+    # (relative) give the coordinate axes under the lifted tolerance, whatever the rotation
+    G = np.diag([1.0, 1.0 - 1e-4])
+    R = np.array([[np.cos(0.3), -np.sin(0.3)], [np.sin(0.3), np.cos(0.3)]])
+    from observers.sets.reduction import principal_axes
+    U = principal_axes(G @ R, LIFTED_CLUSTER_RTOL)
+    np.testing.assert_allclose(np.abs(U), np.eye(2), atol=1e-12)
+    assert isinstance(wide, PCA)
