@@ -211,7 +211,8 @@ def _with_version(meta: dict, version: str | None = None) -> dict:
     return {**meta, VERSION_KEY: project_version() if version is None else version}
 
 
-def _meta(cfg: BenchConfig, cache_note: str, kernels_compared: list[str] | None) -> dict:
+def _meta(cfg: BenchConfig, cache_note: str, kernels_compared: list[str] | None = None
+          ) -> dict:
     env = environment()
     return _with_version({
         "config": {"name": cfg.name, "raw": cfg.raw},
