@@ -17,9 +17,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import DesignFailed, Diverged, MeasurementError, OptionError, Unsupported
+from .errors import DesignFailed, Diverged, EmptySet, MeasurementError, OptionError, Unsupported
 from .options import OptionSpec, as_spec
-from .sets.errors import EmptySet
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Errors raised by observers, their designs and the registry.
+"""Errors raised by observers, their designs, the registry and the set types.
 
 The benchmark runner turns :class:`DesignFailed` into the table status ``noGain`` and
 :class:`Diverged` into ``diverged`` (as the papers do) and carries on with the next observer.
@@ -44,3 +44,15 @@ class Diverged(ObserverError):
     def __init__(self, message: str, step: int | None = None):
         super().__init__(message if step is None else f"step {step}: {message}")
         self.step = step
+
+
+class SetError(ValueError):
+    """A set was built or used with invalid data (wrong shape, NaN/inf, empty, mismatched dims).
+
+    Raised by :mod:`observers.sets` and :mod:`observers.lp` (re-exported by
+    :mod:`observers.sets`)."""
+
+
+class EmptySet(SetError):
+    """An operation found the set empty (e.g. infeasible constraints of a constrained
+    zonotope): for an estimate this means the measurements contradict the model."""

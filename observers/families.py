@@ -51,10 +51,11 @@ import numpy as np
 from .base import Observer
 from .enclosures import ENCLOSURES, Smooth
 from .errors import ObserverError, Unsupported
-from .kernels import KernelByOption, StepKernel
+from .kernels import KernelByOption, StepKernel, switch
+from .kernels import step as kernel_step
 from .options import Choice, reduction_method, zonotope_order
 from .prediction import LinearPrediction, prediction_for
-from .sets import Interval, Zonotope, _jit, _step_jit, get_reduction
+from .sets import Interval, Zonotope, get_reduction
 from .sets.reduction import compiled_name
 
 
@@ -223,7 +224,7 @@ class ZonotopeObserver(LinearModelObserver):
 
     A subclass whose step a compiled kernel computes exactly declares it in ``KERNEL``
     (:mod:`observers.kernels`); on a linear system with a built-in reduction the family then
-    runs each step but the first as one compiled call (:mod:`observers.sets._step_jit`), with
+    runs each step but the first as one compiled call (:mod:`observers.kernels.step`), with
     the numpy path as fallback for a step the kernel cannot vouch for.
     """
 
@@ -274,7 +275,7 @@ class ZonotopeObserver(LinearModelObserver):
 
     def kernel_inputs(self) -> dict[str, Any]:
         """The observer's own static inputs of its compiled kernel (keywords of
-        :func:`observers.sets._step_jit.prepare`): the constant gain ``L`` for the kernels
+        :func:`observers.kernels.step.prepare`): the constant gain ``L`` for the kernels
         that take one (default), nothing for the others."""
         return {"gain": self.L} if self._step_kernel.given_gain else {}
 
@@ -284,14 +285,14 @@ class ZonotopeObserver(LinearModelObserver):
         #: reset (a compiled step is not split into phases, nor timed here)
         self.phase_times = {"prediction": 0.0, "update": 0.0, "reduction": 0.0}
         #: the compiled kernel with the static data of this run (at its first compiled step)
-        self._kernel_run: _step_jit.StepRun | None = None
+        self._kernel_run: kernel_step.StepRun | None = None
 
-    def _prepare_run(self) -> _step_jit.StepRun:
+    def _prepare_run(self) -> kernel_step.StepRun:
         """The compiled kernel and the static data of this run (at its first compiled step).
         The data are read-only C-contiguous float copies made once per run, so that every
         step passes arguments of the same types and numba compiles each kernel once (a
         read-only array is a different type from a writable one)."""
-        self._kernel_run = _step_jit.prepare(
+        self._kernel_run = kernel_step.prepare(
             self._step_kernel.value, self._reduction_name, self.order, A=self.A, B=self.B,
             W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F, V_c=self.V.c,
             **self.kernel_inputs())
@@ -301,7 +302,7 @@ class ZonotopeObserver(LinearModelObserver):
         """The set of this step by the compiled kernel from the current set, the input ``u``
         and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
         path runs (no kernel for this observer, or the kernel declined the step)."""
-        if self._step_kernel is None or not _jit.use_compiled():
+        if self._step_kernel is None or not switch.use_compiled():
             return None
         kernel, data, args = self._kernel_run or self._prepare_run()
         try:
@@ -316,7 +317,7 @@ class ZonotopeObserver(LinearModelObserver):
         every step, by the compiled kernel or the numpy path)."""
         self._c, self._G = c, G
         self.k += 1
-        return Zonotope._trusted(c, G)
+        return Zonotope.trusted(c, G)
 
 
 class StripBasedObserver(ZonotopeObserver):

@@ -113,23 +113,23 @@ def cached_design(
     if folder is None:
         return compute()
     path = folder / f"{kind}-{design_key(kind, version, arrays, params)}.npz"
-    result = _load(path, verify)
+    result = load_entry(path, verify)
     if result is not None:
         CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
     else:
         # one writer per key: concurrent workers wanting the same design wait for the first
         # one and then load its result instead of solving the same SDP again
-        with _key_lock(path):
-            result = _load(path, verify, warn=False)  # (warned above)
+        with key_lock(path):
+            result = load_entry(path, verify, warn=False)  # (warned above)
             if result is not None:
                 CACHE_LOADS[kind] = CACHE_LOADS.get(kind, 0) + 1
             else:
                 try:
                     result = compute()
                 except DesignFailed as exc:
-                    _store(path, {_FAILED: np.array(str(exc))})
+                    store_entry(path, {_FAILED: np.array(str(exc))})
                     raise
-                _store(path, result)
+                store_entry(path, result)
     if _FAILED in result:
         raise DesignFailed(str(result[_FAILED]))
     return result
@@ -145,8 +145,8 @@ def content_hash(arrays: Mapping[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def _load(path: Path, verify: Callable[[dict[str, np.ndarray]], None] | None = None,
-          warn: bool = True) -> dict[str, np.ndarray] | None:
+def load_entry(path: Path, verify: Callable[[dict[str, np.ndarray]], None] | None = None,
+               warn: bool = True) -> dict[str, np.ndarray] | None:
     """The verified entry at ``path``, or None (missing; or invalid: warned, recomputed)."""
     if not path.is_file():
         return None
@@ -170,7 +170,7 @@ def _load(path: Path, verify: Callable[[dict[str, np.ndarray]], None] | None = N
 
 
 @contextlib.contextmanager
-def _key_lock(path: Path):
+def key_lock(path: Path):
     """An exclusive advisory lock on ``path.lock`` (POSIX ``flock``; released if the holder
     dies); without ``fcntl`` or a writable folder, no lock (writes stay atomic)."""
     try:
@@ -192,7 +192,9 @@ def _key_lock(path: Path):
         fh.close()  # closing releases the lock
 
 
-def _store(path: Path, arrays: dict[str, np.ndarray]) -> None:
+def store_entry(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write the entry ``arrays`` at ``path`` atomically with its content hash (checked by
+    :func:`load_entry`); an unwritable cache is silently skipped (the design is recomputed)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")

@@ -48,7 +48,7 @@ class LinearPrediction:
         return self.A
 
 
-def _box_generators(r: np.ndarray) -> np.ndarray:
+def box_generators(r: np.ndarray) -> np.ndarray:
     """Generators ``diag(r)`` of the non-zero radii ``r``."""
     nz = np.flatnonzero(r > 0)
     R = np.zeros((r.shape[0], nz.size))
@@ -149,7 +149,7 @@ class ConservativeLinearisation:
             rad = np.nextafter(rad + 8 * eps * (c.size ** 2 + len(i)) * mag, np.inf)
         if not (np.all(np.isfinite(rad)) and np.all(np.isfinite(J)) and np.all(np.isfinite(Z))):
             raise Diverged("non-finite linearisation", step=k)
-        return J, fc + cq - J @ c, np.hstack([Z, _box_generators(rad)])
+        return J, fc + cq - J @ c, np.hstack([Z, box_generators(rad)])
 
 
 class MeanValuePrediction:
@@ -178,7 +178,7 @@ class MeanValuePrediction:
         d = self.system.f(c, u) - Jm @ c
         # rounding of f(c) and of the centre terms: a relative ulp margin on d
         rem = rem + 4 * np.finfo(float).eps * (np.abs(d) + np.abs(Jm @ c))
-        return Jm, d, _box_generators(rem)
+        return Jm, d, box_generators(rem)
 
 
 def prediction_for(system, reduction, strategy: str = "lagrange", remainder: str = "box"):

@@ -131,7 +131,7 @@ class SymbolicDerivatives:
         arithmetic); ``lo`` and ``hi`` may carry a trailing axis of boxes (or points, with
         ``lo == hi``), evaluated all at once."""
         xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
-        vals = [Ival._of(v) for v in self._value_interval(xs, tuple(float(v) for v in u))]
+        vals = [Ival.of(v) for v in self._value_interval(xs, tuple(float(v) for v in u))]
         shape = np.broadcast(np.asarray(lo[0]), np.asarray(hi[0])).shape
         return Ival(np.array([np.broadcast_to(v.lo, shape) for v in vals], dtype=float),
                     np.array([np.broadcast_to(v.hi, shape) for v in vals], dtype=float))
@@ -141,7 +141,7 @@ class SymbolicDerivatives:
         if not self.hessian_entries:
             return Ival(np.zeros(0))
         xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
-        vals = [Ival._of(v) for v in self._hess(xs, tuple(float(v) for v in u))]
+        vals = [Ival.of(v) for v in self._hess(xs, tuple(float(v) for v in u))]
         return Ival(np.array([v.lo for v in vals], dtype=float),
                     np.array([v.hi for v in vals], dtype=float))
 
@@ -152,6 +152,6 @@ class SymbolicDerivatives:
         xs = tuple(Ival(a, b) for a, b in zip(lo, hi, strict=True))
         vals = self._jx_interval(xs, tuple(float(v) for v in u))
         for (i, j), v in zip(self._jx_entries, vals, strict=True):
-            v = Ival._of(v)
+            v = Ival.of(v)
             Jlo[i, j], Jhi[i, j] = v.lo, v.hi
         return Jlo, Jhi

@@ -12,8 +12,8 @@ from scipy.optimize import linprog
 import observers
 import systems
 from observers import OptionError
+from observers.lp.hull import HullLP, dual_bound
 from observers.sets import ConZonotope, SetError, Zonotope
-from observers.sets._lp import HullLP, dual_bound
 
 CZN = ["CZN-A", "CZN-B"]
 

@@ -1,4 +1,4 @@
-"""The batched dual simplex of the constrained-zonotope hulls (observers.sets._dual_simplex):
+"""The batched dual simplex of the constrained-zonotope hulls (observers.lp.dual_simplex):
 its bounds are never below the true maximum (sampled feasible points) and never looser than
 HiGHS's dual bounds, on random and degenerate sets, by its numpy and its compiled (numba)
 iterations, which agree with each other; empty sets and sets without constraints."""
@@ -16,11 +16,12 @@ from scipy.optimize import linprog
 
 import observers
 import systems
-from observers.sets import ConZonotope, HullLP, SetError, _dual_simplex_jit
-from observers.sets import _dual_simplex as ds
-from observers.sets._lp import dual_bounds
+from observers.lp import dual_simplex as ds
+from observers.lp import dual_simplex_jit
+from observers.lp.hull import dual_bounds
+from observers.sets import ConZonotope, HullLP, SetError
 
-needs_numba = pytest.mark.skipif(not _dual_simplex_jit.AVAILABLE,
+needs_numba = pytest.mark.skipif(not dual_simplex_jit.AVAILABLE,
                                  reason="numba not installed or disabled")
 
 
@@ -149,7 +150,7 @@ def test_compiled_iterations_give_the_numpy_bounds_on_czn_observer_sets():
 
 
 def test_numba_can_be_disabled_by_the_environment():
-    code = "from observers.sets import _dual_simplex as d; print(d.use_compiled())"
+    code = "from observers.lp import dual_simplex as d; print(d.use_compiled())"
     env = dict(os.environ, SETOBS_NUMBA="0")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True)
@@ -209,7 +210,7 @@ def test_unfinished_lps_fall_back_to_highs(monkeypatch):
 
 
 def test_solver_choice_follows_the_cost_model():
-    from observers.sets._lp import batched_is_cheaper
+    from observers.lp.hull import batched_is_cheaper
     assert batched_is_cheaper(12, 8)  # interval hull of the 6-state vehicle, 2 m constraints
     assert not batched_is_cheaper(4, 100)  # 2-state vehicle with all of CORA's constraints
     assert batched_is_cheaper(36, 22)  # 18 tanks (measured: 4x faster than HiGHS)

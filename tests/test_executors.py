@@ -265,11 +265,11 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
     import sys
 
     code = ("import sys; import benchmarks.run.workerinit; "
-            "from observers.sets import _dual_simplex_jit, _step_jit; "
+            "from observers.lp import dual_simplex_jit; from observers.kernels import step as ks; "
             "print('observers.builtin.czn' in sys.modules, 'highspy' in sys.modules, "
-            "not _dual_simplex_jit.AVAILABLE or len(_dual_simplex_jit.iterate.signatures) > 0, "
+            "not dual_simplex_jit.AVAILABLE or len(dual_simplex_jit.iterate.signatures) > 0, "
             "all(k is None or len(k.signatures) == 1 "
-            "for k in (_step_jit.strip_step, _step_jit.propagate_step, _step_jit.bravo_step)))")
+            "for k in (ks.strip_step, ks.propagate_step, ks.bravo_step)))")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert res.stdout.split() == ["True", "True", "True", "True"]

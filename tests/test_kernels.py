@@ -1,8 +1,8 @@
 """Compiled (numba) kernels of the zonotope observers give the sets of the numpy path.
 
-:mod:`observers.sets._step_jit` runs the order reductions and the one-step formulas of the
+:mod:`observers.kernels.step` runs the order reductions and the one-step formulas of the
 strip and propagation families in one compiled call; ``SETOBS_NUMBA=0`` (or
-:func:`observers.sets._jit.set_compiled`) selects the numpy path.  Girard's reduction is
+:func:`observers.kernels.switch.set_compiled`) selects the numpy path.  Girard's reduction is
 bit-equal (same selection, the box summed in numpy's pairwise order); PCA and the step kernels
 agree to rounding (numba's LAPACK/BLAS is SciPy's, numpy's its own).  Each compiled formula
 carries the name of its numpy twin, and the twins are compared one to one.
@@ -16,23 +16,24 @@ import pytest
 import observers
 import systems
 from observers import families
-from observers.kernels import KernelByOption, StepKernel
+from observers.kernels import KernelByOption, StepKernel, switch
+from observers.kernels import step as kernel_step
 from observers.numerics import frad, volmin
-from observers.sets import _jit, _step_jit, get_reduction
+from observers.sets import get_reduction
 
-needs_numba = pytest.mark.skipif(not _jit.AVAILABLE, reason="numba not installed or disabled")
+needs_numba = pytest.mark.skipif(not switch.AVAILABLE, reason="numba not installed or disabled")
 pytestmark = needs_numba
 
 
 def both_paths(fn):
     """``fn()`` with the compiled kernels and with the numpy path (switch restored)."""
-    old = _jit.set_compiled(True)
+    old = switch.set_compiled(True)
     try:
         compiled = fn()
-        _jit.set_compiled(False)
+        switch.set_compiled(False)
         plain = fn()
     finally:
-        _jit.set_compiled(old)
+        switch.set_compiled(old)
     return compiled, plain
 
 
@@ -70,15 +71,15 @@ def test_jacobi_principal_axes_equal_lapacks(seed):
     G, _ = random_generators(seed)
     if G.shape[1] == 0 or not np.abs(G).max() > 0:
         return
-    lapack = _step_jit._principal_axes(G, 1e-9, 1e-6, 0)
-    jacobi = _step_jit._principal_axes(G, 1e-9, 1e-6, 12)
+    lapack = kernel_step._principal_axes(G, 1e-9, 1e-6, 0)
+    jacobi = kernel_step._principal_axes(G, 1e-9, 1e-6, 12)
     np.testing.assert_allclose(jacobi, lapack, rtol=0, atol=1e-9)
     np.testing.assert_allclose(jacobi.T @ jacobi, np.eye(G.shape[0]), atol=1e-13)
 
 
 def test_reduction_kernel_leaves_non_finite_matrices_to_numpy():
     G = np.array([[1.0, np.nan, 2.0, 0.5], [0.0, 1.0, 1.0, 3.0]])
-    out, ok = _step_jit.reduce(G, 1.0, _step_jit.REDUCTIONS["girard"], 1e-9, 1e-6, 0)
+    out, ok = kernel_step.reduce(G, 1.0, kernel_step.REDUCTIONS["girard"], 1e-9, 1e-6, 0)
     assert not ok and out.shape == (2, 0)
     compiled, plain = both_paths(lambda: get_reduction("girard").reduce(G, 1.0))
     np.testing.assert_array_equal(compiled, plain)  # the numpy path decided both
@@ -88,7 +89,7 @@ def test_pairwise_sum_is_numpys():
     rng = np.random.default_rng(3)
     for m in [*range(0, 140), 255, 256, 1000, 4099]:
         a = rng.random(m) * 10.0 ** rng.uniform(-8, 8, size=m)
-        assert _step_jit._pairwise_sum(a, m) == a.sum()
+        assert kernel_step._pairwise_sum(a, m) == a.sum()
 
 
 # -- the compiled formulas against their numpy twins, one to one ------------------------------
@@ -114,7 +115,7 @@ def _close(compiled, plain):
 @pytest.mark.parametrize("seed", range(5))
 def test_strip_update_twin(seed):
     c, G, C, y, sigma, _, _, _, L = _problem(seed)
-    for got, want in zip(_step_jit.strip_update(c, G, L, C, y, sigma),
+    for got, want in zip(kernel_step.strip_update(c, G, L, C, y, sigma),
                          families.strip_update(c, G, L, C, y, sigma), strict=True):
         _close(got, want)
 
@@ -123,7 +124,7 @@ def test_strip_update_twin(seed):
 def test_propagate_twin(seed):
     c, G, C, y, sigma, A, E, F, L = _problem(seed)
     d, V, W = np.arange(4.0), (0.1 * np.ones(2), F), (0.2 * np.ones(4), E)
-    for got, want in zip(_step_jit.propagate(c, G, A, d, C, L, y, V, W),
+    for got, want in zip(kernel_step.propagate(c, G, A, d, C, L, y, V, W),
                          families.propagate(c, G, A, d, C, L, y, V, W), strict=True):
         _close(got, want)
 
@@ -131,7 +132,7 @@ def test_propagate_twin(seed):
 @pytest.mark.parametrize(("seed", "m"), [(0, 1), (1, 2), (2, 3), (3, 2)])
 def test_alamo_frad_strips_twin(seed, m):
     c, G, C, y, sigma, *_ = _problem(seed, m)
-    for got, want in zip(_step_jit.alamo_frad_strips(c, G, C, y, sigma),
+    for got, want in zip(kernel_step.alamo_frad_strips(c, G, C, y, sigma),
                          frad.alamo_frad_strips(c, G, C, y, sigma), strict=True):
         _close(got, want)
 
@@ -141,7 +142,7 @@ def test_alamo_frad_strips_twin(seed, m):
 def test_wang_frad_gain_twin(seed, cora):
     _, G, C, _, _, A, E, F, _ = _problem(seed)
     P = G @ G.T
-    got, ok = _step_jit.wang_frad_gain(P, A if cora else None, C, E, F)
+    got, ok = kernel_step.wang_frad_gain(P, A if cora else None, C, E, F)
     assert ok
     _close(got, frad.wang_frad_gain(P, A if cora else None, C, E, F))
 
@@ -150,7 +151,7 @@ def test_wang_frad_gain_twin(seed, cora):
 def test_combastel_gain_twin(seed):
     _, G, C, _, _, A, _, F, _ = _problem(seed)
     P = G @ G.T
-    got, ok = _step_jit.combastel_gain(P, A, C, F)
+    got, ok = kernel_step.combastel_gain(P, A, C, F)
     assert ok
     _close(got, frad.combastel_gain(P, A, C, F))
 
@@ -159,10 +160,10 @@ def test_compiled_gains_decline_what_the_numpy_path_must_decide():
     _, G, C, _, _, A, E, F, _ = _problem(0)
     P = G @ G.T
     P[0, 0] = np.nan
-    assert not _step_jit.wang_frad_gain(P, A, C, E, F)[1]
-    assert not _step_jit.combastel_gain(P, A, C, F)[1]
+    assert not kernel_step.wang_frad_gain(P, A, C, E, F)[1]
+    assert not kernel_step.combastel_gain(P, A, C, F)[1]
     zero = np.zeros((4, 4))  # S = C 0 C' + 0: singular, numpy takes the pseudo-inverse
-    assert not _step_jit.combastel_gain(zero, A, C, np.zeros((2, 2)))[1]
+    assert not kernel_step.combastel_gain(zero, A, C, np.zeros((2, 2)))[1]
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -170,16 +171,16 @@ def test_bravo_choice_and_update_twins(seed):
     c, G, C, y, sigma, *_ = _problem(seed, 1)
     row = C[0]
     basis = volmin.null_basis(row)
-    j = _step_jit.bravo_choice(G, row.copy(), sigma[0], basis, volmin.ZERO_PROJECTION)
+    j = kernel_step.bravo_choice(G, row.copy(), sigma[0], basis, volmin.ZERO_PROJECTION)
     assert j == volmin.bravo_choice(G, row, sigma[0], basis)
     for jj in {0, j, 1 + seed % G.shape[1]}:
-        for got, want in zip(_step_jit.bravo_update(c, G, row, y[0], sigma[0], jj),
+        for got, want in zip(kernel_step.bravo_update(c, G, row, y[0], sigma[0], jj),
                              volmin.bravo_update(c, G, row, y[0], sigma[0], jj), strict=True):
             _close(got, want)
 
 
 def test_every_kernel_is_compiled_and_declared_by_an_observer():
-    assert set(_step_jit.KERNEL_NAMES) == {k.value for k in StepKernel}
+    assert set(kernel_step.KERNEL_NAMES) == {k.value for k in StepKernel}
     declared = set()
     for name in observers.names():
         kernel = getattr(observers.get(name).cls, "KERNEL", None)
@@ -239,7 +240,7 @@ def test_each_kernel_is_compiled_once():
     sc = systems.scenario("vehicle2d-cora")
     for name, options in CASES:
         observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
-    for kernel in (_step_jit.strip_step, _step_jit.propagate_step, _step_jit.bravo_step):
+    for kernel in (kernel_step.strip_step, kernel_step.propagate_step, kernel_step.bravo_step):
         assert len(kernel.signatures) == 1, kernel.signatures
 
 

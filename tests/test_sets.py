@@ -265,13 +265,13 @@ def test_reduction_ranks_generators_that_tie_to_rounding_by_index(compiled, monk
 def test_constraint_elimination_regresses_without_squaring_the_condition_number():
     # ||G - L A_S||_F minimised by L = G A_S' (A_S A_S')^+: with nearly dependent rows the
     # Gram route loses cond(A_S)^2 eps; the least-squares route matches the exact solution
-    from observers.sets.conzono_ops import _regress
+    from observers.sets.conzono_ops import regress
 
     X = np.array([[1.0, 1.0, 0.0, 0.0], [1.0, 1.0 + 1e-7, 0.0, 0.0]])
     Y = np.array([[2.0, 3.0, 1.0, 0.0]])
     # exact (hand): X' K' = Y' in least squares; rows of X span e1 + e2 and e2 (1e-7 scaled)
     K_exact = Y @ np.linalg.pinv(X, rcond=1e-15)
-    np.testing.assert_allclose(_regress(Y, X), K_exact, rtol=1e-8)
+    np.testing.assert_allclose(regress(Y, X), K_exact, rtol=1e-8)
 
 
 def test_lifted_pca_uses_wider_clusters():

@@ -199,14 +199,14 @@ def test_gram_update_is_the_gram_matrix_of_the_candidate(j):
 
 
 def test_compiled_gram_choice_and_update_are_twins_of_numpy():
+    from observers.kernels import step as kernel_step
     from observers.numerics.volmin import bravo_scores_gram, gram_update, null_basis
-    from observers.sets import _step_jit
 
     rng = np.random.default_rng(7)
     for _ in range(8):
         G, c = rng.normal(size=(4, 30)), rng.normal(size=4)
         M, B = G @ G.T, null_basis(c)
-        j = _step_jit.bravo_choice_gram(G, M, c, 0.2, B, ZERO_PROJECTION)
+        j = kernel_step.bravo_choice_gram(G, M, c, 0.2, B, ZERO_PROJECTION)
         assert j == int(np.argmin(bravo_scores_gram(G, M, c, 0.2, B)))
-        np.testing.assert_allclose(_step_jit.gram_update(M, G, c, 0.2, j),
+        np.testing.assert_allclose(kernel_step.gram_update(M, G, c, 0.2, j),
                                    gram_update(M, G, c, 0.2, j), atol=1e-12)

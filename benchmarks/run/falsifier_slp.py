@@ -64,7 +64,7 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import linprog
 
-from observers.sets.highs import new_highs
+from observers.lp import new_highs
 from systems.errors import ModelError
 
 #: factors of X0 and W are kept within 1 - FACTOR_MARGIN during the search

@@ -40,8 +40,8 @@ from dataclasses import dataclass, field
 import highspy
 import numpy as np
 
+from observers.lp import new_highs
 from observers.sets import ConZonotope, Interval, Zonotope, ZonotopeBundle
-from observers.sets.highs import new_highs
 
 _EPS = np.finfo(float).eps
 #: relative feasibility tolerance of the LP (HiGHS's default is 1e-7)

@@ -4,7 +4,7 @@
 Importing this module imports the harness (:mod:`benchmarks.run.runner`), every observer plugin
 (with what they import: HiGHS, scipy.stats, numba, ...) and loads the compiled (numba) simplex
 kernel from its disk cache by solving one tiny hull LP, and the compiled one-step kernels
-(:mod:`observers.sets._step_jit`) by two steps of one observer per kernel on the
+(:mod:`observers.kernels.step`) by two steps of one observer per kernel on the
 2-state example.  A worker forked from that server
 then pays none of it: without this, each worker spent about 2.5 s of CPU importing the
 plugins and loading the kernel at its first job (measured on the 3 x 22 x 20 sweep).

@@ -23,9 +23,9 @@ then reduce), which the conformance tests use.
 
 Interval hulls: every returned set carries the observer's :class:`~observers.sets.HullLP`,
 so the runner's ``S.interval()`` solves its 2n LPs together with the batched dual simplex of
-:mod:`observers.sets._dual_simplex` (compiled by numba when available; HiGHS, kept alive across
+:mod:`observers.lp.dual_simplex` (compiled by numba when available; HiGHS, kept alive across
 steps, for an LP it does not finish and for sets with more than
-:data:`~observers.sets._lp.BATCHED_MAX_ROWS` constraints); every bound is the weak-duality
+:data:`~observers.lp.hull.BATCHED_MAX_ROWS` constraints); every bound is the weak-duality
 bound of a dual point, hence sound whatever the solver does.
 """
 
@@ -40,7 +40,7 @@ from ..enclosures import DC_MAX_STATES, ENCLOSURES, Smooth
 from ..errors import OptionError, Unsupported
 from ..families import Linearised, ZonotopeObserver
 from ..options import Choice, Integer, Number
-from ..prediction import _box_generators
+from ..prediction import box_generators
 from ..registry import register
 from ..sets import ConZonotope, HullLP, HullLPStats
 from ..sets import conzono_ops as ops
@@ -179,7 +179,7 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
             r = np.abs(G).sum(axis=1)
             return c - r, c + r
         t0 = perf_counter()
-        S = ConZonotope._trusted(c, G, A, b, self._lp) if S is None else S
+        S = ConZonotope.trusted(c, G, A, b, self._lp) if S is None else S
         hull = S.interval()
         self.phase_times["hull"] += perf_counter() - t0
         return hull.lo, hull.hi
@@ -196,7 +196,7 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
             lo, hi = self.enclosure_box(c, G, A, b, self._set)
             how = self.ENCLOSURE or _ENCLOSURE_OF[self.LINEARISATION]
             self.A, d, rad = ENCLOSURES[how](self._dynamics, lo, hi, u, self.k)
-            R = _box_generators(rad)
+            R = box_generators(rad)
         c = self.A @ c + d + self.W.c
         G = np.hstack([self.A @ G, self.E, R])
         A = np.hstack([A, np.zeros((A.shape[0], self.E.shape[1] + R.shape[1]))])
@@ -223,7 +223,7 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         least-squares gain ``L = G A' (A A')^+`` (exact: ``A xi = b`` on the set)."""
         if not self._hull_box or A.shape[0] == 0:
             return c, G, A, b
-        L = ops._regress(G, A)
+        L = ops.regress(G, A)
         return c + L @ b, G - L @ A, A, b
 
     def lp_rescale(self, c, G, A, b):
@@ -298,7 +298,7 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
                 c, G, A, b = timed("reduction", self.limit, c, G, A, b)
         self._state = (c, G, A, b)
         self.k += 1
-        self._set = ConZonotope._trusted(c, G, A, b, self._lp)
+        self._set = ConZonotope.trusted(c, G, A, b, self._lp)
         return self._set
 
 

@@ -184,13 +184,13 @@ class ZonotopeDD(DataDrivenObserver):
         return self.X0
 
     def predict(self, S: Zonotope, u: np.ndarray) -> Zonotope:
-        ext = Zonotope._trusted(np.concatenate([S.c, u]),
+        ext = Zonotope.trusted(np.concatenate([S.c, u]),
                                 np.vstack([S.G, np.zeros((self.nu, S.G.shape[1]))]))
         P = self.M @ ext
-        return Zonotope._trusted(P.c + self.W.c, np.hstack([P.G, self.W.G]))
+        return Zonotope.trusted(P.c + self.W.c, np.hstack([P.G, self.W.G]))
 
     def reduce(self, S: Zonotope) -> Zonotope:
-        return Zonotope._trusted(S.c, self._reduction.reduce(S.G, self.order))
+        return Zonotope.trusted(S.c, self._reduction.reduce(S.G, self.order))
 
 
 class ConZonotopeDD(DataDrivenObserver):
@@ -391,7 +391,7 @@ class DDZA2(ImplicitIntersection, ZonotopeDD):
     def update(self, S: Zonotope, y: np.ndarray) -> Zonotope:
         L = self._gain(S.G)
         c, G = implicit_update(S.c, S.G, L, self.C, y, self.V.c, self.V.G)
-        return Zonotope._trusted(c, G)
+        return Zonotope.trusted(c, G)
 
 
 @register("DD-CZ-A2", family="data-driven", set_type="conzonotope", ready_for_control=False,

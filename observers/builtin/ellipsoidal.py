@@ -112,7 +112,7 @@ class EllipsoidalStripObserver(Observer):
                 "the update failed numerically)", step=self.k)
         self._state = (q, P, s2)
         self.k += 1
-        return Ellipsoid._trusted(q, P if self.cora else s2 * P)
+        return Ellipsoid.trusted(q, P if self.cora else s2 * P)
 
     def _no_weight(self, lam: float) -> Diverged:
         return Diverged(f"{self.name}: no valid update weight (lambda = {lam:.3g})", step=self.k)
@@ -301,7 +301,7 @@ class InvariantSetObserver(Observer):
                                       self.drive)
         self._x, self._level, self._y_prev = x, level, y
         self.k += 1
-        return Ellipsoid._trusted(x, level * self.Pinv)
+        return Ellipsoid.trusted(x, level * self.Pinv)
 
 
 @register(
@@ -487,4 +487,4 @@ class ESMF(Observer):
                            "the update failed numerically", step=self.k)
         self._state = (q, P, s2)
         self.k += 1
-        return Ellipsoid._trusted(q, s2 * P)
+        return Ellipsoid.trusted(q, s2 * P)

@@ -52,14 +52,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ObserverError, Unsupported
+from ..errors import EmptySet, ObserverError, Unsupported
 from ..families import LinearModelObserver
 from ..numerics import exact as ex
-from ..offline import _key_lock, _load, _store, cache_dir, design_key
+from ..offline import cache_dir, design_key, key_lock, load_entry, store_entry
 from ..options import Bool
 from ..registry import register
 from ..sets import Interval
-from ..sets.errors import EmptySet
 
 #: bump when the formulation or the bounds change, so that cached hulls are recomputed
 CACHE_VERSION = "2"  # 2: entries record their inexact steps
@@ -250,14 +249,14 @@ class Exact(LinearModelObserver):
         if path is None:
             yield
             return
-        with _key_lock(path):
+        with key_lock(path):
             yield
 
     def _open_cache(self, y0: np.ndarray) -> None:
         self._path = self._entry_path(y0)
         if self._path is None:
             return
-        entry = _load(self._path)
+        entry = load_entry(self._path)
         if entry is not None and all(k in entry for k in ("u", "y", "inexact", *_HULLS)):
             self._entry = entry
 
@@ -281,7 +280,7 @@ class Exact(LinearModelObserver):
                   "inexact": np.array(self._inexact, bool)}
         for key in _HULLS:
             arrays[key] = np.array([getattr(h, key) for h in self._hulls]).reshape(-1, n)
-        _store(self._path, arrays)
+        store_entry(self._path, arrays)
 
 
 def exact_hulls(system, u, y, *, cache: bool = True) -> dict[str, np.ndarray]:

@@ -98,4 +98,4 @@ class ROPO(LinearModelObserver):
         c, T = measurement_update(c, T, self.C, y - self._v_hi, y - self._v_lo)
         self._c, self._T = c, T
         self.k += 1
-        return Zonotope._trusted(c, T)  # never written to in place
+        return Zonotope.trusted(c, T)  # never written to in place

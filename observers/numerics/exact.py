@@ -69,7 +69,7 @@ with the single-variable output bounds; afterwards, the filtered hull widened by
 (relative to its width) intersected with the output bounds (and X0 for x_0, which encode
 constraints).  The margin keeps these bounds inactive, which saves degenerate pivots.
 
-Soundness (weak duality, as :func:`observers.sets._lp.dual_bounds`)
+Soundness (weak duality, as :func:`observers.lp.hull.dual_bounds`)
 --------------------------------------------------------------------
 For ``max c'z  s.t.  L <= M z <= U,  l <= z <= u`` and *any* multiplier ``mu`` (zero on the
 free rows), every feasible ``z`` satisfies
@@ -102,9 +102,9 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import EmptySet
+from ..lp import new_highs
 from ..sets import Interval
-from ..sets.errors import EmptySet
-from ..sets.highs import new_highs
 
 _EPS = np.finfo(float).eps
 _TINY = np.finfo(float).tiny

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sets.errors import EmptySet
+from ..errors import EmptySet
 from .exact import MARGIN, ExactHullLP, StepHulls, _Layout
 
 __all__ = ["WindowHullLP", "window_conzonotope"]

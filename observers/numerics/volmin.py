@@ -46,7 +46,7 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
-from observers.sets.highs import new_highs
+from observers.lp import new_highs
 
 #: CORA's threshold below which ``c g_j`` counts as zero (candidate j = unchanged zonotope;
 #: VolMin-B passes it to its compiled step too)

@@ -24,11 +24,11 @@ object across sets (:class:`HullLP`, ``S.with_solver(lp)``).  Zonotope bundles
 member by member and answer the hull and membership over the intersection by LP.
 """
 
-from ._lp import HullLP, HullLPStats
+from ..errors import EmptySet, SetError
+from ..lp import HullLP, HullLPStats
 from .bundle import ZonotopeBundle
 from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
-from .errors import EmptySet, SetError
 from .interval import Interval
 from .matrix_zonotope import IntervalMatrix, MatrixZonotope
 from .reduction import (

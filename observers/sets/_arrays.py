@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SetError
+from ..errors import SetError
 
 
 def frozen(a: np.ndarray) -> np.ndarray:

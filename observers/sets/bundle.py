@@ -11,7 +11,7 @@ at all members at once:
 
 * the **interval hull**, by linear programs over the intersection written as a constrained
   zonotope (``x = c_1 + G_1 xi_1`` with ``G_1 xi_1 - G_i xi_i = c_i - c_1``, Scott et al.
-  2016), every bound evaluated from a dual point (:mod:`observers.sets._lp`), hence sound,
+  2016), every bound evaluated from a dual point (:mod:`observers.lp.hull`), hence sound,
   and intersected with the members' own hulls;
 * **membership**, exact by one LP per member (a point is in the bundle iff it is in every
   member).
@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import EmptySet, SetError
+from ..lp import HullLP
 from ._arrays import linear_map_matrix, matrix, vector
-from ._lp import HullLP
 from .conzonotope import ConZonotope
-from .errors import EmptySet, SetError
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
@@ -75,7 +75,7 @@ class ZonotopeBundle:
         self._solver: HullLP | None = None
 
     @classmethod
-    def _trusted(cls, members, solver: HullLP | None = None) -> ZonotopeBundle:
+    def trusted(cls, members, solver: HullLP | None = None) -> ZonotopeBundle:
         """Build from zonotopes of one dimension without checks (hot loops)."""
         obj = object.__new__(cls)
         obj._members, obj._hull, obj._solver = tuple(members), None, solver
@@ -85,7 +85,7 @@ class ZonotopeBundle:
         """The same set, computing its hull LPs with the shared solver ``solver``."""
         if not isinstance(solver, HullLP):
             raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
-        return ZonotopeBundle._trusted(self._members, solver)
+        return ZonotopeBundle.trusted(self._members, solver)
 
     # -- data -----------------------------------------------------------------------------
     @property
@@ -110,7 +110,7 @@ class ZonotopeBundle:
     # -- operations (member by member) --------------------------------------------------------
     def __rmatmul__(self, M) -> ZonotopeBundle:
         M = linear_map_matrix(M, self.dim)
-        return ZonotopeBundle._trusted([M @ Z for Z in self._members], self._solver)
+        return ZonotopeBundle.trusted([M @ Z for Z in self._members], self._solver)
 
     def __add__(self, other) -> ZonotopeBundle:
         if isinstance(other, ZonotopeBundle):
@@ -126,7 +126,7 @@ class ZonotopeBundle:
             return NotImplemented
         else:
             other = vector(other, "translation vector", dim=self.dim)
-        return ZonotopeBundle._trusted([Z + other for Z in self._members], self._solver)
+        return ZonotopeBundle.trusted([Z + other for Z in self._members], self._solver)
 
     __radd__ = __add__
 
@@ -149,15 +149,15 @@ class ZonotopeBundle:
         for Z, L in zip(self._members, gains, strict=True):
             L = matrix(L, "strip gain", rows=self.dim, cols=m)
             c = Z.c + L @ (y - C @ Z.c)
-            out.append(Zonotope._trusted(c, np.hstack([Z.G - L @ (C @ Z.G), L * sigma])))
-        return ZonotopeBundle._trusted(out, self._solver)
+            out.append(Zonotope.trusted(c, np.hstack([Z.G - L @ (C @ Z.G), L * sigma])))
+        return ZonotopeBundle.trusted(out, self._solver)
 
     def reduce(self, order: float, method: str | Reduction = "girard") -> ZonotopeBundle:
         """Every member reduced to order at most ``order`` with the named strategy."""
         check_order(order)
         strategy = get_reduction(method)
-        return ZonotopeBundle._trusted(
-            [Zonotope._trusted(Z.c.copy(), strategy.reduce(Z.G, order)) for Z in self._members],
+        return ZonotopeBundle.trusted(
+            [Zonotope.trusted(Z.c.copy(), strategy.reduce(Z.G, order)) for Z in self._members],
             self._solver)
 
     # -- questions about the intersection -------------------------------------------------------
@@ -179,7 +179,7 @@ class ZonotopeBundle:
             A[rows, start : start + widths[i + 1]] = -Z.G
             b[rows] = Z.c - Z1.c
             start += widths[i + 1]
-        return ConZonotope._trusted(Z1.c.copy(), G, A, b, self._solver)
+        return ConZonotope.trusted(Z1.c.copy(), G, A, b, self._solver)
 
     def _member_box(self) -> tuple[np.ndarray, np.ndarray]:
         lo = np.max([Z.interval().lo for Z in self._members], axis=0)

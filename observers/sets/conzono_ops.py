@@ -238,7 +238,7 @@ def eliminate_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     if k <= 0:
         return c, G, A, b
     AS, bS = A[:k], b[:k]
-    L = _regress(G, AS)
+    L = regress(G, AS)
     return c + L @ bS, G - L @ AS, A[k:], b[k:]
 
 
@@ -273,7 +273,7 @@ def fold_constraints(c, G, A, b, max_constraints: int) -> Arrays:
     AS, bS = A[:k], b[:k]
     AR, bR = A[k:], b[k:]
     n = G.shape[0]
-    gain = _regress(np.vstack([G, AR]), AS)
+    gain = regress(np.vstack([G, AR]), AS)
     Lam, N = gain[:n], gain[n:]
     return c + Lam @ bS, G - Lam @ AS, AR - N @ AS, bR - N @ bS
 
@@ -285,7 +285,7 @@ CONSTRAINT_ELIMINATIONS: dict[str, Callable[..., Arrays]] = {
 }
 
 
-def _regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
+def regress(Y: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Least-squares ``K`` minimising ``||Y - K X||_F``, i.e. ``Y X' (X X')^+`` (minimum norm
     where ``X`` has dependent rows; any ``K`` keeps the constraint eliminations sound).
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import EmptySet, SetError
+from ..lp import HullLP, box_feasible
 from . import conzono_ops as ops
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
-from ._lp import HullLP, box_feasible
-from .errors import EmptySet, SetError
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction, lifted_reduction
 from .zonotope import Zonotope
@@ -20,7 +20,7 @@ class ConZonotope:
     Interval hulls and support values are computed by linear programs (all directions at once
     by a batched dual simplex, HiGHS for any LP it does not finish) and are guaranteed outer
     bounds: they are evaluated from a dual point, never from the primal objective value (see
-    :mod:`observers.sets._lp`).  Generators that appear in no constraint are left out of the
+    :mod:`observers.lp.hull`).  Generators that appear in no constraint are left out of the
     LPs (their contribution ``sum |G_ij|`` is added exactly).
 
     A set may carry a shared LP solver (:meth:`with_solver`, used by the observers so that the
@@ -53,7 +53,7 @@ class ConZonotope:
         self._hull: Interval | None = None
 
     @classmethod
-    def _trusted(cls, c, G, A, b, solver: HullLP | None = None) -> ConZonotope:
+    def trusted(cls, c, G, A, b, solver: HullLP | None = None) -> ConZonotope:
         """Build from float arrays of matching shapes without validation (hot loops).
 
         The arrays are frozen in place; the caller must not keep writing to them.
@@ -85,7 +85,7 @@ class ConZonotope:
         """The same set, computing its LPs with the shared solver ``solver``."""
         if not isinstance(solver, HullLP):
             raise SetError(f"solver must be a HullLP, got {type(solver).__name__}")
-        return ConZonotope._trusted(self._c, self._G, self._A, self._b, solver)
+        return ConZonotope.trusted(self._c, self._G, self._A, self._b, solver)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(c, G, A, b)`` (read-only arrays)."""
@@ -159,7 +159,7 @@ class ConZonotope:
         if R.shape[0] != Y.dim:
             raise SetError(f"intersection map R has {R.shape[0]} rows but the set has "
                            f"dimension {Y.dim}")
-        return ConZonotope._trusted(*ops.intersect(
+        return ConZonotope.trusted(*ops.intersect(
             self._c, self._G, self._A, self._b, Y._c, Y._G, Y._A, Y._b, R))
 
     def intersect_strips(self, C, y, sigma, gain=None) -> ConZonotope:
@@ -176,7 +176,7 @@ class ConZonotope:
             raise SetError("strip half-widths sigma must be non-negative")
         Lam = np.zeros((self.dim, m)) if gain is None else matrix(
             gain, "strip gain", rows=self.dim, cols=m)
-        return ConZonotope._trusted(*ops.intersect_strips(
+        return ConZonotope.trusted(*ops.intersect_strips(
             self._c, self._G, self._A, self._b, C, y, sigma, Lam))
 
     def intersect_measurement(self, C, y, V, gain=None) -> ConZonotope:
@@ -215,7 +215,7 @@ class ConZonotope:
             raise SetError(f"noise set V must be a Zonotope or Interval of dimension {m}")
         L = np.zeros((self.dim, m)) if gain is None else matrix(
             gain, "measurement gain", rows=self.dim, cols=m)
-        return ConZonotope._trusted(*ops.intersect_measurement(
+        return ConZonotope.trusted(*ops.intersect_measurement(
             self._c, self._G, self._A, self._b, C, y, V.c, V.G, L))
 
     def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
@@ -252,7 +252,7 @@ class ConZonotope:
             raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
                            f"got {per!r}")
         strategy = lifted_reduction(get_reduction(method))
-        return ConZonotope._trusted(*ops.lifted_reduce(
+        return ConZonotope.trusted(*ops.lifted_reduce(
             self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
 
     def reduce_constraints(self, max_constraints: int, method: str = "fold") -> ConZonotope:
@@ -292,22 +292,22 @@ class ConZonotope:
             known = ", ".join(sorted(ops.CONSTRAINT_ELIMINATIONS))
             raise SetError(f"unknown constraint elimination {method!r} (known: {known})"
                            ) from None
-        return ConZonotope._trusted(*eliminate(
+        return ConZonotope.trusted(*eliminate(
             self._c, self._G, self._A, self._b, int(max_constraints)))
 
     def normalize_constraints(self) -> ConZonotope:
         """The same set with every constraint row scaled to unit largest entry (exact)."""
-        return ConZonotope._trusted(*ops.normalize_constraints(self._c, self._G, self._A,
+        return ConZonotope.trusted(*ops.normalize_constraints(self._c, self._G, self._A,
                                                                self._b))
 
     def rescale(self) -> ConZonotope:
         """The same set with the generator box shrunk to the bounds implied by the constraints
         (interval constraint propagation; exact)."""
-        return ConZonotope._trusted(*ops.rescale(self._c, self._G, self._A, self._b))
+        return ConZonotope.trusted(*ops.rescale(self._c, self._G, self._A, self._b))
 
     def compact(self) -> ConZonotope:
         """The same set without all-zero constraints and generators."""
-        return ConZonotope._trusted(*ops.compact_zeros(self._c, self._G, self._A, self._b))
+        return ConZonotope.trusted(*ops.compact_zeros(self._c, self._G, self._A, self._b))
 
     def _lp(self) -> HullLP:
         return self._solver if self._solver is not None else HullLP()

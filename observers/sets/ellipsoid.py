@@ -23,8 +23,8 @@ from itertools import product
 
 import numpy as np
 
+from ..errors import SetError
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
-from .errors import SetError
 from .interval import Interval
 from .zonotope import Zonotope
 
@@ -167,7 +167,7 @@ class Ellipsoid:
         self._Q = frozen(Q)
 
     @classmethod
-    def _trusted(cls, q: np.ndarray, Q: np.ndarray) -> Ellipsoid:
+    def trusted(cls, q: np.ndarray, Q: np.ndarray) -> Ellipsoid:
         """Build from fresh float arrays (``q``: n, ``Q``: symmetric PSD n x n) without
         validation or copies, for hot loops; the arrays are frozen in place."""
         obj = object.__new__(cls)
@@ -201,7 +201,7 @@ class Ellipsoid:
         G = Z.G[:, np.any(Z.G != 0.0, axis=0)]
         fac = 1.0 if mode == "inner:norm" else float(G.shape[1])
         Q = fac * (G @ G.T)
-        return cls._trusted(np.array(Z.c, dtype=float), 0.5 * (Q + Q.T))
+        return cls.trusted(np.array(Z.c, dtype=float), 0.5 * (Q + Q.T))
 
     q = property(lambda self: self._q, doc="Centre.")
     Q = property(lambda self: self._Q, doc="Shape matrix (symmetric PSD).")

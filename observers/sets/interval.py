@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SetError
 from ._arrays import direction, frozen, linear_map_matrix, vector
-from .errors import SetError
 
 
 class Interval:

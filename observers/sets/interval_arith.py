@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SetError
+from ..errors import SetError
 
 _INF = np.inf
 
@@ -65,7 +65,7 @@ class Ival:
         raise AttributeError("Ival is immutable")
 
     @staticmethod
-    def _of(x) -> Ival:
+    def of(x) -> Ival:
         return x if isinstance(x, Ival) else Ival(x)
 
     # -- magnitude ------------------------------------------------------------------------
@@ -81,19 +81,19 @@ class Ival:
         return self
 
     def __add__(self, other) -> Ival:
-        o = Ival._of(other)
+        o = Ival.of(other)
         return Ival(_down(self.lo + o.lo), _up(self.hi + o.hi))
 
     __radd__ = __add__
 
     def __sub__(self, other) -> Ival:
-        return self + (-Ival._of(other))
+        return self + (-Ival.of(other))
 
     def __rsub__(self, other) -> Ival:
-        return Ival._of(other) + (-self)
+        return Ival.of(other) + (-self)
 
     def __mul__(self, other) -> Ival:
-        o = Ival._of(other)
+        o = Ival.of(other)
         p = np.stack(np.broadcast_arrays(self.lo * o.lo, self.lo * o.hi,
                                          self.hi * o.lo, self.hi * o.hi))
         p = np.where(np.isnan(p), 0.0, p)  # 0 * inf: the product of a zero bound is 0
@@ -108,10 +108,10 @@ class Ival:
         return Ival(_down(1.0 / self.hi), _up(1.0 / self.lo))
 
     def __truediv__(self, other) -> Ival:
-        return self * Ival._of(other).reciprocal()
+        return self * Ival.of(other).reciprocal()
 
     def __rtruediv__(self, other) -> Ival:
-        return Ival._of(other) * self.reciprocal()
+        return Ival.of(other) * self.reciprocal()
 
     def __pow__(self, p) -> Ival:
         p = float(p)

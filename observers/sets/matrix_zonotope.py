@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SetError
+from ..lp import box_feasible
 from ._arrays import frozen, matrix
-from ._lp import box_feasible
 from .conzonotope import ConZonotope
-from .errors import SetError
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
@@ -192,7 +192,7 @@ class MatrixZonotope:
         self._G = frozen(_generators(G, C.shape))
 
     @classmethod
-    def _trusted(cls, C: np.ndarray, G: np.ndarray) -> MatrixZonotope:
+    def trusted(cls, C: np.ndarray, G: np.ndarray) -> MatrixZonotope:
         obj = object.__new__(cls)
         C.setflags(write=False)
         G.setflags(write=False)
@@ -315,7 +315,7 @@ class MatrixZonotope:
         (constrained zonotope); the set products are sound enclosures (module docstring)."""
         if isinstance(other, Zonotope):
             c, Gx, bil = self._image(other.c, other.G)
-            return Zonotope._trusted(c, np.hstack([Gx, np.diag(bil)]))
+            return Zonotope.trusted(c, np.hstack([Gx, np.diag(bil)]))
         if isinstance(other, ConZonotope):
             c, Gx, bil = self._image(other.c, other.G)
             G = np.hstack([Gx, np.diag(bil)])

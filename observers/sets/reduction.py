@@ -43,7 +43,7 @@ For a single singular value this only fixes the sign (largest component positive
 lifted zonotopes of constrained zonotopes the cluster tolerance is wider (``1e-3 * s_max``,
 :meth:`PCA.lifted`) on purpose: an axis is determined by the matrix only to
 ``eps * s_max / gap``, and axes of values closer than that moved with the BLAS kernel by enough
-for those filters to amplify (see :data:`._step_jit.LIFTED_CLUSTER_RTOL`).
+for those filters to amplify (see :data:`observers.kernels.step.LIFTED_CLUSTER_RTOL`).
 
 Deterministic box.  A width of the PCA box below ``BOX_ZERO_RTOL`` (1e-12) of the widest is
 set to exactly zero: the width along an axis the reduced generators do not span is zero in
@@ -51,7 +51,7 @@ exact arithmetic and rounding noise in floating point (exactly zero on one kerne
 later dropped, and 1e-19 on another), which changed the generator count and so every later
 choice.  The sliver given up is at most 1e-12 of the box, inside the 1e-9 membership
 tolerance of the containment checks.  The tolerances are defined with the compiled kernel that
-shares them (:mod:`._step_jit`).
+shares them (:mod:`observers.kernels.step`).
 """
 
 from __future__ import annotations
@@ -61,19 +61,20 @@ from typing import Protocol
 
 import numpy as np
 
-from . import _jit, _step_jit
-from ._step_jit import (
+from ..errors import SetError
+from ..kernels import step as kernel_step
+from ..kernels import switch
+from ..kernels.step import (
     BOX_ZERO_RTOL,
     CLUSTER_RTOL,
     LIFTED_CLUSTER_RTOL,
     PIVOT_RTOL,
     TIE_RTOL,
 )
-from .errors import SetError
 
 #: the cluster tolerance of the data-driven observers' lifted reductions (defined with the
-#: compiled kernel, :data:`._step_jit.DATA_DRIVEN_CLUSTER_RTOL`, which says why)
-DATA_DRIVEN_CLUSTER_RTOL = _step_jit.DATA_DRIVEN_CLUSTER_RTOL
+#: compiled kernel, :data:`observers.kernels.step.DATA_DRIVEN_CLUSTER_RTOL`, which says why)
+DATA_DRIVEN_CLUSTER_RTOL = kernel_step.DATA_DRIVEN_CLUSTER_RTOL
 
 
 class Reduction(Protocol):
@@ -144,19 +145,20 @@ def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def use_compiled() -> bool:
-    """Whether the built-in reductions run the compiled kernel :func:`._step_jit.reduce`
-    (:func:`._jit.use_compiled`: numba installed and not disabled by ``SETOBS_NUMBA=0``)."""
-    return _jit.use_compiled()
+    """Whether the built-in reductions run the compiled kernel
+    :func:`observers.kernels.step.reduce` (:func:`observers.kernels.switch.use_compiled`: numba
+    installed and not disabled by ``SETOBS_NUMBA=0``)."""
+    return switch.use_compiled()
 
 
 def _compiled(G: np.ndarray, order: float, method: str,
               cluster_rtol: float = CLUSTER_RTOL) -> np.ndarray | None:
-    """The compiled reduction ``method`` (a name of :data:`._step_jit.REDUCTIONS`) of ``G``
-    (``order`` trusted), or ``None`` where the numpy path must decide (numba off, not a float
-    matrix, or a non-finite entry)."""
-    if not _jit.use_compiled() or G.dtype != np.float64 or G.ndim != 2:
+    """The compiled reduction ``method`` (a name of
+    :data:`observers.kernels.step.REDUCTIONS`) of ``G`` (``order`` trusted), or ``None``
+    where the numpy path must decide (numba off, not a float matrix, or a non-finite entry)."""
+    if not switch.use_compiled() or G.dtype != np.float64 or G.ndim != 2:
         return None
-    out, ok = _step_jit.reduce(G, float(order), _step_jit.REDUCTIONS[method], cluster_rtol,
+    out, ok = kernel_step.reduce(G, float(order), kernel_step.REDUCTIONS[method], cluster_rtol,
                                PIVOT_RTOL, 0)
     return out if ok else None
 
@@ -221,7 +223,8 @@ def principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -> np.nd
 class PCA:
     """Replace the reduced generators by a box aligned with their principal components
     (:func:`principal_axes`: deterministic where singular values repeat, i.e. lie within
-    ``cluster_rtol`` of the largest; :data:`._step_jit.CLUSTER_RTOL` by default, exact ties).
+    ``cluster_rtol`` of the largest; :data:`observers.kernels.step.CLUSTER_RTOL` by default,
+    exact ties).
     """
 
     name = "pca"
@@ -231,8 +234,8 @@ class PCA:
 
     def lifted(self, cluster_rtol: float = LIFTED_CLUSTER_RTOL) -> PCA:
         """The strategy for the lifted zonotopes of constrained zonotopes: clusters at least
-        as wide as ``cluster_rtol`` (:data:`._step_jit.LIFTED_CLUSTER_RTOL`, whose comment
-        says why)."""
+        as wide as ``cluster_rtol`` (:data:`observers.kernels.step.LIFTED_CLUSTER_RTOL`, whose
+        comment says why)."""
         return PCA(max(self.cluster_rtol, cluster_rtol))
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
@@ -325,8 +328,9 @@ def get_reduction(method: str | Reduction) -> Reduction:
 
 
 def compiled_name(strategy: Reduction) -> str | None:
-    """The name under which the compiled kernels (:mod:`._step_jit`) compute ``strategy``
-    (the built-in :class:`Girard` and :class:`PCA`), ``None`` for any other strategy."""
+    """The name under which the compiled kernels (:mod:`observers.kernels.step`) compute
+    ``strategy`` (the built-in :class:`Girard` and :class:`PCA`), ``None`` for any other
+    strategy."""
     return strategy.name if type(strategy) in (Girard, PCA) else None
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SetError
+from ..lp import box_feasible
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
-from ._lp import box_feasible
-from .errors import SetError
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 
@@ -38,7 +38,7 @@ class Zonotope:
         self._G = frozen(G)
 
     @classmethod
-    def _trusted(cls, c: np.ndarray, G: np.ndarray) -> Zonotope:
+    def trusted(cls, c: np.ndarray, G: np.ndarray) -> Zonotope:
         """Build from float arrays of the right shapes without validation or copies.
 
         For hot loops that have just computed fresh arrays; the arrays are frozen in place.

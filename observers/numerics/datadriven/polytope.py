@@ -25,7 +25,7 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
-from observers.sets.highs import new_highs
+from observers.lp import new_highs
 
 _EPS = np.finfo(float).eps
 

@@ -10,7 +10,7 @@ solver tolerance is never used as a bound.
 
 Interval hulls and support values of constrained zonotopes solve many such LPs with one
 feasible set; :class:`HullLP` solves them together with a batched dual simplex
-(:mod:`observers.sets._dual_simplex`) and falls back to HiGHS for any LP that the batched
+(:mod:`observers.lp.dual_simplex`) and falls back to HiGHS for any LP that the batched
 solver does not finish.
 """
 
@@ -27,8 +27,8 @@ try:  # highspy is a hard dependency; keep the import error readable
 except ImportError as exc:  # pragma: no cover - exercised only on broken installs
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
-from . import _dual_simplex
-from .errors import EmptySet, SetError
+from ..errors import EmptySet, SetError
+from . import dual_simplex
 from .highs import new_highs
 
 _EPS = np.finfo(float).eps
@@ -140,7 +140,7 @@ class HullLPStats:
         LPs that the batched dual simplex did not finish and handed to HiGHS.
     seconds : dict
         Seconds by phase: those of the batched dual simplex (``setup``, ``pivots``,
-        ``refactor``, ``certify``; :class:`observers.sets._dual_simplex.Clock`), ``bounds``
+        ``refactor``, ``certify``; :class:`observers.lp.dual_simplex.Clock`), ``bounds``
         (the weak-duality bounds of its dual points) and ``highs`` (LPs solved by HiGHS).
     """
 
@@ -179,7 +179,7 @@ class HullLP:
     only, never soundness.
 
     :meth:`maximize_many` solves many directions at once: with ``solver="batched"`` by the
-    batched dual simplex of :mod:`observers.sets._dual_simplex` (all 2n LPs of an interval
+    batched dual simplex of :mod:`observers.lp.dual_simplex` (all 2n LPs of an interval
     hull in lock step), with HiGHS for the LPs it does not finish (and to report empty sets);
     with ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`; ``"auto"``
     (default) picks the cheaper by :func:`batched_is_cheaper`.  Either way each bound is the
@@ -249,7 +249,7 @@ class HullLP:
         if p == 0 or self.solver == "highs" or (
                 self.solver == "auto" and not batched_is_cheaper(K, p)):
             return np.array([self.maximize(g, A, b) for g in Gd])
-        res = _dual_simplex.solve(A, b, Gd)
+        res = dual_simplex.solve(A, b, Gd)
         t0 = perf_counter()
         bounds = dual_bounds(Gd, A, b, res.mu)
         self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})

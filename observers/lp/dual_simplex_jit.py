@@ -1,6 +1,6 @@
-"""Compiled (numba) iterations of the batched bounded dual simplex (:mod:`._dual_simplex`).
+"""Compiled (numba) iterations of the batched bounded dual simplex (:mod:`.dual_simplex`).
 
-:func:`iterate` runs the dual simplex iterations of :meth:`._dual_simplex._BatchLP.iterate`
+:func:`iterate` runs the dual simplex iterations of :meth:`.dual_simplex._BatchLP.iterate`
 in machine code instead of over numpy arrays (in lock step too, with the pivot rows of all
 problems as one BLAS product, and the rest of each pivot problem by problem): the same
 leaving-row rule (dual steepest edge), the same bound-flipping ratio test with the same
@@ -11,7 +11,7 @@ rounding differs (summation order, and ``b - M z`` is updated with the changes o
 of recomputed: 10 % of the kernel's time on the vehicle), far below every tolerance.
 
 numba is optional: :data:`AVAILABLE` is false when it is not installed or when the
-environment variable ``SETOBS_NUMBA=0`` disables it, and :mod:`._dual_simplex` then runs its
+environment variable ``SETOBS_NUMBA=0`` disables it, and :mod:`.dual_simplex` then runs its
 numpy iterations.  Compiled functions are cached on disk (``cache=True``), so only the first
 process after a change pays the compilation (a few seconds).
 """
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import AVAILABLE, numba
+from ..kernels.switch import AVAILABLE, numba
 
 #: status codes of a problem after :func:`iterate`
 RUNNING, OPTIMAL, UNBOUNDED, PAUSED, BUDGET = 0, 1, 2, 3, 4

@@ -74,7 +74,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import AVAILABLE, njit
+from .switch import AVAILABLE, njit
 
 #: singular values closer than this (relative to the largest) form one cluster (repeated), in
 #: the principal axes of the PCA reduction of a zonotope (:func:`.reduction.principal_axes` and

@@ -4,8 +4,8 @@ An observer of :mod:`observers.families` names the compiled kernel that computes
 step with the class attribute ``KERNEL`` (default ``None``: the numpy path only), e.g.
 ``KERNEL = StepKernel.ALAMO`` for FRad-A.  On a linear system with a built-in reduction the
 family then runs the whole step (prediction, intersection or propagation with the observer's
-gain, reduction) as one compiled call of :mod:`observers.sets._step_jit`, whose doorway
-(:func:`~observers.sets._step_jit.prepare`) is the only place that knows how the kernels
+gain, reduction) as one compiled call of :mod:`observers.kernels.step`, whose doorway
+(:func:`~observers.kernels.step.prepare`) is the only place that knows how the kernels
 number their formulas.
 
 A kernel that depends on an option (FRad-B's ``variant``) is declared with

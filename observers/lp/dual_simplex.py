@@ -5,7 +5,7 @@ Solves, for the rows ``g_k`` of a cost matrix ``Gd`` (K x r) at once,
     max  g_k' xi   s.t.   A xi = b,   -1 <= xi <= 1          (A: p x r, few rows, many columns),
 
 and returns one dual point ``mu_k`` per problem.  The caller turns every ``mu_k`` into a bound
-by weak duality (``b'mu + ||g - A'mu||_1``, :func:`observers.sets._lp.dual_bounds`), so this
+by weak duality (``b'mu + ||g - A'mu||_1``, :func:`observers.lp.hull.dual_bounds`), so this
 solver decides tightness and speed only, never soundness: a wrong basis, a stalled problem or
 a rounding error gives a looser bound, not a wrong one.
 
@@ -31,7 +31,7 @@ Method (the dual of these LPs is the least-absolute-deviations problem
 * the K problems run in lock step as batched numpy operations (the constraint matrix is
   shared, only costs, bases and bounds differ), so the Python overhead of an iteration is
   paid once for all of them; finished problems leave the working arrays.  With numba the
-  same iterations run compiled, problem by problem (:mod:`._dual_simplex_jit`, same pivots;
+  same iterations run compiled, problem by problem (:mod:`.dual_simplex_jit`, same pivots;
   ``SETOBS_NUMBA=0`` or :func:`set_compiled` selects the numpy iterations);
 * the costs are perturbed (relative 1e-11, away from zero) against stalling on the highly
   degenerate LPs of constrained zonotopes.  At the end the basis is refactorised and the
@@ -41,7 +41,7 @@ Method (the dual of these LPs is the least-absolute-deviations problem
 
 A problem that is not optimal within the iteration budget, or whose dual looks unbounded (an
 empty set, or numerical trouble), is reported as not converged; the caller solves it with
-HiGHS (:class:`observers.sets._lp.HullLP`).
+HiGHS (:class:`observers.lp.hull.HullLP`).
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ from time import perf_counter
 
 import numpy as np
 
-from . import _dual_simplex_jit
+from . import dual_simplex_jit
 
 #: primal feasibility tolerance on the basic variables (xi lives in [-1, 1])
 PRIMAL_TOL = 1e-9
@@ -109,7 +109,7 @@ class Clock:
 def use_compiled() -> bool:
     """Whether :func:`solve` runs the compiled iterations (numba installed and not disabled
     by ``SETOBS_NUMBA=0``; :func:`set_compiled` switches it for tests and timings)."""
-    return _dual_simplex_jit.AVAILABLE and _USE_COMPILED[0]
+    return dual_simplex_jit.AVAILABLE and _USE_COMPILED[0]
 
 
 _USE_COMPILED = [True]
@@ -325,10 +325,10 @@ class _BatchLP:
         index of the entry in the low bits.  Problems that are done are dropped from the
         working arrays once they are a third of them.
 
-        With numba (:data:`._dual_simplex_jit.AVAILABLE`) the same iterations run compiled,
+        With numba (:data:`.dual_simplex_jit.AVAILABLE`) the same iterations run compiled,
         problem by problem (:meth:`_iterate_compiled`).
         """
-        if _dual_simplex_jit.AVAILABLE and use_compiled():
+        if dual_simplex_jit.AVAILABLE and use_compiled():
             return self._iterate_compiled(max_iter)
         key_mask, up = self.key_mask, self.up
         M, MT, b = self.M, self.MT, self.b
@@ -409,21 +409,21 @@ class _BatchLP:
         return it
 
     def _iterate_compiled(self, max_iter: int) -> int:
-        """:meth:`iterate` by the compiled kernel :func:`._dual_simplex_jit.iterate`, pausing
+        """:meth:`iterate` by the compiled kernel :func:`.dual_simplex_jit.iterate`, pausing
         every ``REFACTOR_EVERY`` pivots for a numpy refactorisation (as the numpy path)."""
-        status = np.where(self.unbounded, _dual_simplex_jit.UNBOUNDED,
-                          _dual_simplex_jit.RUNNING).astype(np.int64)
+        status = np.where(self.unbounded, dual_simplex_jit.UNBOUNDED,
+                          dual_simplex_jit.RUNNING).astype(np.int64)
         its = np.zeros(self.K, np.int64)
         colnorm2 = self.colnorm * self.colnorm
         while True:
-            self.work += _dual_simplex_jit.iterate(
+            self.work += dual_simplex_jit.iterate(
                 self.M, self.MT, self.b, self.up, colnorm2, self.key_mask, PRIMAL_TOL, PIVOT_TOL,
                 REFACTOR_EVERY, self.z, self.D, self.Binv, self.basis, self.uB, status, its,
                 self.updates, max_iter)
-            if not np.any(status == _dual_simplex_jit.PAUSED):
+            if not np.any(status == dual_simplex_jit.PAUSED):
                 break
             self.refactor()
-        self.unbounded = status == _dual_simplex_jit.UNBOUNDED
+        self.unbounded = status == dual_simplex_jit.UNBOUNDED
         self.any_unbounded = bool(self.unbounded.any())
         self.updates = REFACTOR_EVERY  # pivots since the last refactorisation differ per problem
         return int(its.max(initial=0))

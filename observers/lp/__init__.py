@@ -1,0 +1,40 @@
+"""Linear programs of the set types: HiGHS objects, the hull LPs with bounds from dual points,
+and the batched dual simplex with its compiled twin.
+
+A room of its own between the compiled kernels and the set types (``kernels`` <- ``lp`` <-
+:mod:`observers.sets` <- the rest):
+
+- :mod:`observers.lp.highs`: :func:`new_highs`, a quiet ``highspy.Highs`` (the one way any
+  module of ours makes a HiGHS solver);
+- :mod:`observers.lp.hull`: LPs over the unit box with equality constraints (the interval
+  hull and support values of constrained zonotopes, :class:`HullLP`; feasibility,
+  :func:`box_feasible`), every bound evaluated from a dual point by weak duality
+  (:func:`dual_bound`, :func:`dual_bounds`), hence sound whatever the solver returns;
+- :mod:`observers.lp.dual_simplex` and :mod:`observers.lp.dual_simplex_jit`: the batched
+  bounded dual simplex that solves the 2n hull LPs of one set together, numpy path and
+  compiled twin side by side (same pivots).
+"""
+
+from .highs import new_highs
+from .hull import (
+    BATCHED_MAX_ROWS,
+    BoxLP,
+    HullLP,
+    HullLPStats,
+    batched_is_cheaper,
+    box_feasible,
+    dual_bound,
+    dual_bounds,
+)
+
+__all__ = [
+    "BATCHED_MAX_ROWS",
+    "BoxLP",
+    "HullLP",
+    "HullLPStats",
+    "batched_is_cheaper",
+    "box_feasible",
+    "dual_bound",
+    "dual_bounds",
+    "new_highs",
+]
