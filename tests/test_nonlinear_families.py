@@ -8,7 +8,7 @@ import pytest
 
 import observers
 import systems
-from observers.numerics.bundle import box_gain, sequential_frad_gain
+from observers.numerics.bundle import box_gain, member_gain, sequential_frad_gain
 from observers.numerics.interval import ForwardBackward, contract_linear, linear_box
 from observers.numerics.relaxation import Factorable
 from observers.sets import EmptySet, SetError, Zonotope, ZonotopeBundle
@@ -195,7 +195,8 @@ def test_bundle_operations_keep_the_points_of_the_intersection():
         C = rng.normal(size=(1, 2))
         y = C @ X[0]
         sigma = np.array([0.3])
-        S = B.intersect_strips(C, y, sigma)
+        S = B.intersect_strips(C, y, sigma,
+                               [member_gain("wang", Z.G, C, sigma) for Z in B.members])
         R = B.reduce(1.0, "girard")
         for i, x in enumerate(X):
             assert MB.contains(M @ x, 1e-9)

@@ -18,38 +18,31 @@ and in their order reduction, so that their intersection is tighter than any one
   gains keep the generators small, so the two members differ;
 * ``"wang"``: all strips at once with the F-radius gain ``P C' (C P C' + diag(sigma^2))^-1``,
   ``P = G G'`` (Wang, Puig, Cembrano, Automatica 93, 2018, with the predicted set's
-  generators; :func:`observers.sets.bundle.strip_gain`).
+  generators; :func:`wang_strip_gain`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..sets.bundle import strip_gain
+from .frad import alamo_sequential_gain, wang_frad_gain
 
 #: (reduction, gain) of the members, in order: member i uses entry i
 MEMBER_STRATEGIES = (("girard", "alamo"), ("girard", "box"), ("pca", "wang"), ("pca", "box"))
 
 
 def sequential_frad_gain(G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """The n x m gain ``L`` of the strips of ``C`` applied one after the other, strip ``i``
-    with Alamo's F-radius gain ``lambda_i = P c_i / (c_i' P c_i + sigma_i^2)`` on the current
-    ``P = G G'``: the product of the updates ``(I - lambda_i c_i')`` is ``I - L C`` and the
-    added generators are ``L diag(sigma)`` (the column of each earlier strip is multiplied by
-    the later factors).  A strip with ``c_i' P c_i + sigma_i^2 = 0`` gets a zero gain."""
-    n, m = G.shape[0], C.shape[0]
-    P = G @ G.T
-    L = np.zeros((n, m))
-    for i in range(m):
-        ci = C[i]
-        p = P @ ci
-        s = ci @ p + sigma[i] ** 2
-        lam = p / s if s > 0 else np.zeros(n)
-        if i:
-            L[:, :i] -= np.outer(lam, ci @ L[:, :i])
-        L[:, i] = lam
-        P = P - np.outer(p, lam)
-    return L
+    """The n x m gain ``L`` of the strips of ``C`` applied one after the other, each with
+    Alamo's F-radius gain on the current ``P = G G'``
+    (:func:`observers.numerics.frad.alamo_sequential_gain`, FRad-A's formula)."""
+    return alamo_sequential_gain(G @ G.T, C, sigma)[0]
+
+
+def wang_strip_gain(G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """The F-radius gain of all strips at once, ``P C' (C P C' + diag(sigma^2))^-1`` with
+    ``P = G G'``: :func:`observers.numerics.frad.wang_frad_gain` on the member's own
+    generators (``A = None``) with the noise generators ``diag(sigma)``."""
+    return wang_frad_gain(G @ G.T, None, C, None, np.diag(np.asarray(sigma, float)))
 
 
 def weighted_median(points: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -115,4 +108,4 @@ def member_gain(kind: str, G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> n
         return sequential_frad_gain(G, C, sigma)
     if kind == "box":
         return box_gain(G, C, sigma)
-    return strip_gain(G, C, sigma)
+    return wang_strip_gain(G, C, sigma)

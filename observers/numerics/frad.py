@@ -74,6 +74,54 @@ def combastel_gain(P: np.ndarray, A: np.ndarray, C: np.ndarray, F: np.ndarray) -
     return A @ psd_solve(S, C @ P).T
 
 
+def alamo_sequential_gain(
+    P: np.ndarray, C: np.ndarray, sigma: np.ndarray,
+    c: np.ndarray | None = None, y: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    r"""The n x m gain ``L`` of the strips ``|C x - y| <= sigma`` applied one after the other,
+    strip ``i`` with Alamo's F-radius gain (:func:`alamo_frad_gain`) on the current
+    ``P = G G'``; with a centre ``c`` (and the measurement ``y``), also the centre after the
+    strips.
+
+    Strip ``i`` with row :math:`c_i`:
+
+    .. math::
+
+        p = Pc_i^T, \quad s = c_ip + \sigma_i^2, \quad \lambda_i = p / s, \quad
+        P \leftarrow P - p\lambda_i^T, \quad L \leftarrow [(I - \lambda_ic_i)L,\ \lambda_i],
+
+    so that :math:`\prod_i (I - \lambda_i c_i) = I - LC` and the added generators are
+    :math:`L\operatorname{diag}(\sigma)` (the column of each earlier strip is multiplied by
+    the later factors); the centre takes :math:`c \leftarrow c + \lambda_i(y_i - c_ic)` strip
+    by strip.  A strip with :math:`s = 0` (the set flat along :math:`c_i`, the strip exact)
+    gets the zero gain.  The one formula of FRad-A (:func:`alamo_frad_strips`) and of the
+    bundle member ``"alamo"`` (:func:`observers.numerics.bundle.member_gain`); ``P`` is not
+    modified.
+
+    Returns
+    -------
+    L : numpy.ndarray
+        n x m gain.
+    c : numpy.ndarray or None
+        The centre after the strips (``None`` without ``c``).
+    """
+    n, m = P.shape[0], C.shape[0]
+    P = P.copy()
+    L = np.empty((n, m))
+    for i in range(m):
+        ci = C[i]
+        p = P @ ci
+        s = ci @ p + sigma[i] ** 2
+        lam = p / s if s > 0 else np.zeros(n)
+        if c is not None:
+            c = c + lam * (y[i] - ci @ c)
+        if i:  # (I - lam ci') applied to the columns of the earlier strips
+            L[:, :i] -= np.outer(lam, ci @ L[:, :i])
+        L[:, i] = lam
+        P -= np.outer(p, lam)
+    return L, c
+
+
 def alamo_frad_strips(
     c: np.ndarray, G: np.ndarray, C: np.ndarray, y: np.ndarray, sigma: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -105,18 +153,7 @@ def alamo_frad_strips(
     gets the zero gain, as in :func:`alamo_frad_gain`.
     """
     n, m, r = G.shape[0], C.shape[0], G.shape[1]
-    P = G @ G.T
-    L = np.empty((n, m))
-    for i in range(m):
-        ci = C[i]
-        p = P @ ci
-        s = ci @ p + sigma[i] ** 2
-        lam = p / s if s > 0 else np.zeros(n)
-        c = c + lam * (y[i] - ci @ c)
-        if i:  # (I - lam ci') applied to the columns of the earlier strips
-            L[:, :i] -= np.outer(lam, ci @ L[:, :i])
-        L[:, i] = lam
-        P -= np.outer(p, lam)
+    L, c = alamo_sequential_gain(G @ G.T, C, sigma, c, y)
     out = np.empty((n, r + m))
     if 2 * m < n:  # G - L (C G): 2 m n r flops
         np.subtract(G, L @ (C @ G), out=out[:, :r])

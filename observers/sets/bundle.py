@@ -30,16 +30,6 @@ from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
 
-def strip_gain(G: np.ndarray, C: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """F-radius-type gain of all strips ``|C x - y| <= sigma`` at once for the generators
-    ``G``: ``P C' (C P C' + diag(sigma^2))^-1`` with ``P = G G'`` (any gain gives an outer
-    bound of the intersection; this one shrinks the Frobenius norm of the generators, as the
-    gains of Alamo et al. 2005 and Wang et al. 2018); pseudo-inverse for a singular matrix."""
-    P = G @ G.T
-    S = C @ P @ C.T + np.diag(np.asarray(sigma, float) ** 2)
-    return np.linalg.lstsq(S, C @ P, rcond=None)[0].T
-
-
 class ZonotopeBundle:
     """The intersection of the zonotopes ``members`` (all of one dimension, at least one).
 
@@ -130,19 +120,18 @@ class ZonotopeBundle:
 
     __radd__ = __add__
 
-    def intersect_strips(self, C, y, sigma, gains=None) -> ZonotopeBundle:
+    def intersect_strips(self, C, y, sigma, gains) -> ZonotopeBundle:
         """Outer bound of the intersection with the strips ``|C x - y| <= sigma``: each member
         ``(c, G)`` becomes ``c + L (y - C c)`` with generators ``[(I - L C) G, L diag(sigma)]``
         (the family of Alamo et al. 2005, Property 3, valid for every gain ``L``); ``gains``
-        is one n x m gain per member, default :func:`strip_gain` of each member."""
+        is one n x m gain per member (the bundle observer's choices:
+        :func:`observers.numerics.bundle.member_gain`)."""
         C = matrix(C, "strip matrix", cols=self.dim)
         m = C.shape[0]
         y = vector(y, "strip centres", dim=m)
         sigma = vector(sigma, "strip half-widths", dim=m)
         if np.any(sigma < 0):
             raise SetError("strip half-widths must be non-negative")
-        if gains is None:
-            gains = [strip_gain(Z.G, C, sigma) for Z in self._members]
         if len(gains) != self.size:
             raise SetError(f"{len(gains)} gains for {self.size} bundle members")
         out = []
