@@ -36,7 +36,14 @@ from .report.html import write_html, write_index
 from .report.markdown import write_report
 from .report.tables import design_times_table
 from .run import designs, executors
-from .run.config import inline_config, load_config, parse_memory, parse_timeout
+from .run.config import (
+    DEFAULT_MEMORY_FRACTION,
+    DEFAULT_TIMEOUT,
+    inline_config,
+    load_config,
+    parse_memory,
+    parse_timeout,
+)
 from .run.runner import run_config
 from .run.shipped import shipped_configs
 from .store import bench as store_bench
@@ -378,12 +385,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
     r.add_argument("--timeout", metavar="SECONDS",
                    help="time budget per job (default: the config's 'timeout', else "
-                        f"{executors.DEFAULT_TIMEOUT:g} s; 'none': no budget); a job over it "
+                        f"{DEFAULT_TIMEOUT:g} s; 'none': no budget); a job over it "
                         "is stopped and reported as status 'timeout'")
     r.add_argument("--memory-limit", metavar="SIZE",
                    help="resident memory per job, e.g. 2G or 512M (default: the config's "
                         "'memory_limit', else "
-                        f"{executors.DEFAULT_MEMORY_FRACTION * 100:.0f} %% of the available memory "
+                        f"{DEFAULT_MEMORY_FRACTION * 100:.0f} %% of the available memory "
                         "shared by the workers; 'none': no limit); a job over it is stopped "
                         "and reported as status 'memory' (third-party plugins and parallel "
                         "jobs; the project's own observers in a serial run keep the time "

@@ -46,20 +46,30 @@ from typing import Any
 import yaml
 
 import observers
-from systems import Scenario
+from systems import Scenario, available_memory
 
 from ..errors import ConfigError
-from .executors import DEFAULT_TIMEOUT as DEFAULT_JOB_TIMEOUT
-from .executors import default_memory_limit
 from .shipped import resolve_config
 from .specs import build_scenario
 
 TOP_KEYS = {"name", "title", "scenarios", "observers", "exclude", "options", "observer_options",
             "containment", "description", "sweep",
             "variants", "timeout", "memory_limit", "exact", "floors"}
-#: the per-job time budget by default (seconds), as :data:`.executors.DEFAULT_TIMEOUT`
-DEFAULT_TIMEOUT = DEFAULT_JOB_TIMEOUT
+#: the job timeout by default (seconds; a configuration's ``timeout``, ``run --timeout``):
+#: above the slowest legitimate job (an SDP design on 30 tanks with a cold design cache takes
+#: minutes), far below "for ever"
+DEFAULT_TIMEOUT = 1800.0
+#: memory limit per job by default: this fraction of the memory available when the run
+#: starts, shared by the workers running at once
+DEFAULT_MEMORY_FRACTION = 0.8
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def default_memory_limit(workers: int = 1) -> int | None:
+    """The memory limit per job by default: :data:`DEFAULT_MEMORY_FRACTION` of the memory
+    available now, divided among ``workers`` (None where it is not known)."""
+    have = available_memory()
+    return None if have is None else int(DEFAULT_MEMORY_FRACTION * have / max(1, workers))
 
 
 def parse_timeout(value: Any, where: str) -> float | None:
@@ -136,7 +146,7 @@ class BenchConfig:
 
     def job_memory_limit(self, workers: int) -> int | None:
         """The memory limit per job in bytes (``auto``: the default share for ``workers``
-        workers running at once, :func:`.executors.default_memory_limit`)."""
+        workers running at once, :func:`default_memory_limit`)."""
         if self.memory_limit == "auto":
             return default_memory_limit(workers)
         return self.memory_limit  # type: ignore[return-value]

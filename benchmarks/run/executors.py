@@ -50,6 +50,7 @@ run does, and a result travels back per job (its failure, budget and row stay pe
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing as mp
 import os
 import signal
@@ -62,18 +63,14 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from typing import Any
 
-from systems import available_memory
-
 from ..errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
 _KILLED = object()  # a Dask task whose worker died
-#: time budget per job by default (seconds): above the slowest legitimate job (an SDP design
-#: on 30 tanks with a cold design cache takes minutes), far below "for ever"
-DEFAULT_TIMEOUT = 1800.0
-#: memory limit per job by default: this fraction of the memory available when the run
-#: starts, shared by the workers running at once
-DEFAULT_MEMORY_FRACTION = 0.8
+#: the modules a local worker imports before its first job (the forkserver's preload, or a
+#: spawned worker's first step): named, not imported here, so that the executors do not
+#: depend on the harness they run (:mod:`benchmarks.run.workerinit` imports it)
+PRELOAD = ("benchmarks.run.workerinit",)
 #: seconds between two looks at the workers' resident memory
 POLL_S = 0.2
 #: statuses of jobs stopped by their budget
@@ -90,13 +87,6 @@ class JobFailure:
 
 def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
-
-
-def default_memory_limit(workers: int = 1) -> int | None:
-    """The memory limit per job by default: :data:`DEFAULT_MEMORY_FRACTION` of the memory
-    available now, divided among ``workers`` (None where it is not known)."""
-    have = available_memory()
-    return None if have is None else int(DEFAULT_MEMORY_FRACTION * have / max(1, workers))
 
 
 def format_bytes(n: float) -> str:
@@ -242,7 +232,8 @@ def _worker_loop(conn, env: dict[str, str],
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     if preload:  # a spawned worker: what the server would have preloaded, before any budget
         try:
-            import benchmarks.run.workerinit  # noqa: F401
+            for module in PRELOAD:
+                importlib.import_module(module)
         except Exception:
             pass
     # the parent's environment now (the server forked from may have started with another one:
@@ -347,7 +338,7 @@ def _context(method: str | None = None):
         return mp.get_context(method)
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["benchmarks.run.workerinit"])
+        ctx.set_forkserver_preload(list(PRELOAD))
         return ctx
     return mp.get_context("spawn")
 

@@ -41,8 +41,11 @@ row of it says so (status ``inconsistent``), whatever its sets.
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +55,8 @@ from observers.sets import SetError
 from systems import ModelError, Scenario
 
 from ..verdicts import NA, NO, YES
+from .executors import JobFailure
+from .specs import scenario_key, scenario_of
 
 #: steps the falsifier searches on a nonlinear record, spread from this share of it on
 FALSIFIER_STEPS, FALSIFIER_FIRST = 10, 0.2
@@ -150,6 +155,40 @@ def _exact(sc: Scenario, t0: float) -> RecordFloor:
                        {"filtered": h["filt_hi"], "predicted": h["pred_hi"]},
                        seconds=time.perf_counter() - t0, step_seconds=step,
                        unchecked=unchecked)
+
+
+@dataclass(frozen=True)
+class FloorTask:
+    """The accuracy floor of one scenario instance (:func:`compute_floor`), run by the
+    executor before the observers' jobs (picklable like a job)."""
+
+    spec: dict
+    base: str | None
+    enabled: bool = True
+    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
+
+
+def floor_task(task: FloorTask) -> RecordFloor:
+    """Compute the floor of ``task``'s scenario (in this process or a worker)."""
+    return compute_floor(scenario_of(task), task.enabled)
+
+
+def compute_floors(executor: Any, jobs: Sequence[Any], enabled: bool = True
+                   ) -> dict[str, RecordFloor]:
+    """The floor of every scenario instance of ``jobs`` (each with ``spec``, ``base`` and an
+    optional built ``scenario``), by the executor (the exact reference of a long record takes
+    minutes: the instances run in parallel with ``--jobs``; its cache makes a second run
+    free); keyed by :func:`.specs.scenario_key`; ``enabled``: the configuration's ``exact``."""
+    keys = list(dict.fromkeys(scenario_key(j) for j in jobs))
+    first = {scenario_key(j): j for j in reversed(jobs)}
+    tasks = [FloorTask(first[k].spec, first[k].base, enabled,
+                       first[k].scenario if executor.name == "serial" else None) for k in keys]
+    floors: dict[str, RecordFloor] = {}
+    for i, out in executor.map(floor_task, tasks, keys=keys):
+        if isinstance(out, JobFailure):
+            out = RecordFloor("none", message=f"no floor: {out.status}: {out.message}")
+        floors[keys[i]] = out
+    return floors
 
 
 def observer_floor(name: str, overrides: dict[str, str] | None = None) -> str:

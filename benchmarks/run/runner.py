@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import json
 import pickle
 import sys
 import traceback
@@ -31,10 +30,10 @@ from ..verdicts import HULL_AND_EXACT, NA, BenchResult, contained_column, contai
 from .config import BenchConfig, merge_options
 from .describe import set_bounds
 from .executors import JobFailure, SerialExecutor
-from .floor import RecordFloor, compute_floor, floor_columns, observer_floor
+from .floor import RecordFloor, compute_floors, floor_columns, observer_floor
 from .membership import MembershipTester
 from .progress import progress_bar
-from .specs import build_scenario
+from .specs import remember_scenario, scenario_key, scenario_of
 
 RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
                "radius", "x_true", "contained", "in_set", "floor_lo", "floor_hi"]
@@ -316,46 +315,8 @@ class Job:
     def inputs(self) -> tuple[Scenario, dict]:
         """The job's scenario (built once per process) and the options its observer runs with
         (:func:`.config.merge_options`, merged here once)."""
-        sc = _scenario(self)
+        sc = scenario_of(self)
         return sc, merge_options(self.observer, sc, self.options, self.observer_options)
-
-
-_SCENARIOS: dict[str, Scenario] = {}
-
-
-def scenario_key(job: Job) -> str:
-    """The scenario instance of ``job`` (its config entry, seed included, and base folder)."""
-    return _key(job.spec, job.base)
-
-
-def _key(spec: dict, base: str | None) -> str:
-    return json.dumps([spec, base], sort_keys=True, default=str)
-
-
-def _scenario(job) -> Scenario:
-    """The scenario of a :class:`Job` or :class:`FloorTask`, built once per process."""
-    key = scenario_key(job)
-    if getattr(job, "scenario", None) is not None:
-        _SCENARIOS.setdefault(key, job.scenario)
-    if key not in _SCENARIOS:
-        _SCENARIOS[key] = build_scenario(job.spec, Path(job.base) if job.base else None)
-    return _SCENARIOS[key]
-
-
-@dataclass(frozen=True)
-class FloorTask:
-    """The accuracy floor of one scenario instance (:func:`.floor.compute_floor`), run by
-    the executor before the observers' jobs (picklable like a :class:`Job`)."""
-
-    spec: dict
-    base: str | None
-    enabled: bool = True
-    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
-
-
-def floor_task(task: FloorTask) -> RecordFloor:
-    """Compute the floor of ``task``'s scenario (in this process or a worker)."""
-    return compute_floor(_scenario(task), task.enabled)
 
 
 def _picklable(sc: Scenario) -> bool:
@@ -400,18 +361,20 @@ def make_jobs(cfg: BenchConfig) -> list[Job]:
     base = str(cfg.base) if cfg.base is not None else None
     jobs = []
     for inst in cfg.instances:
-        _SCENARIOS[_key(inst.spec, base)] = inst.scenario  # this process needs not rebuild it
+        remember_scenario(inst.spec, base, inst.scenario)
         for name in cfg.observers:
             obs = cfg.observer_of(name)  # a labelled variant runs its observer
             per = cfg.labelled[name][1] if name in cfg.labelled else cfg.observer_options.get(
                 name, {})
             cls = observers.get(obs).cls
             for label, opts in cfg.variants_of(obs):
-                jobs.append(Job(inst.spec, base, obs, cls.__module__,
-                                cfg.options, {**per, **opts}, cfg.containment, inst.seed, label,
-                                name if name != obs else "", cfg.guaranteed(name),
-                                isolatable(cls), info=observers.get(obs) if isolatable(cls)
-                                else None))
+                isolate = isolatable(cls)
+                jobs.append(Job(spec=inst.spec, base=base, observer=obs, module=cls.__module__,
+                                options=cfg.options, observer_options={**per, **opts},
+                                containment=cfg.containment, seed=inst.seed, variant=label,
+                                label=name if name != obs else "",
+                                guaranteed=cfg.guaranteed(name), isolate=isolate,
+                                info=observers.get(obs) if isolate else None))
     return jobs
 
 
@@ -451,7 +414,7 @@ def execute_job(job: Job, budget: float | None = None):
 
 def failed_job(job: Job, failure: JobFailure):
     """The rows of a job that produced no result (its worker died, it raised, timed out)."""
-    sc = _scenario(job)
+    sc = scenario_of(job)
     info = observers.get(job.observer)
     if job.label:
         info = dataclasses.replace(info, name=job.label, guaranteed=job.guaranteed)
@@ -468,22 +431,6 @@ def summary_columns(containment: str) -> list[str]:
             contained_column(containment),
             *both, "violations", "first_violation_step", *FLOOR_COLUMNS, "status",
             "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
-
-
-def compute_floors(cfg: BenchConfig, executor, jobs: list[Job]) -> dict[str, RecordFloor]:
-    """The floor of every scenario instance of ``jobs`` (:mod:`.floor`), by the executor
-    (the exact reference of a long record takes minutes: the instances run in parallel with
-    ``--jobs``; its cache makes a second run free); keyed by :func:`scenario_key`."""
-    keys = list(dict.fromkeys(scenario_key(j) for j in jobs))
-    first = {scenario_key(j): j for j in reversed(jobs)}
-    tasks = [FloorTask(first[k].spec, first[k].base, cfg.exact,
-                       first[k].scenario if executor.name == "serial" else None) for k in keys]
-    floors: dict[str, RecordFloor] = {}
-    for i, out in executor.map(floor_task, tasks, keys=keys):
-        if isinstance(out, JobFailure):
-            out = RecordFloor("none", message=f"no floor: {out.status}: {out.message}")
-        floors[keys[i]] = out
-    return floors
 
 
 def mark_inconsistent(summary: pd.DataFrame, message: str, containment: str) -> None:
@@ -505,7 +452,7 @@ def add_floor(cfg: BenchConfig, job: Job, floor: RecordFloor, runs: pd.DataFrame
     rows, the gap and the covering verdict in its summary rows (:func:`.floor.floor_columns`)."""
     if floor.kind == "empty":
         mark_inconsistent(summary, floor.message, job.containment)
-    sc = _scenario(job)
+    sc = scenario_of(job)
     N, n = sc.N, sc.system.n
     which = observer_floor(job.label or job.observer, cfg.floors)
     if runs is not None and len(runs) == N * n:
@@ -551,7 +498,7 @@ def largest_first(jobs: list[Job]) -> list[int]:
     the last of them alone."""
     def size(job: Job) -> int:
         try:
-            sc = _scenario(job)
+            sc = scenario_of(job)
             return int(sc.N) * int(sc.system.n)
         except Exception:  # a scenario that cannot be built fails in its job, not here
             return 0
@@ -606,11 +553,11 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     executor.set_budget(cfg.timeout, cfg.job_memory_limit(executor.workers))
     jobs = make_jobs(cfg)
     # the serial executor sends an isolated job with its scenario (built here already)
-    payloads = [dataclasses.replace(j, scenario=_scenario(j)) if j.isolate and
-                executor.name == "serial" and _picklable(_scenario(j)) else j for j in jobs]
+    payloads = [dataclasses.replace(j, scenario=scenario_of(j)) if j.isolate and
+                executor.name == "serial" and _picklable(scenario_of(j)) else j for j in jobs]
     frames: list = [None] * len(jobs)
     try:
-        floors = compute_floors(cfg, executor, jobs)
+        floors = compute_floors(executor, jobs, cfg.exact)
         _run_jobs(cfg, executor, jobs, payloads, frames, progress)
     finally:
         if own:

@@ -31,6 +31,7 @@ An inline definition::
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 from typing import Any
 
@@ -331,3 +332,34 @@ def build_scenario(spec: Any, base: Path | None) -> Scenario:
             raise ConfigError(f"{where}: 'label' must be a non-empty name")
         changes["name"] = spec["label"].strip()
     return dataclasses.replace(sc, **changes) if changes else sc
+
+
+# -- scenario instances, built once per process ---------------------------------------------
+_SCENARIOS: dict[str, Scenario] = {}
+
+
+def instance_key(spec: dict, base: str | None) -> str:
+    """The scenario instance of a configuration entry ``spec`` (seed included) read relative
+    to the folder ``base``."""
+    return json.dumps([spec, base], sort_keys=True, default=str)
+
+
+def scenario_key(entry: Any) -> str:
+    """The scenario instance of ``entry`` (a job or a floor task: its ``spec`` and ``base``)."""
+    return instance_key(entry.spec, entry.base)
+
+
+def remember_scenario(spec: dict, base: str | None, sc: Scenario) -> None:
+    """Keep the built scenario ``sc`` of entry ``spec`` (this process needs not rebuild it)."""
+    _SCENARIOS[instance_key(spec, base)] = sc
+
+
+def scenario_of(entry: Any) -> Scenario:
+    """The scenario of ``entry`` (a job or a floor task, with ``spec``, ``base`` and an
+    optional built ``scenario``), built once per process."""
+    key = scenario_key(entry)
+    if getattr(entry, "scenario", None) is not None:
+        _SCENARIOS.setdefault(key, entry.scenario)
+    if key not in _SCENARIOS:
+        _SCENARIOS[key] = build_scenario(entry.spec, Path(entry.base) if entry.base else None)
+    return _SCENARIOS[key]

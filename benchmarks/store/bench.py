@@ -30,14 +30,9 @@ from ..errors import ConfigError
 from ..io import atomic_write_text
 from ..report.markdown import render_report
 from ..run.config import BenchConfig, load_config
-from ..run.runner import (
-    FloorTask,
-    floor_task,
-    is_project_module,
-    make_jobs,
-    run_config,
-    scenario_key,
-)
+from ..run.floor import FloorTask, floor_task
+from ..run.runner import is_project_module, make_jobs, run_config
+from ..run.specs import scenario_key
 from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
 from .graph import ROOT
 from .store import (

@@ -93,7 +93,8 @@ def design_only(job: Job) -> dict:
 
 def _job(variant: str, n: int, name: str, steps: int) -> Job:
     spec = {"name": f"tank{n}-{variant}", "steps": steps}
-    return Job(spec, None, name, observers.get(name).cls.__module__, {}, {}, "hull", None, "")
+    return Job(spec=spec, base=None, observer=name, module=observers.get(name).cls.__module__,
+               options={}, observer_options={}, containment="hull", seed=None, variant="")
 
 
 def _row(variant, n, name, status, message="", **values) -> dict:
