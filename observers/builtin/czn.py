@@ -42,9 +42,8 @@ from ..families import Linearised, ZonotopeObserver
 from ..options import Choice, Integer, Number
 from ..prediction import box_generators
 from ..registry import register
-from ..sets import ConZonotope, HullLP, HullLPStats
+from ..sets import ConZonotope, HullLP, HullLPStats, get_reduction
 from ..sets import conzono_ops as ops
-from ..sets.reduction import get_reduction, lifted_reduction
 from .frad import WangGainVariant
 
 #: default bound on the number of constraints, as a multiple of the number of outputs m
@@ -124,8 +123,9 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
 
     def design(self) -> None:
         super().design()
-        # every reduction here acts on the lifted zonotope: the strategy's variant for it
-        self._reduce = lifted_reduction(get_reduction(self.options["reduction"])).reduce
+        # every reduction here acts on the lifted zonotope (ops.lifted_reduce takes the
+        # strategy's variant for it)
+        self._reduction = get_reduction(self.options["reduction"])
         k = self.options["max_constraints"]
         m = self.V.dim
         self.max_constraints = DEFAULT_CONSTRAINT_STEPS * m if k == "auto" else k
@@ -257,7 +257,7 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         c, G, A, b = ops.fold_constraints(c, G, A, b, self.max_constraints)
         if self.max_generators is not None and G.shape[1] > self.max_generators:
             order = self.max_generators / (G.shape[0] + A.shape[0])
-            c, G, A, b = ops.lifted_reduce(c, G, A, b, order, self._reduce, per="lifted")
+            c, G, A, b = ops.lifted_reduce(c, G, A, b, order, self._reduction, per="lifted")
         return c, G, A, b
 
     def _timed(self, phase: str, fn, *args):
@@ -287,11 +287,11 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
             if self.max_constraints is None:  # CORA: intersect, then reduce
                 c, G, A, b = timed("update", self._update, c, G, A, b, y)
                 c, G, A, b = timed("reduction", ops.lifted_reduce, c, G, A, b, self.order,
-                                   self._reduce)
+                                   self._reduction)
             else:  # reduce the prediction, intersect exactly, fold the oldest constraints
                 if self.max_generators is None:
                     c, G, A, b = timed("reduction", ops.lifted_reduce, c, G, A, b,
-                                       self.order, self._reduce)
+                                       self.order, self._reduction)
                 else:
                     c, G, A, b = timed("reduction", self.limit, c, G, A, b)
                 c, G, A, b = timed("update", self._update, c, G, A, b, y)

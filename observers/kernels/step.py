@@ -255,6 +255,12 @@ def _tie_band(h, r, k, out):
         return out
     thr = h[out[k - 1]]
     band = TIE_RTOL * abs(thr)
+    upto = 0  # the values up to the top of the band: when they are exactly k, they are the
+    for j in range(r):  # k smallest already in out[:k], in the same stable order
+        if h[j] <= thr + band:
+            upto += 1
+    if upto == k:
+        return out
     chosen = np.empty(k, dtype=np.int64)
     m = 0
     for j in range(r):

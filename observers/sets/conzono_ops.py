@@ -39,6 +39,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .reduction import Reduction, lifted_reduction
+
 _EPS = np.finfo(float).eps
 _TINY = np.finfo(float).tiny
 
@@ -127,14 +129,16 @@ ORDER_BASES = ("state", "lifted")
 
 def lifted_reduce(
     c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray, order: float,
-    reduce_generators: Callable[[np.ndarray, float], np.ndarray], per: str = "state",
+    strategy: Reduction, per: str = "state",
 ) -> Arrays:
     """Order reduction of a constrained zonotope (Scott et al. 2016, Sec. 4.3).
 
     After :func:`compact_zeros`, the lifted zonotope ``([c; -b], [G; A])`` in ``R^(n+nc)`` is
-    reduced with ``reduce_generators`` (a zonotope strategy acting on generator matrices) and
-    split back.  ``per="state"`` (CORA's ``conZonotope/reduce``): lifted order
-    ``max(1, (order n + nc) / (n + nc))``, at most ``order * n + nc`` generators remain;
+    reduced with the zonotope strategy ``strategy`` in its variant for lifted zonotopes
+    (:func:`.reduction.lifted_reduction`: :meth:`.reduction.PCA.lifted` clusters singular
+    values more widely; a strategy without a variant as it is) and split back.
+    ``per="state"`` (CORA's ``conZonotope/reduce``): lifted order ``max(1, (order n + nc) /
+    (n + nc))``, at most ``order * n + nc`` generators remain;
     ``per="lifted"``: lifted order ``order``, at most ``order * (n + nc)`` generators.  The
     constraints are kept (their number is unchanged).
     """
@@ -142,7 +146,7 @@ def lifted_reduce(
     n, nc = G.shape[0], A.shape[0]
     if per == "state":
         order = max(1.0, (order * n + nc) / (n + nc))
-    G_up = reduce_generators(np.vstack([G, A]), order)
+    G_up = lifted_reduction(strategy).reduce(np.vstack([G, A]), order)
     return c, G_up[:n], G_up[n:], b
 
 

@@ -9,7 +9,7 @@ from ..lp import HullLP, box_feasible
 from . import conzono_ops as ops
 from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
 from .interval import Interval
-from .reduction import Reduction, check_order, get_reduction, lifted_reduction
+from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
 
@@ -251,9 +251,8 @@ class ConZonotope:
         if per not in ops.ORDER_BASES:
             raise SetError(f"order must be counted per 'state' or per 'lifted' dimension, "
                            f"got {per!r}")
-        strategy = lifted_reduction(get_reduction(method))
         return ConZonotope.trusted(*ops.lifted_reduce(
-            self._c, self._G, self._A, self._b, float(order), strategy.reduce, per))
+            self._c, self._G, self._A, self._b, float(order), get_reduction(method), per))
 
     def reduce_constraints(self, max_constraints: int, method: str = "fold") -> ConZonotope:
         r"""Enclosure keeping the ``max_constraints`` newest (last) constraints; the older ones

@@ -220,6 +220,17 @@ def principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -> np.nd
     return np.hstack([_cluster_basis(U[:, a:b]) for a, b in zip(starts, ends, strict=True)])
 
 
+def _box_in_basis(keep: np.ndarray, red: np.ndarray, U: np.ndarray,
+                  zero_rtol: float = 0.0) -> np.ndarray:
+    """``[keep, U diag(w)]`` with ``w = |U' red| 1``: the reduced generators ``red`` replaced
+    by their box in the orthonormal basis ``U`` (the widths at most ``zero_rtol`` of the
+    largest set to exactly zero: the rounding noise of an axis ``red`` does not span)."""
+    box = np.abs(U.T @ red).sum(axis=1)
+    if zero_rtol > 0:
+        box = np.where(box > zero_rtol * box.max(), box, 0.0)
+    return np.hstack([keep, U * box])
+
+
 class PCA:
     """Replace the reduced generators by a box aligned with their principal components
     (:func:`principal_axes`: deterministic where singular values repeat, i.e. lie within
@@ -247,9 +258,7 @@ class PCA:
             return keep
         # the covariance of [red, -red] is proportional to red @ red.T (zero mean by
         # symmetry): its eigenvectors are the left singular vectors of red
-        U = principal_axes(red, self.cluster_rtol)
-        box = np.abs(U.T @ red).sum(axis=1)
-        return np.hstack([keep, U * np.where(box > BOX_ZERO_RTOL * box.max(), box, 0.0)])
+        return _box_in_basis(keep, red, principal_axes(red, self.cluster_rtol), BOX_ZERO_RTOL)
 
 
 def lifted_reduction(strategy: Reduction, **options) -> Reduction:
@@ -300,9 +309,7 @@ class CoraPCA:
         keep, red, abs_red = _split(np.asarray(G, dtype=float), order)
         if abs_red is None:
             return keep
-        U = cora_principal_axes(red)
-        box = np.abs(U.T @ red).sum(axis=1)
-        return np.hstack([keep, U * box])
+        return _box_in_basis(keep, red, cora_principal_axes(red))
 
 
 _REDUCTIONS: dict[str, Reduction] = {"girard": Girard(), "pca": PCA(), "pca-cora": CoraPCA()}
