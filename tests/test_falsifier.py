@@ -16,6 +16,7 @@ import systems
 from benchmarks.run.falsifier import (
     FACTOR_MARGIN,
     FalsifierResult,
+    SearchOptions,
     Trajectory,
     falsify,
     spread_steps,
@@ -213,7 +214,7 @@ def test_inner_box_reaches_the_exact_hull_of_a_linear_record(name, floor, noise)
     sc = systems.scenario(name, steps=60, noise=noise)
     short = 2e-2 if noise == "vertex" else 1e-3
     steps = [10, 35, 59]
-    res = falsify(sc.system, sc, steps=steps, floor=floor)
+    res = falsify(sc.system, sc, steps=steps, options=SearchOptions(floor=floor))
     for s, k in enumerate(steps):
         lo, hi = _exact_hull(sc.system, sc.u, sc.y, k, k + 1 if floor == "filtered" else k)
         r = 0.5 * (hi - lo)
@@ -228,7 +229,7 @@ def test_predicted_step_zero_is_the_hull_of_x0():
     """Before any measurement the consistent states of step 0 are X0 (hand derivation):
     the box 20 +- 4 of the tank, reached up to the search's margin."""
     sc = systems.scenario("tank6-nonlinear", steps=20)
-    res = falsify(sc.system, sc, steps=[0], floor="predicted")
+    res = falsify(sc.system, sc, steps=[0], options=SearchOptions(floor="predicted"))
     np.testing.assert_allclose(res.inner_lo[0], 16.0 + 4 * FACTOR_MARGIN, rtol=0, atol=1e-12)
     np.testing.assert_allclose(res.inner_hi[0], 24.0 - 4 * FACTOR_MARGIN, rtol=0, atol=1e-12)
 
@@ -274,12 +275,13 @@ def test_check_counts_violations_beyond_the_tolerance_and_bounds_the_gap():
 
 def test_bad_arguments_are_one_clear_error():
     sc = systems.scenario("vanderpol-sim", steps=10)
-    for kwargs, match in (({"steps": [10]}, "steps must lie in 0 .. 9"),
-                          ({"floor": "smoothed"}, "floor must be one of"),
+    with pytest.raises(ModelError, match="steps must lie in 0 .. 9"):
+        falsify(sc.system, sc, steps=[10])
+    for kwargs, match in (({"floor": "smoothed"}, "floor must be one of"),
                           ({"starts": 0}, "starts must be an integer >= 1"),
                           ({"window": 0}, "window must be")):
         with pytest.raises(ModelError, match=match):
-            falsify(sc.system, sc, **{"steps": [3], **kwargs})
+            falsify(sc.system, sc, steps=[3], options=SearchOptions(**kwargs))
     with pytest.raises(ModelError, match="record must have u and y"):
         falsify(sc.system, sc.y, steps=[3])
     assert spread_steps(100, 3, first=20).tolist() == [20, 60, 99]

@@ -124,10 +124,10 @@ def compute_floor(sc: Scenario, enabled: bool = True) -> RecordFloor:
     try:
         if getattr(system, "is_linear", False):
             return _exact(sc, t0)
-        from .falsifier import falsify, spread_steps
+        from .falsifier import SearchOptions, falsify, spread_steps
 
         steps = spread_steps(sc.N, FALSIFIER_STEPS, first=int(FALSIFIER_FIRST * sc.N))
-        res = falsify(system, sc, steps, keep_trajectories=False)
+        res = falsify(system, sc, steps, options=SearchOptions(keep_trajectories=False))
         return RecordFloor(INNER, {"filtered": res.inner_lo}, {"filtered": res.inner_hi},
                            steps=res.steps, seconds=time.perf_counter() - t0)
     except SetError as exc:  # EmptySet: no state fits the record

@@ -1,5 +1,6 @@
-"""The search of :mod:`benchmarks.run.falsifier`: consistent trajectories of a record that
-push one state of one step to an extreme, verified by forward simulation.
+"""The search of the falsifier (:mod:`benchmarks.run.falsifier`): consistent trajectories of a
+record that push one state of one step to an extreme, verified by forward simulation
+(:mod:`.verification`).
 
 Method (and why)
 ----------------
@@ -57,7 +58,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import highspy
 import numpy as np
@@ -67,15 +67,12 @@ from scipy.optimize import linprog
 from observers.lp import new_highs
 from systems.errors import ModelError
 
+from .verification import EQ_TOL, VERIFY_TOL, Model, Trajectory
+
 #: factors of X0 and W are kept within 1 - FACTOR_MARGIN during the search
 FACTOR_MARGIN = 1e-9
 #: factors of V are kept within 1 - NOISE_MARGIN (LP tolerance + linearisation error)
 NOISE_MARGIN = 1e-7
-#: rounding allowance of the verification on the factors of V (those of X0 and W are the
-#: trajectory's own numbers and are checked exactly): the measurements and the simulated
-#: outputs carry the rounding of the simulation (a record with noise on the vertices of V,
-#: e.g. the audit's, has ``|v| = r_V`` exactly and no consistent trajectory strictly inside)
-VERIFY_TOL = 1e-9
 #: measurement factors this close to 1 are held by :meth:`Search.polish`, which runs on
 #: candidates beyond 1 by at most POLISH_EXCESS, with at most POLISH_SIZE gradient entries
 ACTIVE = 1e-6
@@ -83,8 +80,6 @@ POLISH_EXCESS = 1e-6
 POLISH_SIZE = 4_000_000
 #: HiGHS primal and dual feasibility tolerance
 LP_TOL = 1e-10
-#: tolerance of the measurement equation residual after G_V^+ (non-square G_V only)
-EQ_TOL = 1e-12
 #: SLP iterations per run; second-order corrections per step
 MAX_ITER = 20
 SOC_STEPS = 8
@@ -94,197 +89,6 @@ PRED_TOL = 1e-9
 STOP_RTOL = 1e-3
 #: initial trust-region radius on the factors (2 = the whole box)
 DELTA0 = 2.0
-
-
-def _output(system: Any, x: np.ndarray) -> np.ndarray:
-    """``h(x)`` where the system has an output function, else ``C x``."""
-    h = getattr(system, "h", None)
-    if callable(h):
-        return np.asarray(h(x), dtype=float).reshape(-1)
-    return system.C @ x
-
-
-def _output_jacobian(system: Any, x: np.ndarray, ny: int) -> np.ndarray:
-    """``dh/dx`` where the system has an output function (central differences if it has no
-    ``h_jacobian``: the Jacobian only steers the search), else ``C``."""
-    hj = getattr(system, "h_jacobian", None)
-    if callable(hj):
-        return np.asarray(hj(x), dtype=float).reshape(ny, x.size)
-    if callable(getattr(system, "h", None)):
-        step = 1e-7 * np.maximum(1.0, np.abs(x))
-        cols = [(_output(system, x + e) - _output(system, x - e)) / (2 * e[i])
-                for i, e in enumerate(np.diag(step))]
-        return np.column_stack(cols).reshape(ny, x.size)
-    return np.asarray(system.C, dtype=float)
-
-
-# -- trajectories and their verification -------------------------------------------------
-@dataclass(frozen=True)
-class Trajectory:
-    """A candidate trajectory given by its noise factors.
-
-    Attributes
-    ----------
-    xi0 : (p0,) array
-        Factors of ``x_0 = c_0 + G_0 xi0``.
-    omega : (k, pW) array
-        Factors of ``w_j = c_W + G_W omega_j``, ``j = 0 .. k-1`` (``k`` is the final step).
-    nu : (m, pV) array
-        Factors of ``v_j`` for the ``m`` measurements reproduced; :func:`verify` recomputes
-        them from the simulated states (they only seed ``G_V^+`` where ``G_V`` is not square).
-    """
-
-    xi0: np.ndarray
-    omega: np.ndarray
-    nu: np.ndarray
-
-    @property
-    def step(self) -> int:
-        """The final step ``k`` of the trajectory."""
-        return int(self.omega.shape[0])
-
-    @property
-    def measured(self) -> int:
-        """Number of measurements ``y_0 .. y_{m-1}`` the trajectory reproduces."""
-        return int(self.nu.shape[0])
-
-    def truncated(self, k: int, m: int) -> Trajectory:
-        """The first ``k`` steps reproducing ``m`` measurements."""
-        return Trajectory(self.xi0, self.omega[:k], self.nu[:m])
-
-
-@dataclass(frozen=True)
-class Verification:
-    """Verdict of :func:`verify`.
-
-    Attributes
-    ----------
-    consistent : bool
-        Every factor within its bound and the simulation finite.
-    x : (k + 1, n) array
-        Simulated states ``x_0 .. x_k``.
-    nu : (m, pV) array
-        Measurement factors recomputed from the simulated states.
-    worst : float
-        Largest ``|factor|`` over ``X0``, ``W`` and ``V`` (``<= 1`` when consistent).
-    reason : str
-        Why the trajectory is inconsistent (``""`` when consistent).
-    """
-
-    consistent: bool
-    x: np.ndarray
-    nu: np.ndarray
-    worst: float
-    reason: str = ""
-
-
-class Model:
-    """The system, its record and the zonotope data the falsifier needs."""
-
-    def __init__(self, system: Any, u: np.ndarray, y: np.ndarray):
-        for key in ("W", "V", "X0"):
-            if not hasattr(system, key):
-                raise ModelError(f"falsifier: the system has no attribute {key}")
-        if not (hasattr(system, "dynamics") or hasattr(system, "f")):
-            raise ModelError("falsifier: the system has neither dynamics(x, u) nor f(x, u)")
-        # every model of ours has h(x); a linear one says so (output_is_linear) and has C
-        self.nonlinear_output = (callable(getattr(system, "h", None))
-                                 and not getattr(system, "output_is_linear", False))
-        if not (self.nonlinear_output or hasattr(system, "C")):
-            raise ModelError("falsifier: the system has neither h(x) nor C")
-        self.system = system
-        self.n = int(np.size(system.X0.c))
-        self.ny = int(np.size(system.V.c))
-        y = np.asarray(y, dtype=float)
-        if y.ndim == 1:
-            y = y.reshape(-1, 1)
-        N = y.shape[0]
-        u = np.zeros((N, 0)) if u is None else np.asarray(u, dtype=float)
-        if u.ndim == 1:
-            u = u.reshape(-1, 1)
-        if y.shape[1] != self.ny or u.shape[0] < N - 1:
-            raise ModelError(f"falsifier: record shapes u {u.shape}, y {y.shape} do not match "
-                             f"the system (ny = {self.ny})")
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u[:N - 1]))):
-            raise ModelError("falsifier: the record contains non-finite values")
-        self.u, self.y, self.N = u, y, N
-        self.c0, self.G0 = np.asarray(system.X0.c, float), np.asarray(system.X0.G, float)
-        self.cW, self.GW = np.asarray(system.W.c, float), np.asarray(system.W.G, float)
-        self.cV, self.GV = np.asarray(system.V.c, float), np.asarray(system.V.G, float)
-        self.GV_pinv = np.linalg.pinv(self.GV)
-        self.square_V = self.GV.shape[0] == self.GV.shape[1] and np.linalg.matrix_rank(
-            self.GV) == self.GV.shape[0]
-        self.p0, self.pW, self.pV = self.G0.shape[1], self.GW.shape[1], self.GV.shape[1]
-        self._f = system.dynamics if hasattr(system, "dynamics") else system.f
-
-    def f(self, x: np.ndarray, j: int) -> np.ndarray:
-        return np.asarray(self._f(x, self.u[j]), dtype=float)
-
-    def jacobian(self, x: np.ndarray, j: int) -> np.ndarray:
-        s = self.system
-        if hasattr(s, "jacobian"):
-            return np.asarray(s.jacobian(x, self.u[j])[0], dtype=float)
-        return np.asarray(s.A, dtype=float)
-
-    def H(self, x: np.ndarray) -> np.ndarray:
-        """Output Jacobian at ``x``."""
-        if not self.nonlinear_output:
-            return np.asarray(self.system.C, dtype=float)
-        return _output_jacobian(self.system, x, self.ny)
-
-    def outputs(self, X: np.ndarray) -> np.ndarray:
-        if not self.nonlinear_output:
-            return X @ self.system.C.T
-        return np.array([_output(self.system, x) for x in X]).reshape(X.shape[0], self.ny)
-
-    def simulate(self, xi0: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """States ``x_0 .. x_k`` (rows after a non-finite state are NaN)."""
-        k = omega.shape[0]
-        X = np.full((k + 1, self.n), np.nan)
-        x = self.c0 + self.G0 @ xi0
-        W = self.cW + omega @ self.GW.T
-        with np.errstate(all="ignore"):
-            for j in range(k + 1):
-                if not np.all(np.isfinite(x)):
-                    break
-                X[j] = x
-                if j < k:
-                    x = self.f(x, j) + W[j]
-        return X
-
-    def noise_factors(self, X: np.ndarray, nu_ref: np.ndarray) -> tuple[np.ndarray, float]:
-        """Measurement factors of the simulated states and the worst equation residual."""
-        m = nu_ref.shape[0]
-        with np.errstate(all="ignore"):
-            R = self.y[:m] - self.outputs(X[:m]) - self.cV
-            nu = nu_ref + (R - nu_ref @ self.GV.T) @ self.GV_pinv.T
-            res = 0.0 if self.square_V else float(np.abs(R - nu @ self.GV.T).max(initial=0.0))
-        return nu, res
-
-    def check(self, traj: Trajectory) -> Verification:
-        """:func:`verify` on this model."""
-        xi0, omega = np.asarray(traj.xi0, float), np.asarray(traj.omega, float)
-        nu_ref = np.asarray(traj.nu, float).reshape(-1, self.pV)
-        k, m = omega.shape[0], nu_ref.shape[0]
-        if xi0.shape != (self.p0,) or omega.shape[1:] != (self.pW,):
-            raise ModelError(f"trajectory factors have shapes {xi0.shape}, {omega.shape}; "
-                             f"expected ({self.p0},), (k, {self.pW})")
-        if not (k + 1 >= m >= k and k < self.N):
-            raise ModelError(f"a trajectory to step {k} must reproduce {k} or {k + 1} "
-                             f"measurements of the {self.N}, got {m}")
-        X = self.simulate(xi0, omega)
-        if not np.all(np.isfinite(X)):
-            return Verification(False, X, nu_ref, math.inf, "the simulation is not finite")
-        nu, res = self.noise_factors(X, nu_ref)
-        worst = {"X0": np.abs(xi0).max(initial=0.0), "W": np.abs(omega).max(initial=0.0),
-                 "V": np.abs(nu).max(initial=0.0)}
-        bound = {"X0": 1.0, "W": 1.0, "V": 1.0 + VERIFY_TOL}
-        reasons = [f"|factor of {key}| = {v!r} > {bound[key]!r}" for key, v in worst.items()
-                   if not v <= bound[key]]
-        scale = max(1.0, float(np.abs(self.y[:m]).max(initial=0.0)))
-        if not res <= EQ_TOL * scale:
-            reasons.append(f"measurement residual {res:.3g} after G_V^+")
-        return Verification(not reasons, X, nu, float(max(worst.values())), "; ".join(reasons))
 
 
 # -- the SLP ------------------------------------------------------------------------------
