@@ -1,7 +1,9 @@
 """The import structure of ``observers``, ``systems`` and ``benchmarks``: no module-level import
-cycle, ``observers.sets`` a leaf, plugins without access to the private modules of
-``observers.sets``, the wings of ``benchmarks`` importing one way (``cli`` -> wings; ``gate``,
-``timing``, ``studies`` -> ``run``, ``report``; ``run``, ``report`` -> the floor ``errors``,
+cycle; the bottom rooms of ``observers`` importing one way (``observers.kernels`` <-
+``observers.lp`` <- ``observers.sets`` <- the rest; no solver in ``sets``, numba only in
+``lp`` and ``kernels``); no private module or name taken from another room; the wings of
+``benchmarks`` importing one way (``cli`` -> wings; ``gate``, ``timing``, ``studies`` ->
+``run``, ``report``; ``run``, ``report`` -> the floor ``errors``,
 ``io``, ``metrics``, ``verdicts``), matplotlib only in ``benchmarks/report/figures.py``, one
 number formatter (``benchmarks/report/numbers.py``).
 
@@ -126,7 +128,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_graph_reads_the_imports():
     graph = import_graph()
-    assert "observers.sets._step_jit" in graph["observers.sets.reduction"]
+    assert "observers.kernels.step" in graph["observers.sets.reduction"]
     assert "observers.base" in graph["observers.families"]
     assert "observers.registry" not in graph["observers.base"]  # annotation only
     assert "observers.sets" in graph["observers.families"]  # ``from .sets import Interval``
@@ -137,20 +139,112 @@ def test_no_module_level_import_cycle():
     assert cycles(import_graph()) == []
 
 
-def test_sets_is_a_leaf():
-    graph = import_graph()
-    for name, deps in graph.items():
-        if name.startswith("observers.sets"):
-            outside = {d for d in deps if not d.startswith("observers.sets")}
-            assert not outside, f"{name} imports {sorted(outside)}"
+#: the bottom rooms of ``observers`` and what each may import of ours (besides itself), every
+#: import counted, also those inside functions: kernels <- lp <- sets <- the rest
+ROOMS_BELOW = {
+    "observers.kernels": set(),
+    "observers.lp": {"observers.kernels", "observers.errors"},
+    "observers.sets": {"observers.lp", "observers.kernels", "observers.errors"},
+}
 
 
-def test_plugins_do_not_import_private_modules_of_sets():
-    for name, deps in import_graph().items():
-        if name.startswith("observers.builtin"):
-            private = {d for d in deps if d.startswith("observers.sets.")
-                       and d.rsplit(".", 1)[1].startswith("_")}
-            assert not private, f"{name} imports {sorted(private)}"
+def _room_of(module: str) -> str | None:
+    return next((room for room in ROOMS_BELOW
+                 if module == room or module.startswith(room + ".")), None)
+
+
+def test_sets_lp_kernels_import_one_way():
+    modules = all_modules()
+    bad = []
+    for name, path in modules.items():
+        room = _room_of(name)
+        if room is None:
+            continue
+        allowed = ROOMS_BELOW[room] | {room}
+        for target in imports_of(name, path, modules, anywhere=True):
+            troom = _room_of(target) or target
+            if not (troom in allowed or (troom == "observers" and target == "observers")):
+                bad.append(f"{name} -> {target}")
+    assert bad == []
+
+
+def _third_party_imports(path: Path) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            out.add(node.module.split(".")[0])
+    return out
+
+
+def test_sets_hold_no_solver_and_no_compiled_kernel():
+    for name, path in all_modules().items():
+        if _room_of(name) != "observers.sets":
+            continue
+        solvers = _third_party_imports(path) & {"highspy", "numba", "cvxpy", "clarabel"}
+        assert not solvers, f"{name} imports {sorted(solvers)}"
+        calls = {n.func.attr if isinstance(n.func, ast.Attribute) else getattr(n.func, "id", "")
+                 for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.Call)}
+        assert not calls & {"njit", "jit", "linprog", "milp", "Highs", "new_highs"}, name
+    for name, path in all_modules().items():  # numba only in the rooms of compiled code
+        if "numba" in _third_party_imports(path):
+            assert _room_of(name) in ("observers.lp", "observers.kernels"), \
+                f"{name} imports numba outside observers/lp and observers/kernels"
+
+
+def _room(module: str) -> str:
+    """The room of a module: ``observers.X`` for a subpackage ``X`` of ``observers`` (the core
+    modules at its top are one room, ``observers``), ``benchmarks.X`` for a wing or base module
+    of ``benchmarks``, else the top package."""
+    parts = module.split(".")
+    if parts[0] in ("observers", "benchmarks") and len(parts) > 1:
+        sub = ROOT / parts[0] / parts[1]
+        if parts[0] == "benchmarks" or sub.is_dir():
+            return ".".join(parts[:2])
+    return parts[0]
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def private_reach_ins() -> list[str]:
+    """Private modules or names (a leading underscore) taken from another room: imported, or
+    read as an attribute of a module or class imported from another room."""
+    modules = all_modules()
+    found = []
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text())
+        foreign: set[str] = set()  # local names bound to modules / objects of other rooms
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            base = node.module or ""
+            if node.level:
+                parts = name.split(".")
+                anchor = parts if path.name == "__init__.py" else parts[:-1]
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join([*anchor, *([base] if base else [])])
+            if base.split(".")[0] not in PACKAGES:
+                continue
+            for alias in node.names:
+                full = f"{base}.{alias.name}"
+                target = full if full in modules else base
+                if _room(target) == _room(name):
+                    continue
+                if any(_private(part) for part in full.split(".")):
+                    found.append(f"{name}:{node.lineno} imports {full}")
+                foreign.add(alias.asname or alias.name)
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id in foreign and _private(node.attr)):
+                found.append(f"{name}:{node.lineno} reads {node.value.id}.{node.attr}")
+    return found
+
+
+def test_no_private_reach_ins_across_rooms():
+    assert private_reach_ins() == []
 
 
 def test_registry_imports_base_not_the_reverse():
