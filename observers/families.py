@@ -91,28 +91,28 @@ def strip_update(
     return c_new, G_new
 
 def propagate(
-    c: np.ndarray,
-    G: np.ndarray,
-    A: np.ndarray,
-    d: np.ndarray,
+    S: tuple[np.ndarray, np.ndarray],
+    prediction: tuple[np.ndarray, np.ndarray, np.ndarray | None],
     C: np.ndarray,
     L: np.ndarray,
     y: np.ndarray,
     V: tuple[np.ndarray, np.ndarray],
     W: tuple[np.ndarray, np.ndarray],
-    R: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     r"""One set-propagation step ``S+ = (A - L C) S + d + L y + (-L) V + W (+ R)`` (eq. 8 of
     Althoff & Rath 2021 with ``d = B u``), exact on zonotopes; generators
-    ``[(A-LC) G, -L G_V, G_W, R]``.  For a nonlinear system ``A, d`` are the linearisation
-    at the centre and ``R`` the generators of its remainder box
-    (:mod:`observers.prediction`).
+    ``[(A-LC) G, -L G_V, G_W, R]``, for the set ``S = (c, G)``, the prediction
+    ``(A, d, R)`` (``R`` ``None`` or remainder generators), ``V = (c_V, G_V)`` and
+    ``W = (c_W, G_W)``.  For a nonlinear system ``A, d`` are the linearisation at the centre
+    and ``R`` the generators of its remainder box (:mod:`observers.prediction`).
 
     .. math::
 
         c^+ = (A - LC)\,c + d + L(y - c_V) + c_W, \qquad
         G^+ = \left[(A - LC)\,G,\ -LG_V,\ G_W,\ R\right]
     """
+    c, G = S
+    A, d, R = prediction
     cV, GV = V
     cW, GW = W
     M = A - L @ C
@@ -292,9 +292,10 @@ class ZonotopeObserver(LinearModelObserver):
         The data are read-only C-contiguous float copies made once per run, so that every
         step passes arguments of the same types and numba compiles each kernel once (a
         read-only array is a different type from a writable one)."""
+        model = kernel_step.StepModel(A=self.A, B=self.B, W_c=self.W.c, E=self.E, C=self.C,
+                                      sigma=self.sigma, F=self.F, V_c=self.V.c)
         self._kernel_run = kernel_step.prepare(
-            self._step_kernel.value, self._reduction_name, self.order, A=self.A, B=self.B,
-            W_c=self.W.c, E=self.E, C=self.C, sigma=self.sigma, F=self.F, V_c=self.V.c,
+            self._step_kernel.value, self._reduction_name, self.order, model,
             **self.kernel_inputs())
         return self._kernel_run
 
@@ -487,10 +488,8 @@ class PropagationObserver(ZonotopeObserver):
                 return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
             L = self.gain(self._c, self._G)
-            c, G = propagate(
-                self._c, self._G, self.A, d, self.C, L, self._y_prev,
-                (self.V.c, self.F), (self.W.c, self.E), R,
-            )
+            c, G = propagate((self._c, self._G), (self.A, d, R), self.C, L, self._y_prev,
+                             (self.V.c, self.F), (self.W.c, self.E))
             G = self._reduce(G, self.order)
         self._y_prev = y
         return self._finish_step(c, G)

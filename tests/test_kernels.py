@@ -124,8 +124,8 @@ def test_strip_update_twin(seed):
 def test_propagate_twin(seed):
     c, G, C, y, sigma, A, E, F, L = _problem(seed)
     d, V, W = np.arange(4.0), (0.1 * np.ones(2), F), (0.2 * np.ones(4), E)
-    for got, want in zip(kernel_step.propagate(c, G, A, d, C, L, y, V, W),
-                         families.propagate(c, G, A, d, C, L, y, V, W), strict=True):
+    for got, want in zip(kernel_step.propagate((c, G), (A, d), C, L, y, V, W),
+                         families.propagate((c, G), (A, d, None), C, L, y, V, W), strict=True):
         _close(got, want)
 
 

@@ -379,8 +379,8 @@ class CZNA(ConZonotopeStripObserver):
 
     def intersect(self, c, G, A, b, y):
         F = self.F_meas
-        return ops.intersect(c, G, A, b, y - self._y_shift, -F, np.zeros((0, F.shape[1])),
-                             np.zeros(0), self.C)
+        Y = (y - self._y_shift, -F, np.zeros((0, F.shape[1])), np.zeros(0))
+        return ops.intersect((c, G, A, b), Y, self.C)
 
 
 @register(
@@ -432,7 +432,8 @@ class CZNB(WangGainVariant, ConZonotopeStripObserver):
     """
 
     def intersect(self, c, G, A, b, y):
-        return ops.intersect_strips(c, G, A, b, self.C, y, self.sigma_meas, self.wang_gain(c, G))
+        return ops.intersect_strips((c, G, A, b), self.C, y, self.sigma_meas,
+                                    self.wang_gain(c, G))
 
 
 @register(

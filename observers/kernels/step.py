@@ -70,7 +70,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -702,9 +702,12 @@ def combastel_gain(P, A, C, F):
     return np.dot(A, X), True
 
 
-def propagate(c, G, A, d, C, L, y, V, W):
+def propagate(S, prediction, C, L, y, V, W):
     """:func:`observers.families.propagate` (linear: no remainder): one step
-    ``S+ = (A - L C) S + d + L y + (-L) V + W`` with ``V = (c_V, G_V)``, ``W = (c_W, G_W)``."""
+    ``S+ = (A - L C) S + d + L y + (-L) V + W`` with ``S = (c, G)``, ``prediction = (A, d)``,
+    ``V = (c_V, G_V)``, ``W = (c_W, G_W)``."""
+    c, G = S
+    A, d = prediction
     V_c, F = V
     W_c, E = W
     n, r = G.shape
@@ -945,10 +948,10 @@ def _propagate_step_py(c, G, d, y, args):
         L, ok = combastel_gain(np.dot(G, np.ascontiguousarray(G.T)), data.A, data.C, data.F)
         if not ok:
             return c, G, False
-        cn, Gn = propagate(c, G, data.A, d, data.C, L, y, (data.V_c, data.F),
+        cn, Gn = propagate((c, G), (data.A, d), data.C, L, y, (data.V_c, data.F),
                            (data.W_c, data.E))
     else:  # _GIVEN
-        cn, Gn = propagate(c, G, data.A, d, data.C, data.gain, y, (data.V_c, data.F),
+        cn, Gn = propagate((c, G), (data.A, d), data.C, data.gain, y, (data.V_c, data.F),
                            (data.W_c, data.E))
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
                      JACOBI_MAX_DIM)
@@ -1029,8 +1032,23 @@ class StepRun(NamedTuple):
     args: tuple
 
 
+class StepModel(NamedTuple):
+    """The linear model a step kernel runs on: ``x+ = A x + B u + w``, ``w`` in ``(W_c, E)``,
+    the strips ``|C x - y| <= sigma`` of the noise ``v`` in ``(V_c, F)`` (array_like, copied
+    by :func:`prepare`)."""
+
+    A: Any
+    B: Any
+    W_c: Any
+    E: Any
+    C: Any
+    sigma: Any
+    F: Any
+    V_c: Any
+
+
 def prepare(
-    kernel: str, reduction: str, order: float, *, A, B, W_c, E, C, sigma, F, V_c,
+    kernel: str, reduction: str, order: float, model: StepModel, *,
     gain=None, bases=None, zero_projection: float = 0.0,
 ) -> StepRun:
     """The compiled kernel named ``kernel`` and the static data of a run (the doorway of the
@@ -1044,7 +1062,7 @@ def prepare(
         Name of a reduction of :func:`reduce` (a key of :data:`REDUCTIONS`).
     order : float
         Zonotope order, validated by the caller (>= 1).
-    A, B, W_c, E, C, sigma, F, V_c : array_like
+    model : StepModel
         The linear model, the centre and generators of ``W`` and ``V``, the strip half-widths.
     gain : array_like, optional
         The given gain of the ``*-given`` and ``"per-strip"`` kernels.
@@ -1064,6 +1082,6 @@ def prepare(
     data = StepData(
         mode, _NO_GAIN if gain is None else _frozen_c(gain),
         _NO_BASES if bases is None else _frozen_c(bases),
-        *(_frozen_c(a) for a in (A, B, W_c, E, C, sigma, F, V_c)),
+        *(_frozen_c(a) for a in model),
         float(zero_projection), float(order), REDUCTIONS[reduction], CLUSTER_RTOL, PIVOT_RTOL)
     return StepRun(step, data, tuple(data))

@@ -47,17 +47,15 @@ _TINY = np.finfo(float).tiny
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def intersect(
-    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
-    cy: np.ndarray, Gy: np.ndarray, Ay: np.ndarray, by: np.ndarray,
-    R: np.ndarray,
-) -> Arrays:
+def intersect(Z: Arrays, Y: Arrays, R: np.ndarray) -> Arrays:
     """Exact ``{x in Z : R x in Y}`` for constrained zonotopes ``Z = (c, G, A, b)`` and
     ``Y = (cy, Gy, Ay, by)``.
 
     Layout (as CORA's ``conIntersect``): ``xi = [xi_z; xi_y]``, generators ``[G, 0]``,
     constraints ``[A 0; 0 Ay; R G, -Gy] xi = [b; by; cy - R c]``.
     """
+    c, G, A, b = Z
+    cy, Gy, Ay, by = Y
     nc, r = A.shape
     ncy, ry = Ay.shape
     G_new = np.hstack([G, np.zeros((G.shape[0], ry))])
@@ -71,11 +69,10 @@ def intersect(
 
 
 def intersect_measurement(
-    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
-    C: np.ndarray, y: np.ndarray, cv: np.ndarray, Gv: np.ndarray, L: np.ndarray,
+    Z: Arrays, C: np.ndarray, y: np.ndarray, V: tuple[np.ndarray, np.ndarray], L: np.ndarray,
 ) -> Arrays:
-    """Exact ``{x in Z : y - C x in V}`` for the noise zonotope ``V = <cv, Gv>`` (m x nv),
-    parametrised by a gain ``L`` (n x m).
+    """Exact ``{x in Z : y - C x in V}`` for ``Z = (c, G, A, b)`` and the noise zonotope
+    ``V = (cv, Gv)`` (m x nv), parametrised by a gain ``L`` (n x m).
 
     Centre ``c + L (y - C c - cv)``, generators ``[(I - L C) G, -L Gv]`` and the new
     constraints ``C G xi + Gv xi_v = y - C c - cv`` (old constraints padded with ``nv`` zero
@@ -84,6 +81,8 @@ def intersect_measurement(
     (Alanwar et al. 2022, Prop. 3; ``L = 0`` is Scott et al.'s generalised intersection); the
     gain only changes the parametrisation, hence later order reductions.
     """
+    c, G, A, b = Z
+    cv, Gv = V
     nc = A.shape[0]
     nv = Gv.shape[1]
     CG = C @ G
@@ -97,15 +96,14 @@ def intersect_measurement(
 
 
 def intersect_strips(
-    c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray,
-    C: np.ndarray, y: np.ndarray, sigma: np.ndarray, Lam: np.ndarray,
+    Z: Arrays, C: np.ndarray, y: np.ndarray, sigma: np.ndarray, Lam: np.ndarray,
 ) -> Arrays:
     """Exact ``Z`` intersected with the strips ``|C x - y| <= sigma``, parametrised by a gain
     (CORA ``conZonotope/intersectStrip``): :func:`intersect_measurement` with
     ``V = <0, -diag(sigma)>``, i.e. centre ``c + Lam (y - C c)``, generators
     ``[(I - Lam C) G, Lam diag(sigma)]``, new constraints ``C G xi - diag(sigma) xi_new =
     y - C c``."""
-    return intersect_measurement(c, G, A, b, C, y, np.zeros(C.shape[0]), -np.diag(sigma), Lam)
+    return intersect_measurement(Z, C, y, (np.zeros(C.shape[0]), -np.diag(sigma)), Lam)
 
 
 def compact_zeros(c, G, A, b, tol: float = _EPS) -> Arrays:

@@ -160,7 +160,7 @@ class ConZonotope:
             raise SetError(f"intersection map R has {R.shape[0]} rows but the set has "
                            f"dimension {Y.dim}")
         return ConZonotope.trusted(*ops.intersect(
-            self._c, self._G, self._A, self._b, Y._c, Y._G, Y._A, Y._b, R))
+            (self._c, self._G, self._A, self._b), (Y._c, Y._G, Y._A, Y._b), R))
 
     def intersect_strips(self, C, y, sigma, gain=None) -> ConZonotope:
         """Exact intersection with the strips ``|C x - y| <= sigma`` (one per row of ``C``).
@@ -177,7 +177,7 @@ class ConZonotope:
         Lam = np.zeros((self.dim, m)) if gain is None else matrix(
             gain, "strip gain", rows=self.dim, cols=m)
         return ConZonotope.trusted(*ops.intersect_strips(
-            self._c, self._G, self._A, self._b, C, y, sigma, Lam))
+            (self._c, self._G, self._A, self._b), C, y, sigma, Lam))
 
     def intersect_measurement(self, C, y, V, gain=None) -> ConZonotope:
         r"""Exact ``{x in self : y - C x in V}`` for a noise zonotope ``V`` (``Zonotope`` or
@@ -216,7 +216,7 @@ class ConZonotope:
         L = np.zeros((self.dim, m)) if gain is None else matrix(
             gain, "measurement gain", rows=self.dim, cols=m)
         return ConZonotope.trusted(*ops.intersect_measurement(
-            self._c, self._G, self._A, self._b, C, y, V.c, V.G, L))
+            (self._c, self._G, self._A, self._b), C, y, (V.c, V.G), L))
 
     def reduce(self, order: float, method: str | Reduction = "girard", per: str = "state"
                ) -> ConZonotope:
