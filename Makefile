@@ -26,7 +26,7 @@ help:  ## list the targets
 	@echo "code: observers/ (sets, family loops, plugins builtin/X.py + numerics/X.py), systems/ (models,"
 	@echo "scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner -> executors),"
 	@echo "report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph, fingerprint,"
-	@echo "store, bench, stale), gate/ (regression, budget, kernels, policy, audit, audit_store, history),"
+	@echo "store, bench, stale), gate/ (regression, budget, blas, policy, audit, audit_store, history),"
 	@echo "timing/ (steps, speed), studies/ (scaling, frontier, alanwar2022); cli.py parses and prints"
 
 $(STAMP): pyproject.toml

@@ -23,7 +23,7 @@ from systems import scenario_names
 
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
-from .gate import audit, history, kernels, policy, regression
+from .gate import audit, blas, history, policy, regression
 from .io import (
     atomic_write_json,
     blas_corename,
@@ -202,7 +202,7 @@ def _cmd_baseline(args) -> int:
     if not args.update:
         return _print(policy.show_baseline(args.baseline))
     return _print(policy.update_baseline(args.config, args.baseline, use_cache=args.use_cache,
-                                         progress=_progress(args), kernel_names=args.kernels,
+                                         progress=_progress(args), coretypes=args.kernels,
                                          force=args.force, notify=print))
 
 
@@ -493,7 +493,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "kernel (never with a crash or a containment violation)")
     bl.add_argument("--kernels", default="auto", metavar="K1,K2|none",
                     help="OpenBLAS kernel families to measure the sensitivity with (default: "
-                         "those of " + ",".join(kernels.SPREAD_KERNELS) + " this CPU runs)")
+                         "those of " + ",".join(blas.SPREAD_CORETYPES) + " this CPU runs)")
     bl.add_argument("--record-cost", dest="func", action="store_const",
                     const=lambda a: _print(policy.record_cost(
                         a.config, a.baseline, use_cache=a.use_cache, progress=_progress(a))),

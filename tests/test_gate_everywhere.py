@@ -18,8 +18,9 @@ import yaml
 
 import observers
 from benchmarks.cli import main
-from benchmarks.gate import audit, kernels, policy, regression
+from benchmarks.gate import audit, blas, policy, regression
 from benchmarks.io import blas_corename
+from benchmarks.report.spread import CHAOTIC_BY_NATURE
 from observers import registry
 from observers.builtin import frad
 from observers.sets import Zonotope
@@ -202,10 +203,10 @@ def test_pca_axes_depend_only_on_the_subspaces_of_repeated_singular_values():
 
 def _kernels() -> list[str]:
     """Two OpenBLAS kernel families this CPU runs (the newest two of the spread kernels)."""
-    found = kernels.available_kernels(kernels.SPREAD_KERNELS)
+    found = blas.available_coretypes(blas.SPREAD_CORETYPES)
     if len(found) < 2:
         pytest.skip("this CPU runs fewer than two of the OpenBLAS kernels "
-                    + ", ".join(kernels.SPREAD_KERNELS))
+                    + ", ".join(blas.SPREAD_CORETYPES))
     return found[-2:]
 
 
@@ -216,10 +217,10 @@ def test_every_kernel_said_available_runs_a_blas_product_here():
     product = ("import numpy as np\n"
                "a = np.random.default_rng(1).random((128, 128))\n"
                "print(float((a @ a).sum()))")
-    found = kernels.available_kernels(kernels.SPREAD_KERNELS)
+    found = blas.available_coretypes(blas.SPREAD_CORETYPES)
     if not found:
         pytest.skip("numpy's BLAS here runs none of the OpenBLAS kernels "
-                    + ", ".join(kernels.SPREAD_KERNELS))
+                    + ", ".join(blas.SPREAD_CORETYPES))
     for kernel in found:
         assert float(_python(product, kernel)) > 0
 
@@ -260,10 +261,10 @@ for name, scenario, kwargs, options in {rows!r}:
 def test_formerly_chaotic_rows_are_the_same_under_every_kernel_this_cpu_runs():
     # issue 37: each row of FORMERLY_CHAOTIC moved by 2e-4 to 0.11 (relative) between
     # OpenBLAS kernels; now every radius agrees to 1e-6 under every kernel this CPU runs
-    found = kernels.available_kernels(kernels.SPREAD_KERNELS)
+    found = blas.available_coretypes(blas.SPREAD_CORETYPES)
     if len(found) < 2:
         pytest.skip("this CPU runs fewer than two of the OpenBLAS kernels "
-                    + ", ".join(kernels.SPREAD_KERNELS))
+                    + ", ".join(blas.SPREAD_CORETYPES))
     code = RADII_OF_ROWS.format(rows=FORMERLY_CHAOTIC)
     runs = {k: [line.split() for line in _python(code, k, timeout=900).splitlines()]
             for k in found}
@@ -339,10 +340,10 @@ def test_committed_spreads_are_small_or_named_and_the_machine_recorded():
     sens = (ROOT / "results" / "baseline" / "SENSITIVITY.md").read_text()
     assert "not named" not in sens
     for (sc, obs), r in per.iterrows():
-        if r.spread > kernels.SPREAD_NAMED:
-            assert obs in kernels.SPREAD_CAUSES and f"| {obs} | {sc} |" in sens, (obs, sc)
-        if obs not in kernels.CHAOTIC_BY_NATURE:
-            assert r.spread <= kernels.SPREAD_MAX and r.rtol <= kernels.SPREAD_MAX, (obs, sc)
+        if r.spread > blas.SPREAD_NAMED:
+            assert obs in blas.SPREAD_CAUSES and f"| {obs} | {sc} |" in sens, (obs, sc)
+        if obs not in CHAOTIC_BY_NATURE:
+            assert r.spread <= blas.SPREAD_MAX and r.rtol <= blas.SPREAD_MAX, (obs, sc)
     meta = json.loads((ROOT / "results" / "baseline" / "meta.json").read_text())
     machine = meta["machine"]
     assert machine["cpu"] and machine["blas_coretype"] == meta["versions"]["blas_coretype"]
@@ -371,11 +372,11 @@ def test_measured_kernel_spread_widens_only_that_observers_tolerance():
                          "rms_radius": [1.0, 2.0, 1.0, 1.0], "violations": [0] * 4,
                          "rtol": [1e-6] * 4})
     other = rows.assign(rms_radius=[1.0, 2.0 * 1.003, 1.0 + 1e-12, 1.0])
-    out, problems = kernels.apply_kernel_spread(rows, {"Haswell": other})
+    out, problems = blas.apply_coretype_spread(rows, {"Haswell": other})
     assert problems == []
     np.testing.assert_allclose(out["kernel_spread"], [0.0, 0.003, 1e-12, 0.0], atol=1e-15)
     assert list(out["rtol"]) == pytest.approx([0.02, 0.02, 1e-6, 1e-6])  # 4 x 0.003 -> 0.02
-    _, problems = kernels.apply_kernel_spread(
+    _, problems = blas.apply_coretype_spread(
         rows, {"Haswell": other.assign(status=["ok", "ok", "diverged", "diverged"])})
     assert problems == ["B on s: status ok here, diverged with OPENBLAS_CORETYPE=Haswell"]
 

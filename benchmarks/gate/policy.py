@@ -1,7 +1,7 @@
 """What passes and what fails: the verdicts of ``check``, ``baseline`` and ``audit``.
 
 The mechanisms live beside this module (:mod:`.regression` compares golden files,
-:mod:`~benchmarks.gate.kernels` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the
+:mod:`~benchmarks.gate.blas` measures the BLAS-kernel sensitivity, :mod:`.audit` runs the
 soundness audit, :mod:`benchmarks.store.stale` finds stale rows and reports); the rules
 that turn their findings into an exit code are here, in one place:
 
@@ -39,7 +39,7 @@ from ..store import bench as store_bench
 from ..store import stale as store_stale
 from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
-from . import audit_report, audit_store, budget, kernels, regression
+from . import audit_report, audit_store, blas, budget, regression
 
 #: scenarios of the short soundness audit that a tighter observer must pass
 PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
@@ -225,13 +225,13 @@ def show_baseline(baseline: str | Path) -> Outcome:
 
 
 def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
-                    progress: bool | None = None, kernel_names: str = "auto",
+                    progress: bool | None = None, coretypes: str = "auto",
                     force: bool = False, notify: Callable[[str], None] = lambda _: None
                     ) -> Outcome:
-    """``baseline --update``: run the subset, measure its kernel sensitivity
-    (``kernel_names``: ``auto``, ``none`` or a comma-separated list) and write the golden
-    files unless a rule of the module docstring refuses them; ``notify`` is told before the
-    long kernel re-runs start."""
+    """``baseline --update``: run the subset, measure its BLAS-kernel sensitivity
+    (``coretypes``: the OpenBLAS core types compared, ``auto``, ``none`` or a comma-separated
+    list) and write the golden files unless a rule of the module docstring refuses them;
+    ``notify`` is told before the long re-runs under the other core types start."""
     res = Outcome()
     cfg = regression.subset_config(config, plugins=False)
     executor = budget.GateExecutor(cfg)  # the cost of each job, written with the golden files
@@ -252,23 +252,23 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
         res.code = 1
         return res
     here = blas_corename()
-    if kernel_names == "auto":
-        names = [k for k in kernels.available_kernels() if k.lower() != here.lower()]
+    if coretypes == "auto":
+        names = [k for k in blas.available_coretypes() if k.lower() != here.lower()]
     else:
-        names = [k for k in kernel_names.split(",") if k and k != "none"]
+        names = [k for k in coretypes.split(",") if k and k != "none"]
     problems: list[str] = []
     if names:
         notify(f"measuring the kernel sensitivity: re-running the subset with "
                f"OPENBLAS_CORETYPE={', '.join(names)} (here: {here})")
-        others = kernels.runs_under_kernels(config, cfg, names, use_cache)
-        frame, problems = kernels.apply_kernel_spread(frame, others)
+        others = blas.runs_under_coretypes(config, cfg, names, use_cache)
+        frame, problems = blas.apply_coretype_spread(frame, others)
     if problems and not force:
         res.warn("baseline NOT written: " + "; ".join(problems) + " (pass --force to write it "
                  "anyway)")
         res.code = 1
         return res
     files = regression.write_baseline(frame, baseline, cfg, cache_note, names)
-    kernels.write_sensitivity(frame, baseline, names)
+    blas.write_sensitivity(frame, baseline, names)
     budget.write_costs(baseline, executor.seconds, "baseline --update", cache_note, load)
     res.say(f"wrote {len(files)} golden files, SENSITIVITY.md and {budget.COST_FILE} to "
             f"{baseline} ({frame['observer'].nunique()} observers; {cache_note})")

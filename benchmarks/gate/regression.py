@@ -29,7 +29,7 @@ Tolerances are data, not code paths: ``rtol`` is the larger of the class attribu
 ``REGRESSION_RTOL`` of the observer (``observers.Observer``: 1e-6, deterministic online
 computations; ``OfflineGain``: 1e-4, gains from an SDP solver, accurate to the solver's
 tolerance; a plugin sets its own) and a *measured* sensitivity to the BLAS kernel
-(:mod:`~benchmarks.gate.kernels`: an observer whose numbers depend on the kernel, e.g. an SDP
+(:mod:`~benchmarks.gate.blas`: an observer whose numbers depend on the kernel, e.g. an SDP
 design on a flat optimum, gets a tolerance from the spread measured under the other OpenBLAS
 kernel families; ``SENSITIVITY.md`` beside the golden files lists them).  An ``rtol`` of
 :data:`CHAOTIC_RTOL` or more marks the observer as *chaotic* on that scenario: a 0.5 %

@@ -1,15 +1,18 @@
 """Sensitivity of the golden numbers to the BLAS kernel (``baseline --update``).
 
-``baseline --update`` re-runs the regression subset under every OpenBLAS kernel family of
-:data:`SPREAD_KERNELS` that this CPU runs, one subprocess each (``OPENBLAS_CORETYPE=K``, read by
-OpenBLAS when it loads, so it cannot change within a process), and records per observer,
+Here a *kernel* is an OpenBLAS core type (the family of optimised BLAS routines OpenBLAS picks
+for the CPU, forced by ``OPENBLAS_CORETYPE``), never a compiled one-step kernel of an observer
+(:mod:`observers.kernels`).  ``baseline --update`` re-runs the regression subset under every
+core type of :data:`SPREAD_CORETYPES` that this CPU runs, one subprocess each
+(``OPENBLAS_CORETYPE=K``, read by OpenBLAS when it loads, so it cannot change within a
+process), and records per observer,
 scenario and state the largest relative difference of ``rms_radius`` from this run
 (``kernel_spread``).  An observer whose numbers depend on the kernel gets
 ``rtol = SPREAD_SAFETY x`` its largest spread on that scenario; ``SENSITIVITY.md`` beside the
 golden files lists every such observer with the measured figures.
 
-The subprocesses run this module: ``python -m benchmarks.gate.kernels corename`` prints the
-kernel family OpenBLAS runs; ``python -m benchmarks.gate.kernels subset CONFIG OUT USE_CACHE
+The subprocesses run this module: ``python -m benchmarks.gate.blas corename`` prints the
+kernel family OpenBLAS runs; ``python -m benchmarks.gate.blas subset CONFIG OUT USE_CACHE
 OBSERVER...`` runs the subset and writes its golden rows to ``OUT``.
 """
 
@@ -27,12 +30,11 @@ import pandas as pd
 
 from ..errors import ConfigError
 from ..io import atomic_write_text, blas_corename
-from ..report import spread
 from ..run.config import BenchConfig
 from .regression import ATOL, CHAOTIC_RTOL, regression_rtol, run_subset, subset_config
 
 #: OpenBLAS kernel families compared by ``baseline --update`` (those this CPU runs)
-SPREAD_KERNELS = ("Sandybridge", "Haswell", "SkylakeX")
+SPREAD_CORETYPES = ("Sandybridge", "Haswell", "SkylakeX")
 #: tolerance = this factor x the largest measured kernel spread of an observer on a scenario
 #: (a spread measured on a few kernels underestimates the range of others)
 SPREAD_SAFETY = 4.0
@@ -40,26 +42,23 @@ SPREAD_SAFETY = 4.0
 #: (relative); a listed pair without a cause in :data:`SPREAD_CAUSES` is a defect to find
 SPREAD_NAMED = 1e-6
 #: spreads above this (relative) are acceptable only for a pair chaotic by nature
-#: (:data:`CHAOTIC_BY_NATURE`)
+#: (:data:`benchmarks.report.spread.CHAOTIC_BY_NATURE`)
 SPREAD_MAX = 1e-4
+#: the cause shared by ESO-C and ESO-D (one design, two uses)
+_HINF_CENTRE = ("the central-path point of the H-infinity LMI is placed relative to the least "
+                "gamma^2 Clarabel reports (to about 2e-7)")
 #: why an observer's numbers move with the BLAS kernel by more than :data:`SPREAD_NAMED`
 #: (measured, issue 37); the report names it beside the spread
 SPREAD_CAUSES = {
     "Hinf-G": "an SDP design (Clarabel, interior point): its gain is the solver's point to "
               "its tolerance, which moves with the kernel's rounding by about 1e-7 relative",
-    "ESO-C": "the central-path point of the H-infinity LMI is placed relative to the least "
-             "gamma^2 Clarabel reports (to about 2e-7)",
-    "ESO-D": "the central-path point of the H-infinity LMI is placed relative to the least "
-             "gamma^2 Clarabel reports (to about 2e-7)",
+    "ESO-C": _HINF_CENTRE,
+    "ESO-D": _HINF_CENTRE,
     "PRad-A": "chaotic by nature: at CORA's rate no P > 0 exists for a single output of the "
               "6-tank (the Riccati equation of output 1 has a singular least solution), so "
               "the SDP returns a point within its feasibility tolerance, a different one "
               "under every kernel; the strip-by-strip composition then amplifies it",
 }
-#: observers whose design is undetermined on some records: the published row is kept, the
-#: gate cannot hold it, and the reports print the measured spread beside every such cell
-#: (defined with the reports, :mod:`benchmarks.report.spread`)
-CHAOTIC_BY_NATURE = spread.CHAOTIC_BY_NATURE
 
 
 def _corename_in(kernel: str) -> str:
@@ -76,7 +75,7 @@ def _corename_in(kernel: str) -> str:
     return out.stdout.strip()
 
 
-def available_kernels(candidates: tuple[str, ...] = SPREAD_KERNELS) -> list[str]:
+def available_coretypes(candidates: tuple[str, ...] = SPREAD_CORETYPES) -> list[str]:
     """The kernel families of ``candidates`` that OpenBLAS really runs on this CPU."""
     return [k for k in candidates if _corename_in(k).lower() == k.lower()]
 
@@ -89,7 +88,7 @@ def _subset_to_csv(config: str, out: str, use_cache: bool, observers_: list[str]
     frame.to_csv(out, index=False, float_format="%.17g")
 
 
-def runs_under_kernels(config: str | Path, cfg: BenchConfig, kernels: list[str],
+def runs_under_coretypes(config: str | Path, cfg: BenchConfig, kernels: list[str],
                        use_cache: bool = False) -> dict[str, pd.DataFrame]:
     """The subset's golden rows under each kernel family (subprocesses, two at a time)."""
     results: dict[str, pd.DataFrame] = {}
@@ -114,7 +113,7 @@ def runs_under_kernels(config: str | Path, cfg: BenchConfig, kernels: list[str],
     return results
 
 
-def apply_kernel_spread(frame: pd.DataFrame, others: dict[str, pd.DataFrame]) -> tuple[
+def apply_coretype_spread(frame: pd.DataFrame, others: dict[str, pd.DataFrame]) -> tuple[
         pd.DataFrame, list[str]]:
     """Record each value's largest relative difference under the other kernels
     (``kernel_spread``) and widen ``rtol`` to ``SPREAD_SAFETY x`` the pair's largest spread
@@ -217,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     if args[:1] == ["subset"] and len(args) >= 4:
         _subset_to_csv(args[1], args[2], args[3] == "1", args[4:])
         return 0
-    print("usage: python -m benchmarks.gate.kernels corename | subset CONFIG OUT USE_CACHE "
+    print("usage: python -m benchmarks.gate.blas corename | subset CONFIG OUT USE_CACHE "
           "OBSERVER...", file=sys.stderr)
     return 2
 
