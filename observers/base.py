@@ -344,12 +344,8 @@ def run(
     """
     if on_error not in ("raise", "status"):
         raise ValueError(f"on_error must be 'raise' or 'status', got {on_error!r}")
-    system = getattr(obs, "system", None)
-    C = getattr(system, "C", None)  # None also for a nonlinear output (no C)
-    ny = getattr(system, "ny", None) if C is None else C.shape[0]
-    u, y = as_record(u, y, getattr(system, "nu", None), ny)
+    u, y, n = _record_of(obs, u, y)
     N = y.shape[0]
-    n = getattr(system, "n", None) if C is None else C.shape[1]
     lo = np.full((N, n or 0), np.nan)
     hi = np.full((N, n or 0), np.nan)
     step_times = np.full(N, np.nan)
@@ -375,15 +371,7 @@ def run(
                 n = np.size(I.lo)
                 result.lo = lo = np.full((N, n), np.nan)
                 result.hi = hi = np.full((N, n), np.nan)
-            if np.shape(I.lo) != (n,) or np.shape(I.hi) != (n,):
-                raise ValueError(f"the interval hull of step {k} has shape {np.shape(I.lo)}, "
-                                 f"expected ({n},)")
-            crossed = np.asarray(I.lo) - np.asarray(I.hi) > 1e-9 * np.maximum(
-                1.0, np.maximum(np.abs(I.lo), np.abs(I.hi)))
-            if np.any(crossed):  # not an interval: never scored
-                i = int(np.argmax(crossed))
-                raise ValueError(f"the interval hull of step {k} has lo > hi in state {i + 1} "
-                                 f"({float(I.lo[i]):.6g} > {float(I.hi[i]):.6g})")
+            _check_hull(I, k, n)
         except Diverged as exc:
             result.status, result.message = "diverged", str(exc)
             result.failed_step = k if exc.step is None else exc.step
@@ -412,6 +400,31 @@ def run(
                 and _over_budget(result, k, N, start, budget)):
             break
     return result
+
+
+def _record_of(obs: Any, u, y) -> tuple[np.ndarray, np.ndarray, int | None]:
+    """``(u, y)`` checked by :func:`as_record` against the shapes of ``obs.system`` (where
+    present) and the state dimension ``n`` (None if the system does not give it)."""
+    system = getattr(obs, "system", None)
+    C = getattr(system, "C", None)  # None also for a nonlinear output (no C)
+    ny = getattr(system, "ny", None) if C is None else C.shape[0]
+    u, y = as_record(u, y, getattr(system, "nu", None), ny)
+    n = getattr(system, "n", None) if C is None else C.shape[1]
+    return u, y, n
+
+
+def _check_hull(I: Any, k: int, n: int) -> None:
+    """Raise :class:`ValueError` unless the interval hull ``I`` of step ``k`` has the
+    dimension ``n`` and ``lo <= hi`` (to a relative 1e-9): such a hull is never scored."""
+    if np.shape(I.lo) != (n,) or np.shape(I.hi) != (n,):
+        raise ValueError(f"the interval hull of step {k} has shape {np.shape(I.lo)}, "
+                         f"expected ({n},)")
+    crossed = np.asarray(I.lo) - np.asarray(I.hi) > 1e-9 * np.maximum(
+        1.0, np.maximum(np.abs(I.lo), np.abs(I.hi)))
+    if np.any(crossed):  # not an interval: never scored
+        i = int(np.argmax(crossed))
+        raise ValueError(f"the interval hull of step {k} has lo > hi in state {i + 1} "
+                         f"({float(I.lo[i]):.6g} > {float(I.hi[i]):.6g})")
 
 
 #: steps whose median cost projects the rest of a budgeted run (:func:`run`)

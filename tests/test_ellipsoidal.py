@@ -11,6 +11,7 @@ import observers
 import systems
 from benchmarks.metrics import rms_radius
 from observers.numerics.ellipsoidal import error_system, schur_bound
+from observers.numerics.lmi import LinearDesignProblem
 
 from .conftest import paper_table
 
@@ -76,7 +77,7 @@ def test_offline_design_satisfies_the_hinf_lmi_and_the_decay_rate(name):
     obs = observers.create(name, sc.system)
     s = sc.system
     E, F = s.W.G, s.V.G
-    Ao, D = error_system(np.asarray(s.A), np.asarray(s.C), E, F, obs.L)
+    Ao, D = error_system(LinearDesignProblem(np.asarray(s.A), np.asarray(s.C), E, F), obs.L)
     P, g2 = obs.P, obs.gamma2
     S, _ = schur_bound(Ao, D, P, g2)
     Q = obs.lam * P  # the weakest Q the recursion relies on
@@ -96,7 +97,8 @@ def test_loukkas_log_det_step_equals_the_sdp_solution():
     sc = systems.scenario("vehicle2d-sim")
     obs = observers.create("ESO-C", sc.system)
     s = sc.system
-    Ao, D = error_system(np.asarray(s.A), np.asarray(s.C), s.W.G, s.V.G, obs.L)
+    Ao, D = error_system(LinearDesignProblem(np.asarray(s.A), np.asarray(s.C), s.W.G, s.V.G),
+                         obs.L)
     P, g2 = obs.P, obs.gamma2 * 1.01
     S, _ = schur_bound(Ao, D, P, g2)
     n, p = Ao.shape[0], D.shape[1]
@@ -151,13 +153,13 @@ def test_hinf_riccati_finds_the_least_gamma_of_the_sdp_and_a_certified_point(nam
     from observers.numerics import ellipsoidal as el
 
     s = systems.scenario(name).system
-    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    plant = LinearDesignProblem(s.A, s.C, s.W.G, s.V.G)
     Q = np.eye(s.n)
-    _, _, g_sdp = el.hinf_lmi(A, C, E, F, Q, "sdp")
-    P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati", slack=0.0)
+    _, _, g_sdp = el.hinf_lmi(plant, Q, "sdp")
+    P, L, g = el.hinf_riccati(plant, Q, "riccati", slack=0.0)
     assert g == pytest.approx(g_sdp, rel=2e-3)  # Clarabel's optimum; bisection to 1e-3
-    P, L, g = el.hinf_riccati(A, C, E, F, Q, "riccati")
-    Ao, D = el.error_system(A, C, E, F, L)
+    P, L, g = el.hinf_riccati(plant, Q, "riccati")
+    Ao, D = el.error_system(plant, L)
     _, lam, _ = el.certify(Ao, D, P, g, Q, "riccati")  # the LMI verified in numpy
     assert 0 < lam <= 1
 
@@ -191,7 +193,8 @@ def test_eso_c_and_eso_d_share_their_first_gain(monkeypatch, tmp_path):
     esod = observers.create("ESO-D", s)
     assert offline.CACHE_LOADS.get("ESO-first-gain", 0) == loads + 1
     assert len(list(tmp_path.glob("ESO-first-gain-*.npz"))) == 1
-    fresh = el.martinez_design(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G)
+    fresh = el.martinez_design(
+        LinearDesignProblem(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G))
     np.testing.assert_allclose(esod.L, fresh["L"], rtol=1e-12, atol=0)
     np.testing.assert_allclose(esod.P, fresh["P"], rtol=1e-12, atol=0)
 
@@ -209,8 +212,8 @@ def test_hinf_central_is_the_unique_point_of_the_central_path(name):
     s = systems.scenario(name).system
     A, C, E, F = np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G
     Q = np.eye(s.n)
-    _, _, g_star = el.hinf_lmi(A, C, E, F, Q, "least gamma")
-    P, L, g = el.hinf_central(A, C, E, F, Q, "central")
+    _, _, g_star = el.hinf_lmi(LinearDesignProblem(A, C, E, F), Q, "least gamma")
+    P, L, g = el.hinf_central(LinearDesignProblem(A, C, E, F), Q, "central")
     assert g_star * (1 - 1e-6) <= g <= g_star * (1 + el.HINF_CENTRAL_GAP) * (1 + 1e-6)
     n, m, p = s.n, C.shape[0], E.shape[1] + F.shape[1]
     Y = P @ L

@@ -45,7 +45,7 @@ def test_agrees_with_the_dense_lp_at_every_step(name, steps):
     sc = systems.scenario(name)
     s, u, y = sc.system, sc.u[:steps], sc.y[:steps]
     got = _exact(s, u, y)
-    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), u, y)
+    ref = dense_hulls((s.A, s.B, s.C, *_sets(s)), u, y)
     assert sorted(ref) == list(range(steps))
     _assert_agree(got, ref, name)
 
@@ -68,15 +68,15 @@ def test_agrees_with_both_formulations_on_general_sets():
     s = _general_system()
     sim = systems.simulate(s, 0.3 * np.sin(np.arange(15)).reshape(-1, 1), seed=4)
     got = _exact(s, sim.u, sim.y)
-    _assert_agree(got, dense_hulls(s.A, s.B, s.C, *_sets(s), sim.u, sim.y), "dense")
-    _assert_agree(got, explicit_hulls(s.A, s.B, s.C, *_sets(s), sim.u, sim.y), "explicit")
+    _assert_agree(got, dense_hulls((s.A, s.B, s.C, *_sets(s)), sim.u, sim.y), "dense")
+    _assert_agree(got, explicit_hulls((s.A, s.B, s.C, *_sets(s)), sim.u, sim.y), "explicit")
 
 
 def test_agrees_with_the_dense_lp_on_the_alamo_example():
     sc = systems.scenario("alamo2d-sim")  # W is a segment: one general generator
     s = sc.system
     got = _exact(s, sc.u, sc.y)
-    _assert_agree(got, dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y), "alamo2d-sim")
+    _assert_agree(got, dense_hulls((s.A, s.B, s.C, *_sets(s)), sc.u, sc.y), "alamo2d-sim")
 
 
 # -- (b) hand-derived hulls --------------------------------------------------------------------
@@ -327,7 +327,7 @@ def test_a_stalled_warm_solve_is_finished_cold(monkeypatch):
         for key in got:
             got[key].append(getattr(h, key))
     assert lp.inexact == []
-    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y)
+    ref = dense_hulls((s.A, s.B, s.C, *_sets(s)), sc.u, sc.y)
     _assert_agree({k: np.array(v) for k, v in got.items()}, ref, "cold fallback")
 
 
@@ -347,7 +347,7 @@ def _stalled_run(monkeypatch, cold_solves, steps: int = 12):
         h = lp.first(sc.y[0]) if k == 0 else lp.advance(sc.u[k - 1], sc.y[k])
         for key in got:
             got[key].append(getattr(h, key))
-    ref = dense_hulls(s.A, s.B, s.C, *_sets(s), sc.u, sc.y)
+    ref = dense_hulls((s.A, s.B, s.C, *_sets(s)), sc.u, sc.y)
     return lp, {k: np.array(v) for k, v in got.items()}, ref
 
 

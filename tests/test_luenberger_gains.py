@@ -137,16 +137,15 @@ def test_bad_options_are_one_line_errors(name, options, message):
 
 # -- Nom-G by the damped Newton method (issue 30) ---------------------------------------------
 def test_decay_centre_of_a_hand_solved_scalar_problem():
-    from observers.numerics.lmi import decay_centre
+    from observers.numerics.lmi import DecayCone, decay_centre
 
     # n = m = 1, tr P = 1 pins p = 1; det D = rate - (a - y h)^2 is largest at y = a / h
-    P, Y = decay_centre(np.array([[0.5]]), np.array([[2.0]]), 0.9, np.array([[1.0]]),
-                        np.array([[0.1]]), "test")
+    cone = DecayCone(np.array([[0.5]]), np.array([[2.0]]), 0.9)
+    P, Y = decay_centre(cone, np.array([[1.0]]), np.array([[0.1]]), "test")
     assert P[0, 0] == pytest.approx(1.0, abs=1e-12)
     assert Y[0, 0] == pytest.approx(0.25, abs=1e-10)
     with pytest.raises(DesignFailed, match="infeasible"):  # |a - y h| = 1.5 > sqrt(0.9)
-        decay_centre(np.array([[0.5]]), np.array([[2.0]]), 0.9, np.array([[1.0]]),
-                     np.array([[1.0]]), "test")
+        decay_centre(cone, np.array([[1.0]]), np.array([[1.0]]), "test")
 
 
 @pytest.mark.parametrize("name", ["vehicle2d-cora", "vehicle6d-cora"])

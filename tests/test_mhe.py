@@ -160,7 +160,7 @@ def test_ring_is_exact_inside_the_first_window_and_tighter_than_czn_after():
     s, sim = _coupled(seed=3, steps=40)
     H = exact_hulls(s, sim.u, sim.y, cache=False)
     L = 6
-    E = WindowHullLP(s.A, s.B, s.C, *((S.c, S.G) for S in (s.X0, s.W, s.V)), window=L)
+    E = WindowHullLP((s.A, s.B, s.C, *((S.c, S.G) for S in (s.X0, s.W, s.V))), window=L)
     got = [E.first(sim.y[0])] + [E.advance(sim.u[k - 1], sim.y[k]) for k in range(1, 40)]
     r = 0.5 * (H["filt_hi"] - H["filt_lo"])
     for k in range(L + 1):
@@ -215,6 +215,6 @@ def test_contains_the_independent_exact_hull_where_the_audit_floor_is_loose():
     for form, k in (("lp", 186), ("czn", 219)):
         N = k + 1
         lo, hi = _run(s, sc.u[:N], sc.y[:N], formulation=form)
-        _, _, rlo, rhi = explicit_hulls(s.A, s.B, s.C, *sets, sc.u[:k], sc.y[:N], steps=[k])[k]
+        _, _, rlo, rhi = explicit_hulls((s.A, s.B, s.C, *sets), sc.u[:k], sc.y[:N], steps=[k])[k]
         tol = 1e-9 * (1 + np.abs(rlo))  # the reference's own LP precision
         assert np.all(lo[k] <= rlo + tol) and np.all(hi[k] >= rhi - tol), (form, k)

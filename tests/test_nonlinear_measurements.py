@@ -132,7 +132,7 @@ def _graph_set(expr, symbols, c, G, tangents=1):
     coordinates first, then the function's value."""
     g = Factorable([expr], symbols, ())
     r = np.abs(G).sum(axis=1)
-    rel = relax(g, c, G, c - r, c + r, np.zeros(0), tangents)
+    rel = relax(g, c, G, (c - r, c + r), np.zeros(0), tangents)
     coef, A, b = lifted_set(rel, np.zeros((0, G.shape[1])), np.zeros(0))
     Gx = np.zeros((G.shape[0], coef.shape[1]))
     Gx[:, :G.shape[1]] = G

@@ -12,8 +12,9 @@ import systems
 from benchmarks.metrics import rms_radius
 from observers.builtin.prad import cora_epsilon
 from observers.errors import DesignFailed
-from observers.numerics.lmi import cora_bisection_end
+from observers.numerics.lmi import LinearDesignProblem, cora_bisection_end
 from observers.numerics.prad import (
+    DecayWeights,
     centre_gain,
     le_gain,
     line_search,
@@ -71,34 +72,39 @@ def test_line_search_minimises_over_the_decay_rate():
     assert line_search(lambda b: None) is None
 
 
-def _arrays(system):
-    return (np.asarray(system.A), np.asarray(system.C), system.W.G, system.V.G)
+def _arrays(system) -> LinearDesignProblem:
+    return LinearDesignProblem(np.asarray(system.A), np.asarray(system.C), system.W.G,
+                               system.V.G)
 
 
 def test_verification_rejects_a_gain_that_breaks_the_inequality(vehicle2d):
     s = vehicle2d.system
-    A, C, E, F = _arrays(s)
-    d = le_gain(A, C, E, F, cora_epsilon(s.W, np.array([0.1])))
+    plant = _arrays(s)
+    A, C, E, F = plant
+    d = le_gain(plant, cora_epsilon(s.W, np.array([0.1])))
     Ww, Wv = E.T @ E, F.T @ F
-    verify_decay(d.P, d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
+    weights = DecayWeights(d.info["rate"] * d.P, Ww, Wv)
+    verify_decay(d.P, d.L, plant, weights, "test")
     with pytest.raises(DesignFailed, match="P-radius inequality: verification failed"):
-        verify_decay(d.P, 10 * d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
+        verify_decay(d.P, 10 * d.L, plant, weights, "test")
     with pytest.raises(DesignFailed, match="P > 0"):
-        verify_decay(np.diag([1.0, 0.0]), d.L, A, C, E, F, d.info["rate"] * d.P, Ww, Wv, "test")
+        verify_decay(np.diag([1.0, 0.0]), d.L, plant, weights, "test")
 
 
 @pytest.mark.parametrize("design", [wang_c1_gain, wang_c2_gain, wang_d_gain])
 def test_well_posed_designs_return_certified_gains(design, vehicle2d):
-    A, C, E, F = _arrays(vehicle2d.system)
-    d = design(A, C, E, F)
+    plant = _arrays(vehicle2d.system)
+    A, C, E, F = plant
+    d = design(plant)
     assert d.L.shape == (2, 1) and np.all(np.isfinite(d.L))
     assert 0 < d.info["rate"] < 1 and np.linalg.eigvalsh(d.P)[0] > 0
     assert 0 < d.info["radius_bound"] < np.inf
 
 
 def test_prad_c_variants_are_different_designs(vehicle2d):
-    A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
-    g1, g2 = wang_c1_gain(A, C, E, F).L, wang_c2_gain(A, C, E, F).L
+    plant = _arrays(systems.scenario("tank6-linear").system)
+    A, C, E, F = plant
+    g1, g2 = wang_c1_gain(plant).L, wang_c2_gain(plant).L
     assert np.abs(g1 - g2).max() > 1e-2 * np.abs(g1).max()
 
 
@@ -155,26 +161,33 @@ def test_prad_b_tank6_rms_radii_vs_arch2021_table3():
     np.testing.assert_allclose(got, expected, rtol=0.15)
 
 
+def _tank6_prad_b_sdp():
+    """PRad-B's SDP on the linear 6-tank system solved by Clarabel: ``(scenario, plant, eps,
+    (P, Y, tau), constraints)``."""
+    import cvxpy as cp
+
+    from observers.numerics.prad import decay_lmi
+
+    sc = systems.scenario("tank6-linear")
+    plant = _arrays(sc.system)
+    E, F = plant.E, plant.F
+    eps = cora_epsilon(sc.system.W, np.full(3, 0.2))
+    beta = cora_bisection_end(0.0, 1.0, 0.01)
+    P, Y, tau = cp.Variable((6, 6), symmetric=True), cp.Variable((6, 3)), cp.Variable()
+    cons = [P >> 0, decay_lmi(P, Y, plant, DecayWeights(beta * P, E.T @ E, F.T @ F)),
+            (1 - beta) * P / eps >> tau * np.eye(6), tau >= 0]
+    cp.Problem(cp.Maximize(tau), cons).solve(solver=cp.CLARABEL)
+    return sc, plant, eps, (P, Y, tau), cons
+
+
 def test_prad_b_takes_the_largest_optimal_p_of_its_sdp():
     # the Riccati point dominates (Loewner order) the SDP's optimal point, and has the same
     # optimal tau: it is the unique largest point of the optimal face (le_riccati's argument)
-    import cvxpy as cp
-
-    from observers.numerics.prad import decay_lmi, le_gain
-
-    sc = systems.scenario("tank6-linear")
-    s = sc.system
-    A, C, E, F = _arrays(s)
-    eps = cora_epsilon(s.W, np.full(3, 0.2))
-    obs = observers.create("PRad-B", s, **sc.options)
+    sc, plant, eps, (P, _, tau), _ = _tank6_prad_b_sdp()
+    obs = observers.create("PRad-B", sc.system, **sc.options)
     assert obs.design_params()["method"] == "riccati"
-    ric = le_gain(A, C, E, F, eps, method="riccati")
+    ric = le_gain(plant, eps, method="riccati")
     np.testing.assert_array_equal(obs.L, ric.L)
-    beta = cora_bisection_end(0.0, 1.0, 0.01)
-    P, Y, tau = cp.Variable((6, 6), symmetric=True), cp.Variable((6, 3)), cp.Variable()
-    cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, E.T @ E, F.T @ F),
-            (1 - beta) * P / eps >> tau * np.eye(6), tau >= 0]
-    cp.Problem(cp.Maximize(tau), cons).solve(solver=cp.CLARABEL)
     # the same optimal tau, to the SDP's feasibility tolerance (Clarabel's point violates the
     # inequality by ~1e-6 of |P| here: its tau is 0.8 % above the exact optimum)
     assert ric.info["tau"] == pytest.approx(float(tau.value), rel=0.01)
@@ -189,17 +202,8 @@ def test_arch2021_prad_b_radii_lie_among_optimal_gains_of_the_sdp():
     # span per state a range of RMS radii that contains ARCH's published value.
     import cvxpy as cp
 
-    from observers.numerics.prad import decay_lmi
-
-    sc = systems.scenario("tank6-linear")
+    sc, _, _, (P, Y, tau), cons = _tank6_prad_b_sdp()
     s = sc.system
-    A, C, E, F = _arrays(s)
-    eps = cora_epsilon(s.W, np.full(3, 0.2))
-    beta = cora_bisection_end(0.0, 1.0, 0.01)
-    P, Y, tau = cp.Variable((6, 6), symmetric=True), cp.Variable((6, 3)), cp.Variable()
-    cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, E.T @ E, F.T @ F),
-            (1 - beta) * P / eps >> tau * np.eye(6), tau >= 0]
-    cp.Problem(cp.Maximize(tau), cons).solve(solver=cp.CLARABEL)
     gains = [np.linalg.solve(P.value, Y.value)]
     face = [*cons, tau >= (1 - 1e-6) * tau.value]
     for objective in (cp.Minimize(cp.trace(P)), cp.Maximize(cp.trace(P))):
@@ -265,20 +269,20 @@ def test_centre_design_reproduces_arch2021_prad_c_and_d_radii(name):
 
 
 def test_centre_design_is_certified_unique_and_one_solve():
-    A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
+    plant = _arrays(systems.scenario("tank6-linear").system)
+    A, C, E, F = plant
     rate = cora_bisection_end()
-    d = centre_gain(A, C, E, F, rate)
+    d = centre_gain(plant, rate)
     assert abs(np.trace(d.P) - 1) < 1e-6 and np.linalg.eigvalsh(d.P)[0] > 0
     g = d.info["noise_weight"]
     n, nw, nv = A.shape[0], E.shape[1], F.shape[1]
-    assert verify_decay(d.P, d.L, A, C, E, F, rate * d.P, g * np.eye(nw), g * np.eye(nv),
-                        "test") >= -1e-6
+    weights = DecayWeights(rate * d.P, g * np.eye(nw), g * np.eye(nv))
+    assert verify_decay(d.P, d.L, plant, weights, "test") >= -1e-6
     # a perturbed gain does not satisfy the inequality with these weights at the same P
     with pytest.raises(DesignFailed):
-        verify_decay(d.P, 1.5 * d.L, A, C, E, F, rate * d.P, g * np.eye(nw), g * np.eye(nv),
-                     "test")
+        verify_decay(d.P, 1.5 * d.L, plant, weights, "test")
     # strictly concave objective: a second solve returns the same gain
-    np.testing.assert_allclose(centre_gain(A, C, E, F, rate).L, d.L, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(centre_gain(plant, rate).L, d.L, rtol=1e-4, atol=1e-6)
     assert n == 6
 
 
@@ -402,7 +406,7 @@ def test_le_riccati_of_a_hand_solved_scalar_system():
     # a^2 / beta = 1.5, unit weights: Xp = 1.5 X + 1, X = Xp / (Xp + 1) gives
     # Xp^2 - 1.5 Xp - 1 = 0, Xp = 2, X = 2/3, P = 1.5, Lam = Xp / (Xp + 1) = 2/3
     one = np.array([[1.0]])
-    P, Y = le_riccati(np.array([[np.sqrt(0.75)]]), one, one, one, 0.5)
+    P, Y = le_riccati(LinearDesignProblem(np.array([[np.sqrt(0.75)]]), one, one, one), 0.5)
     assert P[0, 0] == pytest.approx(1.5, rel=1e-12)
     assert Y[0, 0] / P[0, 0] == pytest.approx(2 / 3, rel=1e-12)
     # the inequality holds with equality: no larger P is feasible
@@ -413,14 +417,16 @@ def test_le_riccati_of_a_hand_solved_scalar_system():
         pytest.approx(1.0, rel=1e-12)
     # an unstable mode that the output cannot see: no P > 0 at any rate
     with pytest.raises(DesignFailed, match="no P > 0"):
-        le_riccati(np.diag([0.5, 1.01]), np.array([[1.0, 0.0]]), np.eye(2), one, 0.99)
+        le_riccati(LinearDesignProblem(np.diag([0.5, 1.01]), np.array([[1.0, 0.0]]), np.eye(2),
+                                       one), 0.99)
 
 
 def test_le_riccati_is_the_sdp_optimum_where_it_is_unique(vehicle2d):
-    A, C, E, F = _arrays(vehicle2d.system)
+    plant = _arrays(vehicle2d.system)
+    A, C, E, F = plant
     eps = cora_epsilon(vehicle2d.system.W, np.abs(F).sum(axis=1))
-    sdp = le_gain(A, C, E, F, eps, method="sdp")
-    ric = le_gain(A, C, E, F, eps, method="riccati")
+    sdp = le_gain(plant, eps, method="sdp")
+    ric = le_gain(plant, eps, method="riccati")
     assert ric.info["tau"] >= sdp.info["tau"] * (1 - 1e-6)  # the largest P: tau not smaller
     np.testing.assert_allclose(ric.L, sdp.L, rtol=1e-4, atol=1e-6 * np.abs(sdp.L).max())
 
@@ -429,7 +435,8 @@ def test_le_riccati_satisfies_the_scaled_inequality_that_the_sdp_only_nearly_mee
     from observers.numerics.lmi import bmat
 
     s = systems.scenario("tank12-linear").system
-    A, C, E, F = _arrays(s)
+    plant = _arrays(s)
+    A, C, E, F = plant
     beta = cora_bisection_end()
     eps = cora_epsilon(s.W, np.abs(F).sum(axis=1))
 
@@ -441,10 +448,10 @@ def test_le_riccati_satisfies_the_scaled_inequality_that_the_sdp_only_nearly_mee
         Wi = np.linalg.inv(np.linalg.cholesky(W))
         return np.linalg.norm(np.linalg.cholesky(P).T @ N @ Wi.T, 2)
 
-    assert scaled_norm(le_gain(A, C, E, F, eps, method="riccati")) <= 1 + 1e-9
+    assert scaled_norm(le_gain(plant, eps, method="riccati")) <= 1 + 1e-9
     # the SDP passes the unscaled numpy check (absolute tolerance), but E'E = 1e-6 I makes
     # its solver tolerance a relative violation of order 1e-4 in the scaled inequality
-    assert scaled_norm(le_gain(A, C, E, F, eps, method="sdp")) > 1 + 1e-5
+    assert scaled_norm(le_gain(plant, eps, method="sdp")) > 1 + 1e-5
 
 
 def test_le_method_auto_and_the_design_key(tmp_path, monkeypatch):
@@ -473,14 +480,15 @@ def test_le_method_auto_and_the_design_key(tmp_path, monkeypatch):
 def test_centre_above_the_newton_limit_is_the_certified_start(monkeypatch):
     from observers.numerics import prad
 
-    A, C, E, F = _arrays(systems.scenario("tank6-linear").system)
+    plant = _arrays(systems.scenario("tank6-linear").system)
+    A, C, E, F = plant
     rate = cora_bisection_end()
     monkeypatch.setattr(prad, "NEWTON_MAX_VARIABLES", 10)
-    d = prad.centre_gain(A, C, E, F, rate)
+    d = prad.centre_gain(plant, rate)
     assert d.info["solver"] == "start"
     P0, Y0 = prad._centre_start(A, C, rate, "test")
     np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)
     g = d.info["noise_weight"]
     nw, nv = E.shape[1], F.shape[1]
-    assert verify_decay(d.P, d.L, A, C, E, F, rate * d.P, g * np.eye(nw), g * np.eye(nv),
+    assert verify_decay(d.P, d.L, plant, DecayWeights(rate * d.P, g * np.eye(nw), g * np.eye(nv)),
                         "test") >= -1e-6

@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
             solve = explicit_hulls if args.reference == "explicit" else dense_hulls
             sets = tuple((S.c, S.G) for S in (s.X0, s.W, s.V))
             c0 = time.process_time()
-            ref = solve(s.A, s.B, s.C, *sets, sc.u, sc.y, steps=steps)
+            ref = solve((s.A, s.B, s.C, *sets), sc.u, sc.y, steps=steps)
             worst = deviation(hulls, ref)
             ok = max(worst.values()) <= RTOL
             failed |= not ok

@@ -681,7 +681,7 @@ class CZNPR(_HullEnclosure):
         from ..numerics.relaxation import lifted_set, relax_checked
 
         lo, hi = self.enclosure_box(c, G, A, b, self._set)
-        rel = relax_checked(self._f_graph, c, G, lo, hi, u, self.k, self.options["tangents"])
+        rel = relax_checked(self._f_graph, c, G, (lo, hi), u, self.k, self.options["tangents"])
         coef, A_new, b_new = lifted_set(rel, A, b)
         re = self.E.shape[1]
         G_new = np.hstack([coef, self.E])
@@ -694,7 +694,7 @@ class CZNPR(_HullEnclosure):
         from ..numerics.relaxation import lifted_set, relax_checked
 
         lo, hi = self.enclosure_box(c, G, A, b)
-        rel = relax_checked(self._h_graph, c, G, lo, hi, np.zeros(0), self.k,
+        rel = relax_checked(self._h_graph, c, G, (lo, hi), np.zeros(0), self.k,
                             self.options["tangents"])
         coef, A_l, b_l = lifted_set(rel, A, b)
         n, r = G.shape

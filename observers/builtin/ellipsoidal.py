@@ -14,6 +14,7 @@ from ..families import as_zonotope
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
     HINF_RICCATI_ABOVE,
+    InvariantRecursion,
     ellipsoid_box,
     error_system,
     esmf_prediction,
@@ -27,6 +28,7 @@ from ..numerics.ellipsoidal import (
     martinez_design,
     obe_update,
 )
+from ..numerics.lmi import LinearDesignProblem
 from ..offline import cached_design
 from ..options import Choice, Number
 from ..registry import register
@@ -259,7 +261,7 @@ class InvariantSetObserver(Observer):
         it is half of each design: about 20 s)."""
         return cached_design("ESO-first-gain", self.DESIGN_VERSION,
                              {"A": A, "C": C, "E": E, "F": F}, _hinf_params(A.shape[0]),
-                             lambda: {"L": first_gain(A, C, E, F)})["L"]
+                             lambda: {"L": first_gain(LinearDesignProblem(A, C, E, F))})["L"]
 
     def design_params(self) -> dict:
         """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
@@ -276,7 +278,7 @@ class InvariantSetObserver(Observer):
                           self.design_params(), lambda: self.compute_design(A, C, E, F))
         self.L, self.P = d["L"], d["P"]
         self.lam, self.gamma2 = float(d["lam"]), float(d["gamma2"])
-        self.Ao, _ = error_system(A, C, E, F, self.L)
+        self.Ao, _ = error_system(LinearDesignProblem(A, C, E, F), self.L)
         self.B = np.asarray(s.B, dtype=float)
         self.offset = W.c - self.L @ V.c
         self.drive = self.gamma2 * (E.shape[1] + F.shape[1])  # gamma^2 ||wbar||^2_max
@@ -284,6 +286,8 @@ class InvariantSetObserver(Observer):
         self.Pinv = 0.5 * (Pinv + Pinv.T)
         self.x0 = np.array(X0.c)
         self.level0 = max_quadratic_on_zonotope(self.P, X0.G)
+        self.recursion = InvariantRecursion(self.Ao, self.B, self.L, self.offset, self.lam,
+                                            self.drive)
 
     def reset(self) -> None:
         super().reset()
@@ -296,9 +300,8 @@ class InvariantSetObserver(Observer):
         if self._x is None:  # first set: the error bound of X0
             x, level = self.x0, self._level
         else:
-            x, level = invariant_step(self._x, self._level, self.Ao, self.B, self.L,
-                                      self._input(u_prev), self._y_prev, self.offset, self.lam,
-                                      self.drive)
+            x, level = invariant_step(self._x, self._level, self.recursion,
+                                      self._input(u_prev), self._y_prev)
         self._x, self._level, self._y_prev = x, level, y
         self.k += 1
         return Ellipsoid.trusted(x, level * self.Pinv)
@@ -355,7 +358,8 @@ class ESOC(InvariantSetObserver):
         else:
             QW = np.array(Ellipsoid.from_zonotope(Zonotope(np.zeros(A.shape[0]), E),
                                                   "outer:norm").Q)
-        return loukkas_design(A, C, E, F, QW, float(self.options["quantile"]), self.name,
+        return loukkas_design(LinearDesignProblem(A, C, E, F), QW,
+                              float(self.options["quantile"]), self.name,
                               L1=self.first_gain(A, C, E, F))
 
 
@@ -382,7 +386,8 @@ class ESOD(InvariantSetObserver):
     """
 
     def compute_design(self, A, C, E, F) -> dict:
-        return martinez_design(A, C, E, F, what=self.name, L1=self.first_gain(A, C, E, F))
+        return martinez_design(LinearDesignProblem(A, C, E, F), what=self.name,
+                               L1=self.first_gain(A, C, E, F))
 
 
 @register(
@@ -473,12 +478,12 @@ class ESMF(Observer):
                 J, d, rad = self.A, self.B @ u, self._zero_n
             else:
                 J, d, rad = self._linearise(self._f, q, P, s2, u)
-            q, P = esmf_prediction(q, P, s2, J, d, rad, self.QW, self.cW)
+            q, P = esmf_prediction((q, P, s2), (J, d, rad), self.QW, self.cW)
         if self.C is not None:
             H, d, rad = self.C, self._zero_m, self._zero_m
         else:
             H, d, rad = self._linearise(self._h, q, P, s2, np.zeros(0))
-        q, P, s2, lam = esmf_update(q, P, s2, H, y - d - self.cV, rad, self.QV,
+        q, P, s2, lam = esmf_update((q, P, s2), H, y - d - self.cV, rad, self.QV,
                                     self.options["weight"])
         if not (0.0 <= lam < 1.0 and s2 >= 0.0 and np.isfinite(s2) and np.all(np.isfinite(P))
                 and np.all(np.isfinite(q))):

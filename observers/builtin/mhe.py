@@ -126,7 +126,7 @@ class MHE(LinearModelObserver):
         self._inner_hulls: deque[tuple[np.ndarray, np.ndarray] | None] = deque(maxlen=L + 1)
         self._inner = (None if self.options["inner"] == "none"
                        else create(self.options["inner"], self.system))
-        self._lp = (nm.WindowHullLP(self.A, self.B, self.C, *self._sets, window=L)
+        self._lp = (nm.WindowHullLP((self.A, self.B, self.C, *self._sets), window=L)
                     if self.options["formulation"] == "lp" else None)
         self._solver = HullLP()
 
@@ -182,8 +182,9 @@ class MHE(LinearModelObserver):
                                    "is inconsistent with the model")
             start = self._box(lo, hi)
         u = np.array(self._u, float).reshape(len(self._u), self.B.shape[1])
-        c, G, A, b = nm.window_conzonotope(self.A, self.B, self.C, start, self._sets[1],
-                                           self._V_czn, u, np.array(self._y, float))
+        c, G, A, b = nm.window_conzonotope(
+            (self.A, self.B, self.C, start, self._sets[1], self._V_czn), u,
+            np.array(self._y, float))
         I = ConZonotope(c, G, A, b).with_solver(self._solver).interval()
         return np.asarray(I.lo, float), np.asarray(I.hi, float)
 

@@ -107,7 +107,7 @@ import numpy as np
 from ..errors import DesignFailed
 from ..families import AllStripsObserver, PerStripObserver
 from ..kernels import StepKernel
-from ..numerics.lmi import cora_bisection_end
+from ..numerics.lmi import LinearDesignProblem, cora_bisection_end
 from ..numerics.prad import (
     RICCATI_ABOVE,
     centre_gain,
@@ -120,6 +120,11 @@ from ..numerics.prad import (
 from ..offline import OfflineGain
 from ..options import Choice, Number
 from ..registry import register
+
+
+def _plant(obs: OfflineGain) -> LinearDesignProblem:
+    """The matrices ``A, C, E, F`` of an offline design of ``obs``."""
+    return LinearDesignProblem(obs.A, obs.C, obs.E, obs.F)
 
 
 def cora_epsilon(W, sigma: np.ndarray) -> float:
@@ -201,8 +206,9 @@ class PRadA(_LeMethod, _BetaTol, OfflineGain, PerStripObserver):
         for i in range(self.C.shape[0]):
             F_i = np.array([[np.abs(self.F[i]).sum()]])  # generator of box(project(V, i))
             phi = np.array([abs(self.V.c[i]) + F_i[0, 0]])
-            d = le_gain(self.A, self.C[i:i + 1], self.E, F_i, cora_epsilon(self.W, phi),
-                        self.options["beta_tol"], what=f"PRad-A (output {i + 1})",
+            d = le_gain(LinearDesignProblem(self.A, self.C[i:i + 1], self.E, F_i),
+                        cora_epsilon(self.W, phi), self.options["beta_tol"],
+                        what=f"PRad-A (output {i + 1})",
                         method=self.resolved_method())
             cols.append(d.L[:, 0])
         return np.column_stack(cols)
@@ -234,8 +240,7 @@ class _Centre:
 
     def design_gain(self) -> np.ndarray:
         if self.options["design"] == "centre":
-            return centre_gain(self.A, self.C, self.E, self.F, self.centre_rate(),
-                               what=self.name).L
+            return centre_gain(_plant(self), self.centre_rate(), what=self.name).L
         return self.bound_gain()
 
     def design_kind(self) -> str:
@@ -289,7 +294,7 @@ class PRadB(_LeMethod, _BetaTol, _ConstantAllStrips):
     RICCATI_ABOVE = 0
 
     def design_gain(self) -> np.ndarray:
-        return le_gain(self.A, self.C, self.E, self.F, cora_epsilon(self.W, self.sigma),
+        return le_gain(_plant(self), cora_epsilon(self.W, self.sigma),
                        self.options["beta_tol"], solver=self.options["solver"],
                        method=self.resolved_method()).L
 
@@ -340,7 +345,7 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
 
     def bound_gain(self) -> np.ndarray:
         rate = self.centre_rate() if self.options["design"] == "radius-bound-cora-rate" else None
-        return wang_c1_gain(self.A, self.C, self.E, self.F, rate=rate).L
+        return wang_c1_gain(_plant(self), rate=rate).L
 
 
 @register(
@@ -377,7 +382,7 @@ class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     DESIGN_VERSION = "5"
 
     def bound_gain(self) -> np.ndarray:
-        return wang_c2_gain(self.A, self.C, self.E, self.F).L
+        return wang_c2_gain(_plant(self)).L
 
 
 @register(
@@ -428,4 +433,4 @@ class PRadD(_Centre, _ConstantAllStrips):
 
     def bound_gain(self) -> np.ndarray:
         o = self.options
-        return wang_d_gain(self.A, self.C, self.E, self.F, alpha=o["alpha"], beta=o["beta"]).L
+        return wang_d_gain(_plant(self), alpha=o["alpha"], beta=o["beta"]).L

@@ -47,13 +47,24 @@ Riccati equation (:func:`hinf_gain`, :func:`hinf_riccati`), certified the same w
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numpy as np
 from scipy.linalg import eigh, solve_discrete_lyapunov
 from scipy.stats import chi2
 
 from ..errors import DesignFailed
 from ..sets.ellipsoid import min_trace_weight, obe_weight, outer_sum, quadratic_update
-from .lmi import gain_from, require_nsd, require_pd, require_psd, solve, spectral_radius, sym
+from .lmi import (
+    LinearDesignProblem,
+    gain_from,
+    require_nsd,
+    require_pd,
+    require_psd,
+    solve,
+    spectral_radius,
+    sym,
+)
 
 #: CORA's cap of the Gollamudi weight (``alpha`` in ``@ellipsoid/intersectStrip.m``)
 CORA_ALPHA = 1e-4
@@ -229,15 +240,21 @@ __all__ = [
 MARGIN = 1e-9
 
 
-def _hinf_matrix(P, Y, g, A, C, E, F, Qn):
-    """The matrix ``M(P, Y, g)`` of the H-infinity LMI ``M <= 0`` of :func:`hinf_lmi` (cvxpy
-    expressions)."""
-    import cvxpy as cp
-
+def _hinf_matrix(P, Y, g, plant: LinearDesignProblem, Qn):
+    """The matrix ``M(P, Y, g)`` of the H-infinity LMI ``M <= 0`` of :func:`hinf_lmi` for the
+    matrices ``plant`` and the weight ``Qn``: a cvxpy expression for cvxpy variables ``P``,
+    ``Y``, ``g``, a numpy array for numbers."""
+    A, C, E, F = plant
     n, p = A.shape[0], E.shape[1] + F.shape[1]
     PAo = P @ A - Y @ C
-    PD = cp.hstack([P @ E, -Y @ F])
-    return cp.bmat([
+    if isinstance(P, np.ndarray) and isinstance(Y, np.ndarray):
+        hstack, block = np.hstack, np.block
+    else:
+        import cvxpy as cp
+
+        hstack, block = cp.hstack, cp.bmat
+    PD = hstack([P @ E, -Y @ F])
+    return block([
         [-P + Qn, np.zeros((n, p)), PAo.T],
         [np.zeros((p, n)), -g * np.eye(p), PD.T],
         [PAo, PD, -P],
@@ -245,10 +262,11 @@ def _hinf_matrix(P, Y, g, A, C, E, F, Qn):
 
 
 def hinf_lmi(
-    A: np.ndarray, C: np.ndarray, E: np.ndarray, F: np.ndarray, Q: np.ndarray, what: str
+    plant: LinearDesignProblem, Q: np.ndarray, what: str
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Observer gain of the H-infinity LMI for a given weight ``Q`` (Loukkas et al. 2017,
-    eq. (26); Martinez et al. 2020, Theorem 1), minimising ``gamma^2``.
+    """Observer gain of the H-infinity LMI for the matrices ``plant``
+    (:class:`~observers.numerics.lmi.LinearDesignProblem`) and a given weight ``Q`` (Loukkas
+    et al. 2017, eq. (26); Martinez et al. 2020, Theorem 1), minimising ``gamma^2``.
 
     Variables ``P = P'``, ``Y = P L`` and ``g = gamma^2``::
 
@@ -261,6 +279,7 @@ def hinf_lmi(
     """
     import cvxpy as cp
 
+    C = plant.C
     n, m = C.shape[1], C.shape[0]
     scale = float(np.linalg.eigvalsh(sym(Q))[-1])
     if not scale > 0:
@@ -269,7 +288,7 @@ def hinf_lmi(
     P = cp.Variable((n, n), symmetric=True)
     Y = cp.Variable((n, m))
     g = cp.Variable()
-    M = _hinf_matrix(P, Y, g, A, C, E, F, Qn)
+    M = _hinf_matrix(P, Y, g, plant, Qn)
     solve(cp.Problem(cp.Minimize(g), [0.5 * (M + M.T) << 0]), what)
     if P.value is None or Y.value is None or g.value is None:
         raise DesignFailed(f"{what}: the solver returned no point")
@@ -292,21 +311,18 @@ HINF_SLACK = 1e-2
 HINF_CENTRAL_GAP = 1e-2
 
 
-def _negated_hinf(n: int, m: int, p: int, A, C, E, F, Qn):
-    """``-M(P, Y, g)`` of :func:`hinf_lmi` as a linear matrix function of
-    ``x = [1, upper triangle of P, Y (row-major), g]``: the array of its ``N`` matrices."""
+def _negated_hinf(plant: LinearDesignProblem, Qn):
+    """``-M(P, Y, g)`` of :func:`hinf_lmi` (:func:`_hinf_matrix`) as a linear matrix function
+    of ``x = [1, upper triangle of P, Y (row-major), g]``: the array of its ``N`` matrices."""
+    A, C, E, F = plant
+    n, m, p = C.shape[1], C.shape[0], E.shape[1] + F.shape[1]
     iu = np.triu_indices(n)
     N = 1 + iu[0].size + n * m + 1
     k = 2 * n + p
     blocks = np.zeros((N, k, k))
 
     def neg_m(P, Y, g, q):
-        PAo = P @ A - Y @ C
-        DP = np.hstack([P @ E, -Y @ F])
-        M = np.block([[-P + q * Qn, np.zeros((n, p)), PAo.T],
-                      [np.zeros((p, n)), -g * np.eye(p), DP.T],
-                      [PAo, DP, -P]])
-        return -sym(M)
+        return -sym(_hinf_matrix(P, Y, g, plant, q * Qn))
 
     zP, zY = np.zeros((n, n)), np.zeros((n, m))
     blocks[0] = neg_m(zP, zY, 0.0, 1.0)
@@ -323,10 +339,10 @@ def _negated_hinf(n: int, m: int, p: int, A, C, E, F, Qn):
     return blocks, iu
 
 
-def hinf_central(A, C, E, F, Q, what: str, gap: float = HINF_CENTRAL_GAP
+def hinf_central(plant: LinearDesignProblem, Q, what: str, gap: float = HINF_CENTRAL_GAP
                  ) -> tuple[np.ndarray, np.ndarray, float]:
-    """A unique point of the LMI of :func:`hinf_lmi`: its point on the central path of
-    ``min gamma^2`` at the duality-gap bound ``gap * gamma*^2``.
+    """A unique point of the LMI of :func:`hinf_lmi` (for ``plant`` and ``Q``): its point on
+    the central path of ``min gamma^2`` at the duality-gap bound ``gap * gamma*^2``.
 
     The least ``gamma^2`` pins only ``gamma``: the optimal ``(P, Y)`` form a face on which an
     SDP solver stops anywhere (ESO-C's radii on the 6-D vehicle moved by 11 % between OpenBLAS
@@ -344,21 +360,21 @@ def hinf_central(A, C, E, F, Q, what: str, gap: float = HINF_CENTRAL_GAP
 
     from .lmi import analytic_centre
 
+    C, E = plant.C, plant.E
     n, m = C.shape[1], C.shape[0]
-    p = E.shape[1] + F.shape[1]
     scale = float(np.linalg.eigvalsh(sym(Q))[-1])
     if not scale > 0:
         raise DesignFailed(f"{what}: the weight Q must be positive definite")
     if np.linalg.matrix_rank(E) < n:
-        return hinf_lmi(A, C, E, F, Q, what)  # the barrier has no maximiser: no unique point
+        return hinf_lmi(plant, Q, what)  # the barrier has no maximiser: no unique point
     Qn = sym(Q) / scale
-    g_star = hinf_lmi(A, C, E, F, Qn, what)[2]
-    blocks, iu = _negated_hinf(n, m, p, A, C, E, F, Qn)
+    g_star = hinf_lmi(plant, Qn, what)[2]
+    blocks, iu = _negated_hinf(plant, Qn)
     # a strictly feasible start (the barrier needs one): the most interior point with g at
     # most twice its least value
     P, Y, g, s_ = (cp.Variable((n, n), symmetric=True), cp.Variable((n, m)), cp.Variable(),
                    cp.Variable())
-    M = _hinf_matrix(P, Y, g, A, C, E, F, Qn)
+    M = _hinf_matrix(P, Y, g, plant, Qn)
     solve(cp.Problem(cp.Maximize(s_), [0.5 * (M + M.T) << -s_ * np.eye(blocks.shape[1]),
                                        g <= 2.0 * g_star, s_ <= 1.0]),
           f"{what} (strictly feasible start)")
@@ -381,22 +397,23 @@ def hinf_central(A, C, E, F, Q, what: str, gap: float = HINF_CENTRAL_GAP
     return Pc * scale, gain_from(Pc, Yc, what), float(x[-1]) * scale
 
 
-def hinf_gain(A, C, E, F, Q, what: str) -> tuple[np.ndarray, np.ndarray, float]:
+def hinf_gain(plant: LinearDesignProblem, Q, what: str) -> tuple[np.ndarray, np.ndarray, float]:
     """:func:`hinf_central` up to :data:`HINF_RICCATI_ABOVE` states (or without a
-    full-dimensional noise set), :func:`hinf_riccati` above."""
-    F = np.atleast_2d(np.asarray(F, dtype=float))
+    full-dimensional noise set), :func:`hinf_riccati` above (for ``plant`` and ``Q``)."""
+    F = np.atleast_2d(np.asarray(plant.F, dtype=float))
+    plant = LinearDesignProblem(plant.A, plant.C, plant.E, F)
     full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
-    if A.shape[0] > HINF_RICCATI_ABOVE and full:
-        return hinf_riccati(A, C, E, F, Q, what)
-    return hinf_central(A, C, E, F, Q, what)
+    if plant.A.shape[0] > HINF_RICCATI_ABOVE and full:
+        return hinf_riccati(plant, Q, what)
+    return hinf_central(plant, Q, what)
 
 
 def hinf_riccati(
-    A: np.ndarray, C: np.ndarray, E: np.ndarray, F: np.ndarray, Q: np.ndarray, what: str,
-    rtol: float = 1e-3, slack: float = HINF_SLACK,
+    plant: LinearDesignProblem, Q: np.ndarray, what: str, rtol: float = 1e-3,
+    slack: float = HINF_SLACK,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """The least ``gamma^2`` of :func:`hinf_lmi` and a point ``(P, L)`` of its LMI from the
-    H-infinity filter Riccati equation, without an SDP.
+    """The least ``gamma^2`` of :func:`hinf_lmi` (for ``plant`` and ``Q``) and a point
+    ``(P, L)`` of its LMI from the H-infinity filter Riccati equation, without an SDP.
 
     With ``D = [E, -L F]`` and ``P > 0`` the LMI is the bounded-real inequality
     ``[Ao, D]' P [Ao, D] <= diag(P - Q, g I)``; it forces ``P > Q``, and with ``X = P^-1``,
@@ -416,6 +433,7 @@ def hinf_riccati(
     """
     from scipy.linalg import block_diag, solve_discrete_are
 
+    A, C, E, F = plant
     n = C.shape[1]
     scale = float(np.linalg.eigvalsh(sym(Q))[-1])
     if not scale > 0:
@@ -475,8 +493,9 @@ def hinf_riccati(
     return P * scale, L, g * scale
 
 
-def error_system(A, C, E, F, L) -> tuple[np.ndarray, np.ndarray]:
-    r"""``Ao = A - L C`` and ``D = [E, -L F]`` of the estimation error.
+def error_system(plant: LinearDesignProblem, L) -> tuple[np.ndarray, np.ndarray]:
+    r"""``Ao = A - L C`` and ``D = [E, -L F]`` of the estimation error (``A, C, E, F`` from
+    ``plant``).
 
     Notes
     -----
@@ -490,6 +509,7 @@ def error_system(A, C, E, F, L) -> tuple[np.ndarray, np.ndarray]:
         e_{k+1} = A_o e_k + D \bar w_k, \qquad A_o = A - L C, \qquad
         D = \begin{bmatrix} E & -L F \end{bmatrix} .
     """
+    A, C, E, F = plant
     return A - L @ C, np.hstack([E, -L @ F])
 
 
@@ -554,16 +574,17 @@ def _lyapunov_weight(Ao: np.ndarray, Sigma: np.ndarray, what: str) -> np.ndarray
     return sym(np.linalg.inv(V))
 
 
-def first_gain(A, C, E, F, what: str = "ESO-C/ESO-D") -> np.ndarray:
+def first_gain(plant: LinearDesignProblem, what: str = "ESO-C/ESO-D") -> np.ndarray:
     """Step 1 of both designs below: the gain of the H-infinity LMI with the weight ``Q = I``
-    (:func:`hinf_gain`).  It depends on ``A, C, E, F`` only, so ESO-C and ESO-D on one
-    system share it (their plugins cache it once)."""
-    return hinf_gain(A, C, E, F, np.eye(A.shape[0]), f"{what} (gain with Q = I)")[1]
+    (:func:`hinf_gain`).  It depends on ``plant`` (``A, C, E, F``) only, so ESO-C and ESO-D
+    on one system share it (their plugins cache it once)."""
+    return hinf_gain(plant, np.eye(plant.A.shape[0]), f"{what} (gain with Q = I)")[1]
 
 
-def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C",
+def loukkas_design(plant: LinearDesignProblem, QW, quantile: float, what: str = "ESO-C",
                    L1: np.ndarray | None = None) -> dict:
-    r"""Algorithm 1 of Loukkas, Martinez & Meslem (2017).
+    r"""Algorithm 1 of Loukkas, Martinez & Meslem (2017) for the matrices ``plant``
+    (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     1. gain of the H-infinity LMI with ``Q = I`` (:func:`first_gain`; ``L1`` if given);
     2. ``Q = V^-1`` with ``V`` the error covariance of that gain for the disturbance
@@ -600,20 +621,21 @@ def loukkas_design(A, C, E, F, QW, quantile: float, what: str = "ESO-C",
     and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)`, so that
     :math:`Q \succeq \lambda P` (capped at 1).
     """
-    n = A.shape[0]
-    L = first_gain(A, C, E, F, what) if L1 is None else L1
-    Ao, _ = error_system(A, C, E, F, L)
+    n = plant.A.shape[0]
+    L = first_gain(plant, what) if L1 is None else L1
+    Ao, _ = error_system(plant, L)
     Q = _lyapunov_weight(Ao, QW / chi2.ppf(quantile, n), what)
-    P, L, gamma2 = hinf_gain(A, C, E, F, Q, f"{what} (gain with the covariance weight)")
-    Ao, D = error_system(A, C, E, F, L)
+    P, L, gamma2 = hinf_gain(plant, Q, f"{what} (gain with the covariance weight)")
+    Ao, D = error_system(plant, L)
     S, gamma2 = schur_bound(Ao, D, P, gamma2)
     Q, lam, gamma2 = certify(Ao, D, P, gamma2, S, what)
     return {"L": L, "P": P, "Q": Q, "gamma2": np.array(gamma2), "lam": np.array(lam)}
 
 
-def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D",
+def martinez_design(plant: LinearDesignProblem, variance: float = 1.0 / 3.0, what: str = "ESO-D",
                     L1: np.ndarray | None = None) -> dict:
-    r"""Algorithm 1 of Martinez, Loukkas & Meslem (2020).
+    r"""Algorithm 1 of Martinez, Loukkas & Meslem (2020) for the matrices ``plant``
+    (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     1. gain of the H-infinity LMI with ``Q = I`` (:func:`first_gain`; ``L1`` if given);
     2. ``Q = V^-1`` with ``Ao V Ao' - V + D W D' = 0``, ``W = variance I`` (eqs. (63)-(64):
@@ -642,22 +664,48 @@ def martinez_design(A, C, E, F, variance: float = 1.0 / 3.0, what: str = "ESO-D"
     and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)` after the
     certification (:func:`certify`).
     """
-    L = first_gain(A, C, E, F, what) if L1 is None else L1
-    Ao, D = error_system(A, C, E, F, L)
+    L = first_gain(plant, what) if L1 is None else L1
+    Ao, D = error_system(plant, L)
     Q = _lyapunov_weight(Ao, variance * (D @ D.T), what)
-    P, L, gamma2 = hinf_gain(A, C, E, F, Q, f"{what} (gain with the covariance weight)")
-    Ao, D = error_system(A, C, E, F, L)
+    P, L, gamma2 = hinf_gain(plant, Q, f"{what} (gain with the covariance weight)")
+    Ao, D = error_system(plant, L)
     Q, lam, gamma2 = certify(Ao, D, P, gamma2, Q, what)
     return {"L": L, "P": P, "Q": Q, "gamma2": np.array(gamma2), "lam": np.array(lam)}
 
 
+class InvariantRecursion(NamedTuple):
+    """The constant data of the online recursion of ESO-C and ESO-D (:func:`invariant_step`).
+
+    Attributes
+    ----------
+    Ao : ndarray
+        ``A - L C``.
+    B : ndarray
+        The input matrix.
+    L : ndarray
+        The observer gain.
+    offset : ndarray
+        ``c_W - L c_V``.
+    lam : float
+        The decay rate of the level.
+    drive : float
+        ``gamma^2 ||wbar||^2``, the growth of the level per step.
+    """
+
+    Ao: Any
+    B: Any
+    L: Any
+    offset: Any
+    lam: float
+    drive: float
+
+
 def invariant_step(
-    x: np.ndarray, level: float, Ao: np.ndarray, B: np.ndarray, L: np.ndarray, u: np.ndarray,
-    y: np.ndarray, offset: np.ndarray, lam: float, drive: float,
+    x: np.ndarray, level: float, rec: InvariantRecursion, u: np.ndarray, y: np.ndarray,
 ) -> tuple[np.ndarray, float]:
     r"""One step of the observer and of its error level (Loukkas et al., eqs. (46)-(51)):
     ``xh+ = Ao xh + B u + L y + offset`` (``offset = c_W - L c_V``) and
-    ``l+ = (1 - lam) l + drive`` (``drive = gamma^2 ||wbar||^2``).
+    ``l+ = (1 - lam) l + drive`` (``drive = gamma^2 ||wbar||^2``), with the data of ``rec``.
 
     Notes
     -----
@@ -680,7 +728,7 @@ def invariant_step(
         \mathcal{S}_k = \{x \mid (x - \hat x_k)^\top P (x - \hat x_k) \le \ell_k\}
         = \mathcal{E}(\hat x_k,\ \ell_k P^{-1}) .
     """
-    return Ao @ x + B @ u + L @ y + offset, (1.0 - lam) * level + drive
+    return rec.Ao @ x + rec.B @ u + rec.L @ y + rec.offset, (1.0 - rec.lam) * level + rec.drive
 
 
 # -- ESMF: the extended set-membership filter ------------------------------------------------
@@ -722,11 +770,12 @@ def absorb(Q: np.ndarray, rad: np.ndarray) -> np.ndarray:
     return outer_sum(Q, R, p)
 
 
-def esmf_prediction(q, P, s2, J, d, rad, QW, cW):
-    r"""Prediction of the extended set-membership filter (Scholte & Campbell 2003): the
-    dynamics enclosed as ``f(x) in J x + d + [-rad, rad]`` over the box of the estimate, the
-    remainder box absorbed into the disturbance ellipsoid (:func:`absorb`), then the
-    ellipsoidal prediction of the linear family (:func:`liu_prediction`).
+def esmf_prediction(estimate: tuple, enclosure: tuple, QW, cW):
+    r"""Prediction of the extended set-membership filter (Scholte & Campbell 2003) of the
+    ``estimate`` ``(q, P, s2)``: the dynamics enclosed as ``f(x) in J x + d + [-rad, rad]``
+    (``enclosure = (J, d, rad)``) over the box of the estimate, the remainder box absorbed
+    into the disturbance ellipsoid ``E(cW, QW)`` (:func:`absorb`), then the ellipsoidal
+    prediction of the linear family (:func:`liu_prediction`).  Returns ``(q, P)``.
 
     Notes
     -----
@@ -745,15 +794,17 @@ def esmf_prediction(q, P, s2, J, d, rad, QW, cW):
     with :math:`\kappa` the number of non-zero :math:`\rho_i` (the ellipsoid
     :math:`\mathcal{E}(0, R)` contains the box) and :math:`p, p'` the weights of least trace.
     """
+    q, P, s2 = estimate
+    J, d, rad = enclosure
     return liu_prediction(q, P, s2, J, d + cW, absorb(QW, rad))
 
 
-def esmf_update(q, P, s2, H, y_eff, rad, QV, weight: str = "obe"):
-    r"""Update of the extended set-membership filter: the output enclosed as
-    ``h(x) in H x + d + [-rad, rad]`` (``y_eff = y - d - c_V``), the remainder absorbed into
-    the noise ellipsoid, the outputs whitened with the widened noise shape, then the
-    ellipsoid of :func:`~observers.sets.ellipsoid.quadratic_update` with the weight of
-    ``weight``: ``"obe"`` the selective optimal-bounding-ellipsoid update of ESO-B
+def esmf_update(estimate: tuple, H, y_eff, rad, QV, weight: str = "obe"):
+    r"""Update of the extended set-membership filter of the ``estimate`` ``(q, P, s2)``: the
+    output enclosed as ``h(x) in H x + d + [-rad, rad]`` (``y_eff = y - d - c_V``), the
+    remainder absorbed into the noise ellipsoid, the outputs whitened with the widened noise
+    shape, then the ellipsoid of :func:`~observers.sets.ellipsoid.quadratic_update` with the
+    weight of ``weight``: ``"obe"`` the selective optimal-bounding-ellipsoid update of ESO-B
     (:func:`obe_update`), ``"min-trace"`` the weight minimising the trace of the updated
     shape ``s2+ P+`` (bounded scalar search; the set is kept if no weight shrinks it).
     Returns ``(q, P, s2, lam)`` as :func:`obe_update` (``lam = 0``: not updated).
@@ -781,6 +832,7 @@ def esmf_update(q, P, s2, H, y_eff, rad, QV, weight: str = "obe"):
     for ``"min-trace"`` (kept only if it is below :math:`\sigma^2 \operatorname{tr} P`), or
     the capped weight :math:`\nu` of :func:`obe_update` for ``"obe"``.
     """
+    q, P, s2 = estimate
     Qv = absorb(QV, rad)
     T = np.linalg.inv(np.linalg.cholesky(Qv))
     Ct, yt = T @ H, T @ y_eff

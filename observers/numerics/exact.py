@@ -466,23 +466,25 @@ class ExactHullLP:
         """The columns and rows of step j (allocated)."""
         return self._layout[j]
 
+    def _put_bounds(self, kind: str, first: int, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Bounds ``lo .. hi`` of the columns (``kind="Cols"``) or the row ranges
+        (``"Rows"``) from ``first`` on, in the mirror and in every model."""
+        lower, upper = (self._cl, self._cu) if kind == "Cols" else (self._rl, self._ru)
+        lower[first : first + lo.size] = lo
+        upper[first : first + lo.size] = hi
+        idx = np.arange(first, first + lo.size, dtype=np.int32)
+        for h in self._models:
+            getattr(h, f"change{kind}Bounds")(lo.size, idx, lo, hi)
+
     def _set_cols(self, first: int, lo: np.ndarray, hi: np.ndarray) -> None:
         if lo.size == 0:
             return
-        self._cl[first : first + lo.size] = lo
-        self._cu[first : first + lo.size] = hi
-        idx = np.arange(first, first + lo.size, dtype=np.int32)
-        for h in self._models:
-            h.changeColsBounds(lo.size, idx, lo, hi)
+        self._put_bounds("Cols", first, lo, hi)
 
     def _set_rows(self, first: int, lo: np.ndarray, hi: np.ndarray) -> None:
         if lo.size == 0:
             return
-        self._rl[first : first + lo.size] = lo
-        self._ru[first : first + lo.size] = hi
-        idx = np.arange(first, first + lo.size, dtype=np.int32)
-        for h in self._models:
-            h.changeRowsBounds(lo.size, idx, lo, hi)
+        self._put_bounds("Rows", first, lo, hi)
         self._free[first : first + lo.size] = False
         self._active = max(self._active, first + lo.size)
 
@@ -811,7 +813,7 @@ class ExactSet:
         k = self.k
         u = np.array(self._u[:k], float).reshape(k, self._model[1].shape[1])
         y = np.array(self._y[: k + 1], float)
-        return consistent(*self._model, u, y, x, tol)
+        return consistent(self._model, u, y, x, tol)
 
     def __repr__(self) -> str:
         return f"ExactSet(step={self.k}, dim={self.dim})"

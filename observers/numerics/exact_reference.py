@@ -35,7 +35,8 @@ _OPTIONS = {"primal_feasibility_tolerance": CHECK_TOLERANCE,
             "dual_feasibility_tolerance": CHECK_TOLERANCE}
 
 
-def _model(A, B, C, X0, W, V):
+def _model(model):
+    A, B, C, X0, W, V = model
     A, C = np.asarray(A, float), np.asarray(C, float)
     n = A.shape[0]
     B = np.asarray(B, float).reshape(n, -1)
@@ -77,15 +78,15 @@ def _dense_hull(a, P, A_eq, b_eq):
     return lo, hi
 
 
-def dense_hulls(A, B, C, X0, W, V, u, y, steps=None) -> dict[int, tuple[np.ndarray, ...]]:
+def dense_hulls(model: tuple, u, y, steps=None) -> dict[int, tuple[np.ndarray, ...]]:
     """Predicted and filtered hulls by the dense LP over the noise factors.
 
     Parameters
     ----------
-    A, B, C : array_like
-        The linear model.
-    X0, W, V : tuple of array_like
-        ``(centre, generators)`` of the initial, disturbance and noise zonotopes.
+    model : tuple
+        ``(A, B, C, X0, W, V)``: the linear model and the ``(centre, generators)`` of the
+        initial, disturbance and noise zonotopes (as for
+        :class:`~observers.numerics.exact.ExactHullLP`).
     u, y : array_like
         The record (``u[j]`` drives ``x_{j+1}``, ``y[j]`` measures ``x_j``).
     steps : iterable of int, optional
@@ -96,7 +97,7 @@ def dense_hulls(A, B, C, X0, W, V, u, y, steps=None) -> dict[int, tuple[np.ndarr
     dict
         ``step -> (pred_lo, pred_hi, filt_lo, filt_hi)``.
     """
-    A, B, C, ((c0, G0), (cW, E), (cV, F)) = _model(A, B, C, X0, W, V)
+    A, B, C, ((c0, G0), (cW, E), (cV, F)) = _model(model)
     u, y = _record(B, u, y)
     n = A.shape[0]
     want = set(range(y.shape[0])) if steps is None else {int(k) for k in steps}
@@ -128,10 +129,11 @@ def dense_hulls(A, B, C, X0, W, V, u, y, steps=None) -> dict[int, tuple[np.ndarr
 
 
 # -- explicit formulation (states and factors as variables) ---------------------------------
-def explicit_lp(A, B, C, X0, W, V, u, y, k: int, measured: int | None = None):
-    """The LP ``A_eq z = b_eq`` with bounds of the trajectories ``x_0..x_k`` consistent with
-    ``u[0..k-1]`` and ``y[0..measured-1]`` (default ``measured = k + 1``: the filtered set;
-    ``k``: the predicted one).
+def explicit_lp(model: tuple, u, y, k: int, measured: int | None = None):
+    """The LP ``A_eq z = b_eq`` with bounds of the trajectories ``x_0..x_k`` of ``model``
+    (``(A, B, C, X0, W, V)`` as for :func:`dense_hulls`) consistent with ``u[0..k-1]`` and
+    ``y[0..measured-1]`` (default ``measured = k + 1``: the filtered set; ``k``: the
+    predicted one).
 
     Returns
     -------
@@ -142,7 +144,7 @@ def explicit_lp(A, B, C, X0, W, V, u, y, k: int, measured: int | None = None):
     xk : ndarray of int
         The columns of ``x_k``.
     """
-    A, B, C, ((c0, G0), (cW, E), (cV, F)) = _model(A, B, C, X0, W, V)
+    A, B, C, ((c0, G0), (cW, E), (cV, F)) = _model(model)
     u, y = _record(B, u, y)
     n, m = A.shape[0], C.shape[0]
     measured = k + 1 if measured is None else measured
@@ -199,16 +201,16 @@ def _explicit_opt(c, A_eq, b_eq, bounds) -> float:
     return float(res.fun)
 
 
-def explicit_hulls(A, B, C, X0, W, V, u, y, steps=None) -> dict[int, tuple[np.ndarray, ...]]:
+def explicit_hulls(model: tuple, u, y, steps=None) -> dict[int, tuple[np.ndarray, ...]]:
     """Predicted and filtered hulls by the explicit sparse LP, from scratch at every step
     (arguments and result as :func:`dense_hulls`)."""
     y = np.atleast_2d(np.asarray(y, float))
-    n = np.asarray(A).shape[0]
+    n = np.asarray(model[0]).shape[0]
     out = {}
     for k in (range(y.shape[0]) if steps is None else steps):
         hull = []
         for measured in (k, k + 1):
-            A_eq, b_eq, bounds, xk = explicit_lp(A, B, C, X0, W, V, u, y, k, measured)
+            A_eq, b_eq, bounds, xk = explicit_lp(model, u, y, k, measured)
             lo, hi = np.empty(n), np.empty(n)
             for i in range(n):
                 c = np.zeros(A_eq.shape[1])
@@ -220,12 +222,13 @@ def explicit_hulls(A, B, C, X0, W, V, u, y, steps=None) -> dict[int, tuple[np.nd
     return out
 
 
-def consistent(A, B, C, X0, W, V, u, y, x, tol: float = 0.0) -> bool:
-    """Whether a trajectory consistent with ``u[0..k-1]``, ``y[0..k]`` (``k = len(y) - 1``)
-    ends within ``tol`` of ``x`` (infinity norm): a feasibility LP at HiGHS's tolerance."""
+def consistent(model: tuple, u, y, x, tol: float = 0.0) -> bool:
+    """Whether a trajectory of ``model`` (``(A, B, C, X0, W, V)`` as for :func:`dense_hulls`)
+    consistent with ``u[0..k-1]``, ``y[0..k]`` (``k = len(y) - 1``) ends within ``tol`` of
+    ``x`` (infinity norm): a feasibility LP at HiGHS's tolerance."""
     y = np.atleast_2d(np.asarray(y, float))
     k = y.shape[0] - 1
-    A_eq, b_eq, bounds, xk = explicit_lp(A, B, C, X0, W, V, u, y, k)
+    A_eq, b_eq, bounds, xk = explicit_lp(model, u, y, k)
     bounds = list(bounds)
     for i, col in enumerate(xk):
         bounds[col] = (float(x[i]) - tol, float(x[i]) + tol)

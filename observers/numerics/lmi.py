@@ -11,14 +11,16 @@ pieces of this module, so that each step is written once:
 * :func:`cora_bisection_end` replays where CORA's bisections on a decay rate stop;
 * :func:`analytic_centre` and :func:`decay_centre` (the same damped Newton method with a
   Hessian assembled from the structure of the decay LMI) compute analytic centres in numpy;
-* :class:`GainDesign` is what every design returns.
+* :class:`GainDesign` is what every design returns; :class:`LinearDesignProblem` holds the
+  matrices ``A, C, E, F`` a design starts from.
 """
 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -55,6 +57,28 @@ class GainDesign:
     L: np.ndarray
     P: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+
+
+class LinearDesignProblem(NamedTuple):
+    """The matrices of an offline design: ``x+ = A x + B u + E w``, ``y = C x + F v`` with the
+    disturbance ``w`` and the noise ``v`` the generator factors of ``W`` and ``V``.
+
+    Attributes
+    ----------
+    A : ndarray
+        The dynamics (n x n).
+    C : ndarray
+        The outputs (m x n).
+    E : ndarray
+        The generator matrix of the disturbance set ``W`` (n x nw).
+    F : ndarray
+        The generator matrix of the noise set ``V`` (m x nv).
+    """
+
+    A: Any
+    C: Any
+    E: Any
+    F: Any
 
 
 #: solver settings of the named SDP solver strategies (PRad-B's ``solver`` option: the
@@ -338,85 +362,88 @@ def decay_matrix(A: np.ndarray, H: np.ndarray, rate: float, P: np.ndarray,
     return sym(np.block([[rate * P, M.T], [M, P]]))
 
 
-def decay_centre(
-    A: np.ndarray,
-    H: np.ndarray,
-    rate: float,
-    P0: np.ndarray,
-    Y0: np.ndarray,
-    what: str,
-    with_logdet_P: bool = False,
-    tol: float = 1e-13,
-    max_iter: int = 200,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Analytic centre of the decay cone: maximise ``log det D(P, Y) [+ log det P]`` subject to
-    ``tr P = tr P0`` by damped Newton, ``D(P, Y) = [[rate P, M'], [M, P]]``, ``M = P A - Y H``.
+class DecayCone(NamedTuple):
+    """The decay LMI ``D(P, Y) = [[rate P, M'], [M, P]] > 0``, ``M = P A - Y H``, whose
+    analytic centre :func:`decay_centre` computes.
 
-    The problem of :func:`analytic_centre` for the LMIs of Nom-G (``H = C``) and of the
-    PRad-C/D centre (``H = C A``, ``with_logdet_P``), with the gradient and the Hessian
-    assembled from the structure of ``D`` instead of from a basis of matrices.  Writing ``D``
-    as a sum of terms ``L_t' Z_t R_t`` (``Z_t`` is ``P``, ``Y`` or ``Y'``) and ``S = D^-1``,
-
-    * the gradient of ``log det D`` in ``Z_t`` is ``L_t S R_t'``, and
-    * the Hessian is ``-tr(S dD S dD) = -sum_{t,u} tr(dZ_t (R_t S L_u') dZ_u (R_u S L_t'))``,
-      whose coefficient of ``dZ_t[i, j] dZ_u[k, l]`` is ``(R_t S L_u')[j, k] (R_u S L_t')[l, i]``
-      (one outer product per pair of terms),
-
-    so an iteration costs ``O(n^4)`` operations and an ``(n^2/2 + n m)``-dimensional linear
-    solve, against ``O(n^6)`` for the basis form.  The damped Newton iteration (backtracking
-    on the Armijo condition and on positive definiteness, by Cholesky factorisations) is that
-    of :func:`analytic_centre` (Boyd & Vandenberghe, Convex Optimization, Secs. 9.5-9.6 and
-    10.2: the objective is self-concordant, so it converges from any strictly feasible start,
-    quadratically near the optimum).  ``(P0, Y0)`` must be strictly feasible.
-
-    Returns ``(P, Y)``; raises :class:`DesignFailed` if the start is infeasible or the
-    iteration does not converge.
+    Attributes
+    ----------
+    A : ndarray
+        The dynamics (n x n).
+    H : ndarray
+        The matrix multiplying ``Y`` (m x n): ``C`` for Nom-G, ``C A`` for the PRad-C/D centre.
+    rate : float
+        The decay rate (the weight of ``P`` in the upper left block).
+    with_logdet_P : bool
+        Whether the objective also has the term ``log det P`` (the PRad-C/D centre).
     """
-    import scipy.linalg as sla
 
-    A, H = np.asarray(A, float), np.asarray(H, float)
-    n, m = A.shape[0], H.shape[0]
-    terms = _decay_terms(A, H, rate)
-    nP2 = n * n
-    Nf = nP2 + n * m  # full coordinates: P row-major, then Y row-major
-    # where each kind of term sits in the full coordinates (``Yt``: Y, read transposed)
-    where = {"P": (slice(0, nP2), False), "Y": (slice(nP2, Nf), False),
-             "Yt": (slice(nP2, Nf), True)}
-    iu = np.triu_indices(n)
-    nP = iu[0].size
-    # reduced coordinates: upper triangle of P (symmetric basis E_ij + E_ji), then Y; a dummy
-    # full coordinate Nf (always zero) stands for the missing transpose of a diagonal entry
-    first = np.concatenate([iu[0] * n + iu[1], nP2 + np.arange(n * m)])
-    second = np.concatenate([np.where(iu[0] == iu[1], Nf, iu[1] * n + iu[0]),
-                             np.full(n * m, Nf)])
+    A: Any
+    H: Any
+    rate: float
+    with_logdet_P: bool = False
 
-    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+
+class _DecayNewton:
+    """The pieces of the damped Newton method of :func:`decay_centre` for one
+    :class:`DecayCone`: the reduced coordinates ``x`` (upper triangle of ``P``, then ``Y``
+    row-major), the Cholesky factors of the LMIs at ``x``, the objective from them, and the
+    gradient and Hessian assembled from the structure of ``D``."""
+
+    def __init__(self, cone: DecayCone):
+        A, H = np.asarray(cone.A, float), np.asarray(cone.H, float)
+        self.A, self.H, self.rate = A, H, cone.rate
+        self.with_logdet_P = cone.with_logdet_P
+        self.n = n = A.shape[0]
+        self.m = m = H.shape[0]
+        self.terms = _decay_terms(A, H, cone.rate)
+        nP2 = n * n
+        self.Nf = Nf = nP2 + n * m  # full coordinates: P row-major, then Y row-major
+        # where each kind of term sits in the full coordinates (``Yt``: Y, read transposed)
+        self.where = {"P": (slice(0, nP2), False), "Y": (slice(nP2, Nf), False),
+                      "Yt": (slice(nP2, Nf), True)}
+        self.iu = iu = np.triu_indices(n)
+        self.nP = iu[0].size
+        # reduced coordinates: upper triangle of P (symmetric basis E_ij + E_ji), then Y; a
+        # dummy full coordinate Nf (always zero) stands for the missing transpose of a
+        # diagonal entry
+        self.first = np.concatenate([iu[0] * n + iu[1], nP2 + np.arange(n * m)])
+        self.second = np.concatenate([np.where(iu[0] == iu[1], Nf, iu[1] * n + iu[0]),
+                                      np.full(n * m, Nf)])
+        self.hess_full = np.empty((Nf + 1, Nf + 1))  # one buffer for every iteration
+
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(P, Y)`` of the reduced coordinates ``x``."""
+        n = self.n
         P = np.zeros((n, n))
-        P[iu] = x[:nP]
-        return P + np.triu(P, 1).T, x[nP:].reshape(n, m)
+        P[self.iu] = x[:self.nP]
+        return P + np.triu(P, 1).T, x[self.nP:].reshape(n, self.m)
 
-    def factors(x: np.ndarray):
-        P, Y = unpack(x)
+    def factors(self, x: np.ndarray):
+        """The Cholesky factors of ``D`` (and of ``P``) at ``x``, or ``None`` if one is not
+        positive definite."""
+        P, Y = self.unpack(x)
         try:
-            out = [np.linalg.cholesky(decay_matrix(A, H, rate, P, Y))]
-            if with_logdet_P:
+            out = [np.linalg.cholesky(decay_matrix(self.A, self.H, self.rate, P, Y))]
+            if self.with_logdet_P:
                 out.append(np.linalg.cholesky(P))
         except np.linalg.LinAlgError:
             return None
         return out
 
+    @staticmethod
     def value(chol) -> float:
+        """The objective (sum of the log-determinants) from the factors."""
         return sum(2.0 * float(np.log(np.diag(Lc)).sum()) for Lc in chol)
 
-    hess_full = np.empty((Nf + 1, Nf + 1))  # one buffer for every iteration
-
-    def derivatives(chol) -> tuple[np.ndarray, np.ndarray]:
+    def derivatives(self, chol) -> tuple[np.ndarray, np.ndarray]:
         """Gradient and Hessian in the reduced coordinates."""
+        n, Nf, where = self.n, self.Nf, self.where
         g = np.zeros(Nf + 1)
-        Hf = hess_full
+        Hf = self.hess_full
         Hf.fill(0.0)
-        blocks = [(chol[0], terms)]
-        if with_logdet_P:
+        blocks = [(chol[0], self.terms)]
+        if self.with_logdet_P:
             blocks.append((chol[1], [("P", np.eye(n), np.eye(n))]))
         for Lc, ts in blocks:
             Li = np.linalg.inv(Lc)
@@ -446,21 +473,60 @@ def decay_centre(
         Hf[Nf, :] = 0.0
         Hf[:, Nf] = 0.0
         g[Nf] = 0.0
+        first, second = self.first, self.second
         gr = g[first] + g[second]
         Hf[:, first] += Hf[:, second]  # columns, then rows, folded in place
         Hr = Hf[first][:, first]
         Hr += Hf[second][:, first]
         return gr, Hr
 
+
+def decay_centre(
+    cone: DecayCone,
+    P0: np.ndarray,
+    Y0: np.ndarray,
+    what: str,
+    tol: float = 1e-13,
+    max_iter: int = 200,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic centre of the decay cone: maximise ``log det D(P, Y) [+ log det P]`` subject to
+    ``tr P = tr P0`` by damped Newton, ``D(P, Y) = [[rate P, M'], [M, P]]``, ``M = P A - Y H``
+    (``cone``: a :class:`DecayCone`, the ``log det P`` term with its ``with_logdet_P``).
+
+    The problem of :func:`analytic_centre` for the LMIs of Nom-G (``H = C``) and of the
+    PRad-C/D centre (``H = C A``, ``with_logdet_P``), with the gradient and the Hessian
+    assembled from the structure of ``D`` instead of from a basis of matrices.  Writing ``D``
+    as a sum of terms ``L_t' Z_t R_t`` (``Z_t`` is ``P``, ``Y`` or ``Y'``) and ``S = D^-1``,
+
+    * the gradient of ``log det D`` in ``Z_t`` is ``L_t S R_t'``, and
+    * the Hessian is ``-tr(S dD S dD) = -sum_{t,u} tr(dZ_t (R_t S L_u') dZ_u (R_u S L_t'))``,
+      whose coefficient of ``dZ_t[i, j] dZ_u[k, l]`` is ``(R_t S L_u')[j, k] (R_u S L_t')[l, i]``
+      (one outer product per pair of terms),
+
+    so an iteration costs ``O(n^4)`` operations and an ``(n^2/2 + n m)``-dimensional linear
+    solve, against ``O(n^6)`` for the basis form (:class:`_DecayNewton`).  The damped Newton
+    iteration (backtracking on the Armijo condition and on positive definiteness, by
+    Cholesky factorisations) is that of :func:`analytic_centre` (Boyd & Vandenberghe, Convex
+    Optimization, Secs. 9.5-9.6 and 10.2: the objective is self-concordant, so it converges
+    from any strictly feasible start, quadratically near the optimum).  ``(P0, Y0)`` must be
+    strictly feasible.
+
+    Returns ``(P, Y)``; raises :class:`DesignFailed` if the start is infeasible or the
+    iteration does not converge.
+    """
+    import scipy.linalg as sla
+
+    nt = _DecayNewton(cone)
+    n, m, iu = nt.n, nt.m, nt.iu
     P0 = sym(P0)
     x = np.concatenate([P0[iu], np.asarray(Y0, float).ravel()])
     a = np.concatenate([(iu[0] == iu[1]).astype(float), np.zeros(n * m)])
-    chol = factors(x)
+    chol = nt.factors(x)
     if chol is None:
         raise DesignFailed(f"{what}: the starting point of the analytic centre is infeasible")
-    f = value(chol)
+    f = nt.value(chol)
     for _ in range(max_iter):
-        g, Hr = derivatives(chol)
+        g, Hr = nt.derivatives(chol)
         # Newton step on the hyperplane a' x = const: with K = -H (positive definite),
         # step = K^-1 (g - nu a), nu chosen so that a' step = 0
         try:
@@ -474,11 +540,29 @@ def decay_centre(
         if not np.isfinite(decrement):
             break
         if decrement < tol:  # one last full step: quadratic convergence from here
-            return unpack(x + step if factors(x + step) is not None else x)
-        found = _backtrack(x, step, f, decrement, factors, value)
+            return nt.unpack(x + step if nt.factors(x + step) is not None else x)
+        found = _backtrack(x, step, f, decrement, nt.factors, nt.value)
         if found is None:  # no progress at rounding level: accept a point near the optimum
             if decrement < 1e-8:
-                return unpack(x)
+                return nt.unpack(x)
             break
         x, f, chol = found
     raise DesignFailed(f"{what}: the Newton iteration of the analytic centre did not converge")
+
+
+def cone_point(cone: DecayCone, solver: str, start: Callable[[], tuple[np.ndarray, np.ndarray]],
+               clarabel: Callable[[], tuple[np.ndarray, np.ndarray]] | None, what: str
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """A point ``(P, Y)`` of the decay ``cone`` by the route ``solver``: ``"newton"`` its
+    analytic centre (:func:`decay_centre` from the strictly feasible point ``start()``),
+    ``"start"`` that point itself, ``"clarabel"`` the point ``clarabel()`` (the centre as a
+    cvxpy log-det problem); the routes of Nom-G and of the PRad-C/D centre."""
+    if solver == "newton":
+        P0, Y0 = start()
+        return decay_centre(cone, P0, Y0, what)
+    if solver == "start":
+        return start()
+    if solver == "clarabel" and clarabel is not None:
+        return clarabel()
+    raise DesignFailed(f"{what}: unknown solver {solver!r} (use 'newton', 'start' or "
+                       "'clarabel')")

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import DesignFailed
 from . import lmi
-from .lmi import GainDesign, bmat, gain_from, range_basis, range_factor
+from .lmi import GainDesign, LinearDesignProblem, bmat, gain_from, range_basis, range_factor
 from .prad import NEWTON_MAX_VARIABLES
 
 #: strictness margin of the strict LMIs (``SM <= -eps I`` stands for ``SM < 0``)
@@ -227,15 +227,8 @@ def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
     n = C.shape[1]
     if solver == "newton" and n * (n + C.shape[0]) > NEWTON_MAX_VARIABLES:
         solver = "start"  # the Hessian would not fit: the strictly feasible start
-    if solver == "newton":
-        P0, Y0 = nom_g_start(A, C, mu, what)
-        P, Y = lmi.decay_centre(A, C, mu, P0, Y0, what)
-    elif solver == "start":
-        P, Y = nom_g_start(A, C, mu, what)
-    elif solver == "clarabel":
-        P, Y = _nom_g_clarabel(A, C, mu, what)
-    else:
-        raise DesignFailed(f"{what}: unknown solver {solver!r} (use 'newton' or 'clarabel')")
+    P, Y = lmi.cone_point(lmi.DecayCone(A, C, mu), solver, lambda: nom_g_start(A, C, mu, what),
+                          lambda: _nom_g_clarabel(A, C, mu, what), what)
     P = lmi.sym(P)
     L = gain_from(P, Y, what)
     margin = lmi.require_pd(nom_g_lmi(A, C, mu, P, Y), f"{what} LMI")
@@ -350,8 +343,9 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
     n, m = C.shape[1], C.shape[0]
     if method == "auto":
         method = "riccati" if n > HINF_G_RICCATI_ABOVE and F.shape[1] == m else "sdp"
+    plant = LinearDesignProblem(A, C, E, F)
     if method == "riccati":
-        return _hinf_g_riccati(A, C, E, F, gamma_slack, what)
+        return _hinf_g_riccati(plant, gamma_slack, what)
     if method != "sdp":
         raise DesignFailed(f"{what}: unknown method {method!r} (use 'auto', 'sdp' or 'riccati')")
     P = cp.Variable((n, n), symmetric=True)
@@ -369,14 +363,19 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
                          [strict(hinf_g_lmi(A, C, E, F, g_max, P, Y))]),
               f"{what} (min trace P)")
     P, Y = lmi.sym(P.value), Y.value
-    return _verified_hinf_g(A, C, E, F, gain_from(P, Y, what), P, Y, g_star, g_max, "sdp",
+    return _verified_hinf_g(plant, (gain_from(P, Y, what), P, Y), (g_star, g_max), "sdp",
                             what)
 
 
-def _verified_hinf_g(A, C, E, F, L, P, Y, g_star: float, g_max: float, method: str,
-                     what: str) -> GainDesign:
-    """The Hinf-G design ``(L, P)`` once verified in numpy (either route): the LMI with
-    ``g_max`` holds strictly and ``A - L C`` is Schur stable; else :class:`DesignFailed`."""
+def _verified_hinf_g(plant: LinearDesignProblem, point: tuple, gammas: tuple[float, float],
+                     method: str, what: str) -> GainDesign:
+    """The Hinf-G design ``point = (L, P, Y)`` of ``plant`` once verified in numpy (either
+    route, ``method``): the LMI with ``g_max`` of ``gammas = (g_star, g_max)`` (the least
+    ``gamma^2`` and its bound) holds strictly and ``A - L C`` is Schur stable; else
+    :class:`DesignFailed`."""
+    A, C, E, F = plant
+    L, P, Y = point
+    g_star, g_max = gammas
     lmi.require_pd(-hinf_g_lmi(A, C, E, F, g_max, P, Y), f"{what} LMI")
     rho = lmi.spectral_radius(A - L @ C)
     if rho >= 1.0:
@@ -386,8 +385,9 @@ def _verified_hinf_g(A, C, E, F, L, P, Y, g_star: float, g_max: float, method: s
                              "gamma": float(np.sqrt(g_max)), "method": method})
 
 
-def _hinf_g_riccati(A, C, E, F, gamma_slack: float, what: str) -> GainDesign:
-    """Hinf-G from the H-infinity filter Riccati equation (systems too large for the SDPs).
+def _hinf_g_riccati(plant: LinearDesignProblem, gamma_slack: float, what: str) -> GainDesign:
+    """Hinf-G from the H-infinity filter Riccati equation (systems too large for the SDPs) for
+    the matrices ``plant`` (``E``, ``F`` full-rank factors).
 
     The Hinf-G LMI is the H-infinity LMI of ESO-C/D with the weight ``Q = I``
     (:func:`~observers.numerics.ellipsoidal.hinf_riccati`): its least ``gamma*^2`` comes from
@@ -401,14 +401,14 @@ def _hinf_g_riccati(A, C, E, F, gamma_slack: float, what: str) -> GainDesign:
     """
     from .ellipsoidal import hinf_riccati
 
-    n = A.shape[0]
-    _, _, g_star = hinf_riccati(A, C, E, F, np.eye(n), what, slack=0.0)
+    n = plant.A.shape[0]
+    _, _, g_star = hinf_riccati(plant, np.eye(n), what, slack=0.0)
     g_max = (1.0 + gamma_slack) ** 2 * g_star
     g_mid = 0.5 * (g_star + g_max)
-    P, L, g_used = hinf_riccati(A, C, E, F, (1.0 + 1e-3) * np.eye(n), what,
+    P, L, g_used = hinf_riccati(plant, (1.0 + 1e-3) * np.eye(n), what,
                                 slack=g_mid / g_star - 1.0)
     if g_used >= g_max:
         raise DesignFailed(f"{what}: the Riccati point needs gamma^2 = {g_used:.6g} above the "
                            f"bound {g_max:.6g}")
     P = lmi.sym(P)
-    return _verified_hinf_g(A, C, E, F, L, P, P @ L, g_star, g_max, "riccati", what)
+    return _verified_hinf_g(plant, (L, P, P @ L), (g_star, g_max), "riccati", what)

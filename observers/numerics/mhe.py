@@ -67,7 +67,7 @@ from .exact import MARGIN, ExactHullLP, StepHulls, _Layout
 __all__ = ["WindowHullLP", "window_conzonotope"]
 
 
-def window_conzonotope(A, B, C, start, W, V, u, y
+def window_conzonotope(model: tuple, u, y
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The states ``x_k`` consistent with a window, as constrained-zonotope arrays.
 
@@ -76,10 +76,10 @@ def window_conzonotope(A, B, C, start, W, V, u, y
 
     Parameters
     ----------
-    A, B, C : ndarray
-        The linear model (``B`` may have zero columns).
-    start, W, V : tuple of ndarray
-        ``(centre, generators)`` of the first state's set, the disturbance and the noise.
+    model : tuple
+        ``(A, B, C, start, W, V)``: the linear model (ndarrays, ``B`` may have zero columns)
+        and the ``(centre, generators)`` of the first state's set, the disturbance and the
+        noise.
     u : ndarray
         ``T x nu`` inputs ``u_{k-T} .. u_{k-1}``.
     y : ndarray
@@ -91,6 +91,7 @@ def window_conzonotope(A, B, C, start, W, V, u, y
         ``{c + G xi : Acon xi = b, |xi| <= 1}`` (factors: the start's generators, then per
         step the noise of its measurement and the disturbance into the next state).
     """
+    A, B, C, start, W, V = model
     c0, G0 = start
     cW, GW = W
     cV, GV = V
@@ -126,9 +127,9 @@ class WindowHullLP(ExactHullLP):
 
     Parameters
     ----------
-    A, B, C : array_like
-        The linear model.
-    X0, W, V : tuple of array_like
+    model : tuple
+        ``(A, B, C, X0, W, V)``, the arguments of
+        :class:`~observers.numerics.exact.ExactHullLP`: the linear model and the
         ``(centre, generators)`` of the zonotopes of the initial state, the disturbance and
         the measurement noise.
     window : int
@@ -142,8 +143,8 @@ class WindowHullLP(ExactHullLP):
         The filtered hulls ``(lo, hi)`` of the steps in the window, by slot.
     """
 
-    def __init__(self, A, B, C, X0, W, V, window: int, margin: float = MARGIN):
-        super().__init__(A, B, C, X0, W, V, margin=margin)
+    def __init__(self, model: tuple, window: int, margin: float = MARGIN):
+        super().__init__(*model, margin=margin)
         if isinstance(window, bool) or int(window) != window or window < 1:
             raise ValueError(f"window must be an integer >= 1, got {window!r}")
         self.window = int(window)

@@ -21,16 +21,18 @@ returned ``Lam`` (smallest eigenvalue >= -1e-6 relative, :data:`VERIFY_TOL`), el
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..errors import DesignFailed
 from .lmi import (
+    DecayCone,
     GainDesign,
+    LinearDesignProblem,
     bmat,
+    cone_point,
     cora_bisection_end,
-    decay_centre,
     gain_from,
     min_eig,
     psd_constraint,
@@ -47,8 +49,30 @@ from .lmi import (
 VERIFY_TOL = 1e-6
 
 
-def decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv) -> list[list]:
-    """Blocks of ``D(P, Y)`` in (*) (``None``: zero), for :func:`~observers.numerics.lmi.bmat`."""
+class DecayWeights(NamedTuple):
+    """The weights of the P-radius inequality (*): ``D(P, Y) = [[diag(Wx, Ww, Wv), M'],
+    [M, P]]``.
+
+    Attributes
+    ----------
+    Wx : ndarray or cvxpy expression
+        The weight of the previous generators (``beta P`` for a decay rate ``beta``).
+    Ww : ndarray or cvxpy expression
+        The weight of the disturbance generators.
+    Wv : ndarray or cvxpy expression
+        The weight of the noise generators.
+    """
+
+    Wx: Any
+    Ww: Any
+    Wv: Any
+
+
+def decay_blocks(P, Y, plant: LinearDesignProblem, weights: DecayWeights) -> list[list]:
+    """Blocks of ``D(P, Y)`` in (*) (``None``: zero), for :func:`~observers.numerics.lmi.bmat`,
+    for the matrices ``plant`` and the ``weights``."""
+    A, C, E, F = plant
+    Wx, Ww, Wv = weights
     M1 = (P - Y @ C) @ A
     M2 = (P - Y @ C) @ E
     M3 = Y @ F
@@ -60,21 +84,22 @@ def decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv) -> list[list]:
     ]
 
 
-def decay_lmi(P, Y, A, C, E, F, Wx, Ww, Wv):
+def decay_lmi(P, Y, plant: LinearDesignProblem, weights: DecayWeights):
     """cvxpy constraint ``D(P, Y) >= 0`` (symmetrised, as cvxpy requires)."""
-    return psd_constraint(bmat(decay_blocks(P, Y, A, C, E, F, Wx, Ww, Wv)))
+    return psd_constraint(bmat(decay_blocks(P, Y, plant, weights)))
 
 
 def verify_decay(
-    P: np.ndarray, L: np.ndarray, A, C, E, F, Wx, Ww, Wv, what: str
+    P: np.ndarray, L: np.ndarray, plant: LinearDesignProblem, weights: DecayWeights, what: str
 ) -> float:
     """Check ``P > 0`` (not numerically singular: smallest eigenvalue above ``1e-9`` times the
-    largest) and ``D(P, P L) >= 0`` in numpy; returns the smallest eigenvalue of D."""
+    largest) and ``D(P, P L) >= 0`` (for ``plant`` and ``weights``) in numpy; returns the
+    smallest eigenvalue of D."""
     top = float(np.linalg.eigvalsh(sym(P))[-1])
     require_pd(P, f"{what}: P > 0", margin=1e-9 * max(top, 0.0))
     if not np.all(np.isfinite(L)):
         raise DesignFailed(f"{what}: the gain is not finite")
-    D = bmat(decay_blocks(P, P @ L, A, C, E, F, Wx, Ww, Wv))
+    D = bmat(decay_blocks(P, P @ L, plant, weights))
     return require_psd(D, f"{what}: P-radius inequality", tol=VERIFY_TOL)
 
 
@@ -127,8 +152,8 @@ def line_search(
     return 1.0 - 10.0 ** (-s_best), bound, sol
 
 
-def _as_arrays(A, C, E, F):
-    return tuple(np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, C, E, F))
+def _as_arrays(plant: LinearDesignProblem) -> LinearDesignProblem:
+    return LinearDesignProblem(*(np.atleast_2d(np.asarray(M, dtype=float)) for M in plant))
 
 
 def _variables(n: int, m: int):
@@ -156,9 +181,10 @@ def le_method(n: int, F, method: str = "auto", riccati_above: int = RICCATI_ABOV
     return "riccati" if n > riccati_above and full else "sdp"
 
 
-def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRad-B",
-            solver: str | None = None, method: str = "sdp") -> GainDesign:
-    r"""P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA.
+def le_gain(plant: LinearDesignProblem, epsilon: float, beta_tol: float = 0.01,
+            what: str = "PRad-B", solver: str | None = None, method: str = "sdp") -> GainDesign:
+    r"""P-radius gain of Le, Stoica, Alamo, Camacho, Dumur (ISIC 2013), as implemented by CORA,
+    for the matrices ``plant`` (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     The shared P-radius inequality (*) of this module, with the gain recovered from
     :math:`Y = P\Lambda`:
@@ -202,33 +228,35 @@ def le_gain(A, C, E, F, epsilon: float, beta_tol: float = 0.01, what: str = "PRa
     the stabilising Riccati solution, :func:`le_riccati`).  Where the optimum is unique (the
     2-D vehicle) the two agree (CORA's SDPT3 gain to 3e-7).
     """
-    A, C, E, F = _as_arrays(A, C, E, F)
+    plant = _as_arrays(plant)
+    A, C, E, F = plant
     n, m = C.shape[1], C.shape[0]
     beta = cora_bisection_end(0.0, 1.0, beta_tol)
     method = le_method(n, F, method)
     Ww, Wv = E.T @ E, F.T @ F
     if method == "riccati":
-        Pv, Yv = le_riccati(A, C, E, F, beta, what)
+        Pv, Yv = le_riccati(plant, beta, what)
     elif method == "sdp":
         import cvxpy as cp
 
         P, Y = _variables(n, m)
         tau = cp.Variable()
-        cons = [P >> 0, decay_lmi(P, Y, A, C, E, F, beta * P, Ww, Wv),
+        cons = [P >> 0, decay_lmi(P, Y, plant, DecayWeights(beta * P, Ww, Wv)),
                 (1 - beta) * P / epsilon >> tau * np.eye(n), tau >= 0]
         solve(cp.Problem(cp.Maximize(tau), cons), f"{what} (beta={beta})", solver)
         Pv, Yv = sym(P.value), Y.value
     else:
         raise DesignFailed(f"{what}: unknown method {method!r} (use 'auto', 'sdp' or 'riccati')")
     L = gain_from(Pv, Yv, what)
-    verify_decay(Pv, L, A, C, E, F, beta * Pv, Ww, Wv, what)
+    verify_decay(Pv, L, plant, DecayWeights(beta * Pv, Ww, Wv), what)
     tau = float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)
     return GainDesign(L, Pv, {"rate": beta, "tau": tau, "method": method})
 
 
-def le_riccati(A, C, E, F, beta: float, what: str = "PRad-B") -> tuple[np.ndarray, np.ndarray]:
-    """The largest ``P`` (Loewner order) satisfying (*) with ``Wx = beta P``, ``Ww = E'E``,
-    ``Wv = F'F``, and its ``Y``, from one discrete Riccati equation.
+def le_riccati(plant: LinearDesignProblem, beta: float, what: str = "PRad-B"
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The largest ``P`` (Loewner order) satisfying (*) for ``plant`` with ``Wx = beta P``,
+    ``Ww = E'E``, ``Wv = F'F``, and its ``Y``, from one discrete Riccati equation.
 
     With ``Y = P Lam`` the off-diagonal block of (*) is ``P N``, ``N = [(I - Lam C) A,
     (I - Lam C) E, Lam F]``, and the Schur complement of the weights (after replacing ``E``
@@ -253,7 +281,7 @@ def le_riccati(A, C, E, F, beta: float, what: str = "PRad-B") -> tuple[np.ndarra
 
     from .lmi import range_basis
 
-    A, C, E, F = _as_arrays(A, C, E, F)
+    A, C, E, F = _as_arrays(plant)
     m = C.shape[0]
     QE, QF = range_basis(E), range_basis(F)
     if QF.shape[1] < m:
@@ -304,17 +332,17 @@ class _WeightedLMI:
     """(*) with ``Wx = beta P`` and free diagonal weights (CORA's PRad-C inequality): the
     variables, the parameter ``beta`` and the constraint, shared by PRad-C-I and PRad-C-II."""
 
-    def __init__(self, A, C, E, F):
+    def __init__(self, plant: LinearDesignProblem):
         import cvxpy as cp
 
-        self.data = _as_arrays(A, C, E, F)
+        self.data = _as_arrays(plant)
         A, C, E, F = self.data
         n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
         self.P, self.Y = _variables(n, m)
         self.gw, self.gv = cp.Variable(nw, nonneg=True), cp.Variable(nv, nonneg=True)
         self.beta = cp.Parameter(nonneg=True)
-        self.lmi = decay_lmi(self.P, self.Y, A, C, E, F, self.beta * self.P,
-                             cp.diag(self.gw), cp.diag(self.gv))
+        self.lmi = decay_lmi(self.P, self.Y, self.data,
+                             DecayWeights(self.beta * self.P, cp.diag(self.gw), cp.diag(self.gv)))
 
     def design(self, objective, constraints: list, what: str, search: dict | None,
                rate: float | None = None):
@@ -335,15 +363,15 @@ class _WeightedLMI:
         gw, gv = np.maximum(gw, 0), np.maximum(gv, 0)
         Pv = sym(Pv)
         L = gain_from(Pv, Yv, what)
-        A, C, E, F = self.data
-        verify_decay(Pv, L, A, C, E, F, b * Pv, np.diag(gw), np.diag(gv), what)
+        verify_decay(Pv, L, self.data, DecayWeights(b * Pv, np.diag(gw), np.diag(gv)), what)
         bound = (gw.sum() + gv.sum()) / ((1 - b) * np.linalg.eigvalsh(Pv)[0])
         return GainDesign(L, Pv, {"rate": b, "radius_bound": float(np.sqrt(bound))})
 
 
-def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None,
+def wang_c1_gain(plant: LinearDesignProblem, what: str = "PRad-C-I", search: dict | None = None,
                  rate: float | None = None) -> GainDesign:
-    r"""PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018).
+    r"""PRad-C-I: least asymptotic radius bound with per-generator weights (Wang et al. 2018),
+    for the matrices ``plant`` (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
     :math:`\Lambda = P^{-1}Y`:
@@ -364,14 +392,16 @@ def wang_c1_gain(A, C, E, F, what: str = "PRad-C-I", search: dict | None = None,
     """
     import cvxpy as cp
 
-    lmi = _WeightedLMI(A, C, E, F)
+    lmi = _WeightedLMI(plant)
     n = lmi.P.shape[0]
     return lmi.design(cp.Minimize(cp.sum(lmi.gw) + cp.sum(lmi.gv)), [lmi.P >> np.eye(n)],
                       what, search, rate)
 
 
-def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None) -> GainDesign:
-    r"""PRad-C-II: smallest bounding ellipsoid in the trace sense (Wang, Alamo et al. 2018).
+def wang_c2_gain(plant: LinearDesignProblem, what: str = "PRad-C-II",
+                 search: dict | None = None) -> GainDesign:
+    r"""PRad-C-II: smallest bounding ellipsoid in the trace sense (Wang, Alamo et al. 2018),
+    for the matrices ``plant`` (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
     :math:`\Lambda = P^{-1}Y`:
@@ -396,7 +426,7 @@ def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None
     """
     import cvxpy as cp
 
-    lmi = _WeightedLMI(A, C, E, F)
+    lmi = _WeightedLMI(plant)
     n = lmi.P.shape[0]
     X = cp.Variable((n, n), symmetric=True)
     inv = cp.bmat([[X, np.eye(n)], [np.eye(n), lmi.P]])
@@ -406,10 +436,11 @@ def wang_c2_gain(A, C, E, F, what: str = "PRad-C-II", search: dict | None = None
 
 
 def wang_d_gain(
-    A, C, E, F, alpha: float | None = None, beta: float = 0.5, what: str = "PRad-D",
-    search: dict | None = None,
+    plant: LinearDesignProblem, alpha: float | None = None, beta: float = 0.5,
+    what: str = "PRad-D", search: dict | None = None,
 ) -> GainDesign:
-    r"""PRad-D: largest P for fixed noise weights (Wang, Wang, Puig, Cembrano, TAC 2019).
+    r"""PRad-D: largest P for fixed noise weights (Wang, Wang, Puig, Cembrano, TAC 2019), for
+    the matrices ``plant`` (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     With the inequality :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` and
     :math:`\Lambda = P^{-1}Y`:
@@ -432,7 +463,8 @@ def wang_d_gain(
     """
     import cvxpy as cp
 
-    A, C, E, F = _as_arrays(A, C, E, F)
+    plant = _as_arrays(plant)
+    A, C, E, F = plant
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
     P, Y = _variables(n, m)
     t = cp.Variable()
@@ -440,7 +472,8 @@ def wang_d_gain(
     ca = cp.Parameter(nonneg=True)  # 1 - alpha (kept a parameter so that the problem is DPP)
     prob = cp.Problem(cp.Maximize(t), [
         P >> t * np.eye(n),
-        decay_lmi(P, Y, A, C, E, F, a * P, ca * beta * np.eye(nw), ca * (1 - beta) * np.eye(nv))])
+        decay_lmi(P, Y, plant,
+                  DecayWeights(a * P, ca * beta * np.eye(nw), ca * (1 - beta) * np.eye(nv)))])
     r_inf = beta * nw + (1 - beta) * nv
 
     def evaluate(al: float, rough: bool = False):
@@ -459,8 +492,8 @@ def wang_d_gain(
         al, (Pv, Yv) = alpha, out[1]
     Pv = sym(Pv)
     L = gain_from(Pv, Yv, what)
-    verify_decay(Pv, L, A, C, E, F, al * Pv, (1 - al) * beta * np.eye(nw),
-                 (1 - al) * (1 - beta) * np.eye(nv), what)
+    verify_decay(Pv, L, plant, DecayWeights(al * Pv, (1 - al) * beta * np.eye(nw),
+                                            (1 - al) * (1 - beta) * np.eye(nv)), what)
     bound = r_inf / np.linalg.eigvalsh(Pv)[0]
     return GainDesign(L, Pv, {"rate": al, "radius_bound": float(np.sqrt(bound))})
 
@@ -477,9 +510,10 @@ CENTRE_RETRIES = ({}, {"static_regularization_enable": False},
                   {"equilibrate_enable": False})
 
 
-def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
+def centre_gain(plant: LinearDesignProblem, rate: float, what: str = "PRad-C",
                 solver: str = "auto") -> GainDesign:
-    r"""Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone.
+    r"""Gain of the published PRad-C and PRad-D rows: the analytic centre of CORA's cone, for
+    the matrices ``plant`` (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
     The cone is :math:`\mathcal{D}(P, Y) \succeq 0` of :func:`le_gain` with
     :math:`W_x = \beta P` (:math:`\beta` = ``rate``) and free diagonal weights
@@ -531,18 +565,13 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
     mode that the outputs cannot correct decays more slowly than ``sqrt(rate)``) the design
     fails (:class:`~observers.errors.DesignFailed`).
     """
-    A, C, E, F = _as_arrays(A, C, E, F)
+    plant = _as_arrays(plant)
+    A, C, E, F = plant
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
     if solver == "auto":
         solver = "newton" if n * (n + m) <= NEWTON_MAX_VARIABLES else "start"
-    if solver == "newton":
-        Pv, Yv = _centre_newton(A, C, rate, what)
-    elif solver == "start":
-        Pv, Yv = _centre_start(A, C, rate, what)
-    elif solver == "clarabel":
-        Pv, Yv = _centre_clarabel(A, C, rate, what)
-    else:
-        raise DesignFailed(f"{what}: unknown solver {solver!r}")
+    Pv, Yv = cone_point(_centre_cone(A, C, rate), solver, lambda: _centre_start(A, C, rate, what),
+                        lambda: _centre_clarabel(A, C, rate, what), what)
     Pv = sym(Pv)
     L = gain_from(Pv, Yv, what)
     # least common noise weight g that certifies (*) at (P, L)
@@ -555,7 +584,7 @@ def centre_gain(A, C, E, F, rate: float, what: str = "PRad-C",
     Mn = np.hstack([(Pv - Pv @ L @ C) @ E, Pv @ L @ F])
     K = (U / np.sqrt(lam)).T @ Mn
     g = float(np.linalg.eigvalsh(K @ K.T)[-1]) * (1 + 1e-6) if Mn.size else 0.0
-    verify_decay(Pv, L, A, C, E, F, rate * Pv, g * np.eye(nw), g * np.eye(nv), what)
+    verify_decay(Pv, L, plant, DecayWeights(rate * Pv, g * np.eye(nw), g * np.eye(nv)), what)
     bound = g * (nw + nv) / ((1 - rate) * np.linalg.eigvalsh(Pv)[0])
     return GainDesign(L, Pv, {"rate": rate, "noise_weight": g, "solver": solver,
                               "radius_bound": float(np.sqrt(bound))})
@@ -586,11 +615,16 @@ def _centre_start(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]
     return P, P @ L
 
 
+def _centre_cone(A, C, rate: float) -> DecayCone:
+    """The decay cone of the centre: ``H = C A`` and the ``log det P`` term."""
+    return DecayCone(A, C @ A, rate, with_logdet_P=True)
+
+
 def _centre_newton(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:
     """The centre by :func:`~observers.numerics.lmi.decay_centre` (numpy Newton with the
-    structured Hessian; ``H = C A`` and the ``log det P`` term), from :func:`_centre_start`."""
-    P0, Y0 = _centre_start(A, C, rate, what)
-    return decay_centre(A, C @ A, rate, P0, Y0, what, with_logdet_P=True)
+    structured Hessian, :func:`_centre_cone`), from :func:`_centre_start`."""
+    return cone_point(_centre_cone(A, C, rate), "newton", lambda: _centre_start(A, C, rate, what),
+                      None, what)
 
 
 def _centre_clarabel(A, C, rate: float, what: str) -> tuple[np.ndarray, np.ndarray]:

@@ -40,6 +40,7 @@ powers, ``sqrt, exp, log, sin, cos, atan``; anything else is refused when the es
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -193,14 +194,31 @@ def _mag(*xs) -> float:
     return float(max(abs(float(x)) for x in xs))
 
 
-def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, hi: float,
-                Z: tuple[float, np.ndarray], zlo: float, zhi: float, k: float = 0.0,
+class Bounded(NamedTuple):
+    """An affine form ``a0 + a . v`` over the lifted variables and an interval containing its
+    values.
+
+    Attributes
+    ----------
+    form : tuple of (float, ndarray)
+        ``(a0, a)``.
+    lo, hi : float
+        The bounds of its values.
+    """
+
+    form: tuple[float, np.ndarray]
+    lo: float
+    hi: float
+
+
+def relax_unary(kind: str, lift: _Lift, arg: Bounded, res: Bounded, k: float = 0.0,
                 tangents: int = 1) -> str:
-    """Inequalities linking ``z = phi(a)`` for the affine forms ``A`` (argument, in
-    ``[lo, hi]``) and ``Z`` (result, in ``[zlo, zhi]``); returns the case used
+    """Inequalities linking ``z = phi(a)`` for the affine forms of ``arg`` (argument, in
+    ``[arg.lo, arg.hi]``) and ``res`` (result, in ``[res.lo, res.hi]``); returns the case used
     (``"convex"``, ``"concave"``, ``"generic"`` or ``"point"``).  ``kind`` is a name of
     :data:`_UNARY` or ``"pow"`` (exponent ``k``); a convex or concave operation gets its
     secant and ``tangents`` tangents (1: at the midpoint; 3: also at both ends)."""
+    lo, hi, zlo, zhi = arg.lo, arg.hi, res.lo, res.hi
     m2 = 0.0  # bound of |phi''| (generic case only)
     if kind == "pow":
         ki = int(k)
@@ -231,8 +249,8 @@ def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, 
     if hi - lo <= 1e-12 * (1.0 + abs(lo) + abs(hi)):
         return "point"  # the interval of z is the relaxation
     f, df, _ = phi
-    a0, a = A
-    z0, z = Z
+    a0, a = arg.form
+    z0, z = res.form
     fl, fu = f(lo), f(hi)
     slope = (fu - fl) / (hi - lo)
     scale_base = _mag(fl, fu, zlo, zhi)
@@ -266,9 +284,12 @@ def relax_unary(kind: str, lift: _Lift, A: tuple[float, np.ndarray], lo: float, 
     return "generic"
 
 
-def relax_product(lift: _Lift, A, alo, ahi, B, blo, bhi, Z) -> None:
-    """The four McCormick inequalities of ``z = a b`` over ``[alo, ahi] x [blo, bhi]``."""
-    (a0, a), (b0, b), (z0, z) = A, B, Z
+def relax_product(lift: _Lift, A: Bounded, B: Bounded, Z: tuple[float, np.ndarray]) -> None:
+    """The four McCormick inequalities of ``z = a b`` (``Z`` the affine form of ``z``) over
+    the box ``[A.lo, A.hi] x [B.lo, B.hi]`` of the factors."""
+    (a0, a), alo, ahi = A
+    (b0, b), blo, bhi = B
+    z0, z = Z
     sc = _mag(alo, ahi) * _mag(blo, bhi) * 4 + _mag(alo, ahi) + _mag(blo, bhi)
     # z >= al b + bl a - al bl ;  z >= au b + bu a - au bu
     for (p, q) in ((alo, blo), (ahi, bhi)):
@@ -291,11 +312,12 @@ class Relaxation:
     nvar: int
 
 
-def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-          u: np.ndarray, tangents: int = 1) -> Relaxation:
+def relax(graph: Factorable, c: np.ndarray, G: np.ndarray,
+          box: tuple[np.ndarray, np.ndarray], u: np.ndarray, tangents: int = 1) -> Relaxation:
     """Lifted polyhedral relaxation of ``graph`` over ``{c + G xi : |xi| <= 1}`` (with its
-    constraints kept by the caller) and the box ``[lo, hi]`` containing the set;
+    constraints kept by the caller) and the box ``box = (lo, hi)`` containing the set;
     ``tangents`` as for :func:`relax_unary`."""
+    lo, hi = box
     n, r = G.shape
     nvar = r + graph.nonlinear_count
     lift = _Lift(nvar, r)
@@ -344,8 +366,8 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
                 forms.append((None, (w * form[0], w * form[1]), iv))
             else:
                 Z = lift.var(float(iv.lo), float(iv.hi))
-                relax_product(lift, fa, float(ia_.lo), float(ia_.hi), fb, float(ib_.lo),
-                              float(ib_.hi), Z)
+                relax_product(lift, Bounded(fa, float(ia_.lo), float(ia_.hi)),
+                              Bounded(fb, float(ib_.lo), float(ib_.hi)), Z)
                 forms.append((None, Z, iv))
             continue
         (ka, fa, ia_), = args
@@ -358,8 +380,8 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
             forms.append((float(value), None, iv))
             continue
         Z = lift.var(float(iv.lo), float(iv.hi))
-        relax_unary(kind, lift, fa, float(ia_.lo), float(ia_.hi), Z, float(iv.lo),
-                    float(iv.hi), node.param, tangents)
+        relax_unary(kind, lift, Bounded(fa, float(ia_.lo), float(ia_.hi)),
+                    Bounded(Z, float(iv.lo), float(iv.hi)), node.param, tangents)
         forms.append((None, Z, iv))
     m = len(graph.outputs)
     const, coef = np.zeros(m), np.zeros((m, nvar))
@@ -373,12 +395,12 @@ def relax(graph: Factorable, c: np.ndarray, G: np.ndarray, lo: np.ndarray, hi: n
     return Relaxation(const, coef, rows, np.array(lift.consts), lift.used)
 
 
-def relax_checked(graph, c, G, lo, hi, u, k=None, tangents: int = 1) -> Relaxation:
-    """:func:`relax`, a domain violation (``1/0``, ``log`` or ``sqrt`` of a non-positive
-    interval) reported as :class:`Diverged` at step ``k``."""
+def relax_checked(graph, c, G, box, u, k=None, tangents: int = 1) -> Relaxation:
+    """:func:`relax` (over the box ``box = (lo, hi)``), a domain violation (``1/0``, ``log``
+    or ``sqrt`` of a non-positive interval) reported as :class:`Diverged` at step ``k``."""
     try:
         with np.errstate(divide="raise", invalid="raise"):
-            return relax(graph, c, G, lo, hi, u, tangents)
+            return relax(graph, c, G, box, u, tangents)
     except (SetError, FloatingPointError) as exc:
         raise Diverged(f"polyhedral relaxation of {graph.what} left its domain over the "
                        f"estimate's box ({exc})", step=k) from None

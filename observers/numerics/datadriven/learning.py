@@ -228,8 +228,8 @@ def refined_model_set(data: TrainingData, W: Zonotope, prior: MatrixZonotope,
     xh, H = _state_sets(data, 0.0)
     I = prior.interval_matrix()
     Wi = W.interval()
-    lo, hi = refine_box(xh, data.u, np.abs(H).sum(axis=1), Wi.center(), Wi.radius(),
-                        I.lo.copy(), I.hi.copy(), rounds)
+    lo, hi = refine_box(xh, data.u, np.abs(H).sum(axis=1), (Wi.center(), Wi.radius()),
+                        (I.lo.copy(), I.hi.copy()), rounds)
     if np.any(lo > hi):
         raise DesignFailed("the training data are inconsistent with a linear model and the "
                            "noise bounds (the set of consistent models is empty)")

@@ -72,14 +72,17 @@ class RangeLP:
         return _dual_bound(c, self.F, self.l, self.u, self.lo, self.hi, lam)
 
 
-def refine_box(xh: np.ndarray, u: np.ndarray, e_bar: np.ndarray, W_c: np.ndarray,
-               W_r: np.ndarray, lo: np.ndarray, hi: np.ndarray, rounds: int = 2):
+def refine_box(xh: np.ndarray, u: np.ndarray, e_bar: np.ndarray,
+               W_hull: tuple[np.ndarray, np.ndarray], prior: tuple[np.ndarray, np.ndarray],
+               rounds: int = 2):
     """Tighter sound bounds ``(lo, hi)`` of ``[A B]`` (see the module docstring).
 
     ``xh`` (T+1 x n) are the reconstructed states, ``u`` (T x m) the inputs, ``e_bar`` the
-    reconstruction-error radii, ``W_c``/``W_r`` centre and radius of W's interval hull and
-    ``lo``/``hi`` a sound prior box of ``[A B]``.
+    reconstruction-error radii, ``W_hull = (W_c, W_r)`` centre and radius of W's interval
+    hull and ``prior = (lo, hi)`` a sound prior box of ``[A B]``.
     """
+    W_c, W_r = W_hull
+    lo, hi = prior
     n = xh.shape[1]
     D = np.hstack([xh[:-1], u])  # T x k, row k is dh(k)'
     k = D.shape[1]
