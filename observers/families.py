@@ -57,6 +57,7 @@ from .options import Choice, reduction_method, zonotope_order
 from .prediction import LinearPrediction, prediction_for
 from .sets import Interval, Zonotope, get_reduction
 from .sets.reduction import compiled_name
+from .sets.zonotope import strip_generators
 
 
 # -- one-step formulas (pure functions on centre/generator arrays) --------------------
@@ -78,17 +79,7 @@ def strip_update(
 
     (method II of Sec. 3.1 of Althoff & Rath 2021; method I is one strip at a time).
     """
-    c_new = c + Lam @ (y - C @ c)
-    n, r = G.shape
-    G_new = np.empty((n, r + Lam.shape[1]))  # one allocation, no hstack copy
-    if 2 * Lam.shape[1] < n:  # G - Lam (C G): 2 m n r flops
-        np.subtract(G, Lam @ (C @ G), out=G_new[:, :r])
-    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n
-        T = -(Lam @ C)
-        T[np.diag_indices(n)] += 1.0
-        np.matmul(T, G, out=G_new[:, :r])
-    np.multiply(Lam, sigma, out=G_new[:, r:])
-    return c_new, G_new
+    return c + Lam @ (y - C @ c), strip_generators(G, Lam, C, sigma)
 
 def propagate(
     S: tuple[np.ndarray, np.ndarray],

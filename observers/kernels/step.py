@@ -597,13 +597,19 @@ def _predict(c, G, A, d, W_c, E):
 def strip_update(c, G, Lam, C, y, sigma):
     """:func:`observers.families.strip_update`: ``(c, G)`` intersected with the strips
     ``|C x - y| <= sigma`` with the gain ``Lam``."""
+    c_new = c + np.dot(Lam, y - np.dot(C, c))
+    return c_new, _strip_generators(G, Lam, C, sigma)
+
+
+def _strip_generators(G, Lam, C, sigma):
+    """:func:`observers.sets.zonotope.strip_generators`: ``[(I - Lam C) G, Lam diag(sigma)]``
+    (as ``G - Lam (C G)`` when ``2 m < n``)."""
     n, r = G.shape
     m = C.shape[0]
-    c_new = c + np.dot(Lam, y - np.dot(C, c))
     G_new = np.empty((n, r + m))
     if 2 * m < n:  # G - Lam (C G): 2 m n r flops
         G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
-    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n (as alamo_frad_strips)
+    else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n
         T = -np.dot(Lam, C)
         for a in range(n):
             T[a, a] += 1.0
@@ -611,7 +617,7 @@ def strip_update(c, G, Lam, C, y, sigma):
     for i in range(n):
         for j in range(m):
             G_new[i, r + j] = Lam[i, j] * sigma[j]
-    return c_new, G_new
+    return G_new
 
 
 def _per_strip_update(c, G, L, C, y, sigma):
@@ -661,18 +667,7 @@ def alamo_frad_strips(c, G, C, y, sigma):
         for a in range(n):
             for b in range(n):
                 P[a, b] -= p[a] * lam[b]
-    Gn = np.empty((n, r + m))
-    if 2 * m < n:
-        Gn[:, :r] = G - np.dot(Lm, np.dot(C, G))
-    else:
-        T = -np.dot(Lm, C)
-        for a in range(n):
-            T[a, a] += 1.0
-        Gn[:, :r] = np.dot(T, G)
-    for a in range(n):
-        for j in range(m):
-            Gn[a, r + j] = Lm[a, j] * sigma[j]
-    return cn, Gn
+    return cn, _strip_generators(G, Lm, C, sigma)
 
 
 def wang_frad_gain(P, A, C, E, F):
@@ -981,12 +976,13 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
          _solve_t))
     # the formulas of the kernels keep the kernels' error model (a division by zero gives
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
-    (_predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
-     combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update, bravo_update) = (
+    (_predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
+     wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update,
+     bravo_update) = (
         njit(f, error_model="numpy") for f in (
-            _predict, strip_update, _per_strip_update, alamo_frad_strips, wang_frad_gain,
-            combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update,
-            bravo_update))
+            _predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
+            wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram,
+            gram_update, bravo_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sets.zonotope import strip_generators
 from .linalg import psd_solve
 
 
@@ -152,14 +153,5 @@ def alamo_frad_strips(
     to rounding).  A strip with ``s = 0`` (the set is flat along ``c_i`` and the strip exact)
     gets the zero gain, as in :func:`alamo_frad_gain`.
     """
-    n, m, r = G.shape[0], C.shape[0], G.shape[1]
     L, c = alamo_sequential_gain(G @ G.T, C, sigma, c, y)
-    out = np.empty((n, r + m))
-    if 2 * m < n:  # G - L (C G): 2 m n r flops
-        np.subtract(G, L @ (C @ G), out=out[:, :r])
-    else:  # (I - L C) G: n^2 r flops
-        T = -(L @ C)
-        T.flat[:: n + 1] += 1.0
-        np.matmul(T, G, out=out[:, :r])
-    np.multiply(L, sigma, out=out[:, r:])
-    return c, out
+    return c, strip_generators(G, L, C, sigma)

@@ -86,3 +86,15 @@ def direction(d, dim: int) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise SetError("direction contains non-finite values")
     return a
+
+
+def strips(C, y, sigma, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validate the strips ``|C x - y| <= sigma`` of sets of dimension ``dim``: ``C`` (m x dim),
+    ``y`` and ``sigma`` (m, ``sigma >= 0``)."""
+    C = matrix(C, "strip normals C", cols=dim)
+    m = C.shape[0]
+    y = vector(y, "strip centres y", dim=m)
+    sigma = vector(sigma, "strip half-widths sigma", dim=m)
+    if np.any(sigma < 0):
+        raise SetError("strip half-widths sigma must be non-negative")
+    return C, y, sigma

@@ -23,11 +23,11 @@ import numpy as np
 
 from ..errors import EmptySet, SetError
 from ..lp import HullLP
-from ._arrays import linear_map_matrix, matrix, vector
+from ._arrays import linear_map_matrix, matrix, strips, vector
 from .conzonotope import ConZonotope
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
-from .zonotope import Zonotope
+from .zonotope import Zonotope, strip_generators
 
 
 class ZonotopeBundle:
@@ -126,19 +126,15 @@ class ZonotopeBundle:
         (the family of Alamo et al. 2005, Property 3, valid for every gain ``L``); ``gains``
         is one n x m gain per member (the bundle observer's choices:
         :func:`observers.numerics.bundle.member_gain`)."""
-        C = matrix(C, "strip matrix", cols=self.dim)
+        C, y, sigma = strips(C, y, sigma, self.dim)
         m = C.shape[0]
-        y = vector(y, "strip centres", dim=m)
-        sigma = vector(sigma, "strip half-widths", dim=m)
-        if np.any(sigma < 0):
-            raise SetError("strip half-widths must be non-negative")
         if len(gains) != self.size:
             raise SetError(f"{len(gains)} gains for {self.size} bundle members")
         out = []
         for Z, L in zip(self._members, gains, strict=True):
             L = matrix(L, "strip gain", rows=self.dim, cols=m)
             c = Z.c + L @ (y - C @ Z.c)
-            out.append(Zonotope.trusted(c, np.hstack([Z.G - L @ (C @ Z.G), L * sigma])))
+            out.append(Zonotope.trusted(c, strip_generators(Z.G, L, C, sigma)))
         return ZonotopeBundle.trusted(out, self._solver)
 
     def reduce(self, order: float, method: str | Reduction = "girard") -> ZonotopeBundle:

@@ -7,7 +7,7 @@ import numpy as np
 from ..errors import EmptySet, SetError
 from ..lp import HullLP, box_feasible
 from . import conzono_ops as ops
-from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
+from ._arrays import direction, frozen, linear_map_matrix, matrix, strips, vector
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
@@ -168,12 +168,8 @@ class ConZonotope:
         ``gain`` (n x m, default zero) only chooses the parametrisation of the result (CORA's
         ``intersectStrip`` for constrained zonotopes); the set is the same for every gain.
         """
-        C = matrix(C, "strip normals C", cols=self.dim)
+        C, y, sigma = strips(C, y, sigma, self.dim)
         m = C.shape[0]
-        y = vector(y, "strip centres y", dim=m)
-        sigma = vector(sigma, "strip half-widths sigma", dim=m)
-        if np.any(sigma < 0):
-            raise SetError("strip half-widths sigma must be non-negative")
         Lam = np.zeros((self.dim, m)) if gain is None else matrix(
             gain, "strip gain", rows=self.dim, cols=m)
         return ConZonotope.trusted(*ops.intersect_strips(

@@ -11,6 +11,31 @@ from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 
 
+def strip_generators(G: np.ndarray, Lam: np.ndarray, C: np.ndarray,
+                     sigma: np.ndarray) -> np.ndarray:
+    r"""The generators ``[(I - Lam C) G, Lam diag(sigma)]`` of a zonotope with generators
+    ``G`` intersected with the strips ``|C x - y| <= sigma`` by the gain ``Lam`` (n x m; the
+    family of Alamo et al. 2005, Property 3, sound for every gain).
+
+    Computed as ``G - Lam (C G)`` when ``2 m < n`` (2 m n r flops), else with ``I - Lam C``
+    formed first (n^2 r flops), in one allocation.  The one formula of the strip updates
+    (:func:`observers.families.strip_update`, FRad-A's
+    :func:`observers.numerics.frad.alamo_frad_strips`, the bundle members'
+    :meth:`ZonotopeBundle.intersect_strips <observers.sets.ZonotopeBundle.intersect_strips>`).
+    """
+    n, r = G.shape
+    m = Lam.shape[1]
+    out = np.empty((n, r + m))
+    if 2 * m < n:
+        np.subtract(G, Lam @ (C @ G), out=out[:, :r])
+    else:
+        T = -(Lam @ C)
+        T[np.diag_indices(n)] += 1.0
+        np.matmul(T, G, out=out[:, :r])
+    np.multiply(Lam, sigma, out=out[:, r:])
+    return out
+
+
 class Zonotope:
     """Zonotope with centre ``c`` (length n) and generator matrix ``G`` (n x r).
 
