@@ -384,8 +384,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--address", metavar="tcp://HOST:PORT",
                    help="Dask scheduler to use (default: start a LocalCluster on 127.0.0.1)")
     r.add_argument("--timeout", metavar="SECONDS",
-                   help="time budget per job (default: the config's 'timeout', else "
-                        f"{DEFAULT_TIMEOUT:g} s; 'none': no budget); a job over it "
+                   help="job timeout, a hard stop per job (default: the config's 'timeout', "
+                        f"else {DEFAULT_TIMEOUT:g} s; 'none': no timeout); a job over it "
                         "is stopped and reported as status 'timeout'")
     r.add_argument("--memory-limit", metavar="SIZE",
                    help="resident memory per job, e.g. 2G or 512M (default: the config's "

@@ -3,7 +3,7 @@ cycle; the bottom rooms of ``observers`` importing one way (``observers.kernels`
 ``observers.lp`` <- ``observers.sets`` <- the rest; no solver in ``sets``, numba only in
 ``lp`` and ``kernels``); no private module or name taken from another room; the wings of
 ``benchmarks`` importing one way (``cli`` -> wings; ``gate``, ``timing``, ``studies`` ->
-``run``, ``report``; ``run``, ``report`` -> the floor ``errors``,
+``run``, ``report``; ``run``, ``report`` -> the shared base modules ``errors``,
 ``io``, ``metrics``, ``verdicts``), matplotlib only in ``benchmarks/report/figures.py``, one
 number formatter (``benchmarks/report/numbers.py``).
 
@@ -22,9 +22,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("observers", "systems", "benchmarks")
-#: the shared floor of ``benchmarks/`` (top-level modules every wing may import)
-FLOOR = {"errors", "io", "metrics", "verdicts"}
-#: the wings of ``benchmarks/`` and the other wings each may import (besides the floor)
+#: the shared base of ``benchmarks/`` (top-level modules every wing may import)
+BASE = {"errors", "io", "metrics", "verdicts"}
+#: the wings of ``benchmarks/`` and the other wings each may import (besides the base)
 WINGS = {"run": set(), "report": set(), "store": {"run", "report"},
          "gate": {"run", "report", "store"},
          "timing": {"run", "report"}, "studies": {"run", "report", "timing"}}
@@ -254,7 +254,7 @@ def test_registry_imports_base_not_the_reverse():
 
 
 def _benchmarks_part(module: str) -> str | None:
-    """The wing (``run``, ``report``, ...) or floor module of a ``benchmarks`` module."""
+    """The wing (``run``, ``report``, ...) or base module of a ``benchmarks`` module."""
     parts = module.split(".")
     return parts[1] if len(parts) > 1 and parts[0] == "benchmarks" else None
 
@@ -270,10 +270,10 @@ def test_benchmarks_imports_run_one_way():
             tpart = _benchmarks_part(target)
             if tpart is None:
                 continue  # observers, systems, or the package itself
-            if part in FLOOR:
-                ok = tpart in FLOOR
+            if part in BASE:
+                ok = tpart in BASE
             elif part in WINGS:
-                ok = tpart in FLOOR or tpart == part or tpart in WINGS[part]
+                ok = tpart in BASE or tpart == part or tpart in WINGS[part]
             else:
                 ok = name == "benchmarks"  # the package re-exports the public API
             if not ok:
@@ -281,10 +281,10 @@ def test_benchmarks_imports_run_one_way():
     assert bad == []
 
 
-def test_top_level_of_benchmarks_is_the_floor_and_the_entry_points():
+def test_top_level_of_benchmarks_is_the_base_and_the_entry_points():
     top = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py"))
     assert len(top) <= 8, top
-    assert set(top) <= FLOOR | {"__init__", "__main__", "cli"}
+    assert set(top) <= BASE | {"__init__", "__main__", "cli"}
 
 
 def test_matplotlib_only_in_the_figures_module():

@@ -239,9 +239,9 @@ class GateExecutor:
         self.seconds: dict[tuple[str, str], float] = {}
         self.stopped: list[Stopped] = []
 
-    def set_budget(self, timeout: float | None, memory_limit: int | None) -> None:
-        """The budget of the jobs without one of their own (as every executor's)."""
-        self._here.set_budget(timeout, memory_limit)  # checks them
+    def set_limits(self, timeout: float | None, memory_limit: int | None) -> None:
+        """The job timeout of the jobs without a budget of their own (as every executor's)."""
+        self._here.set_limits(timeout, memory_limit)  # checks them
         self.timeout, self.memory_limit = timeout, memory_limit
 
     def _where(self, job: Any) -> tuple[str, str] | None:
@@ -264,7 +264,7 @@ class GateExecutor:
         for i, job in enumerate(jobs):
             budget = self.budget_of(job)
             runner = self._isolated() if isolate is not None and isolate[i] else self._here
-            runner.set_budget(budget.seconds if budget else self.timeout, self.memory_limit)
+            runner.set_limits(budget.seconds if budget else self.timeout, self.memory_limit)
             t0 = time.perf_counter()
             out = [o for _, o in runner.map(fn, [job])][-1]
             where = self._where(job)

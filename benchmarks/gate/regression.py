@@ -80,7 +80,7 @@ BASELINE_COLUMNS = ["scenario", "observer", "state", "state_name", "status", "gu
 #: the precision of the exact floor (its agreement with an independent LP formulation),
 #: added to an observer's tolerance where its gap is compared
 GAP_RTOL = 1e-6
-#: absolute floor of every comparison (values that are zero up to rounding)
+#: absolute tolerance of every comparison (values that are zero up to rounding)
 ATOL = 1e-12
 DEFAULT_RTOL = 1e-6
 #: an observer with a tolerance from here on is chaotic on that scenario: the gate cannot see

@@ -2,13 +2,23 @@
 
 A job is a picklable value, ``fn`` a module-level function; an executor yields
 ``(index, outcome)`` pairs as the jobs finish, where ``outcome`` is either ``fn(job)`` or a
-:class:`JobFailure` (the job raised, its worker process died, or it exceeded its time budget).
+:class:`JobFailure` (the job raised, its worker process died, or it exceeded its job timeout).
 One failed job never stops the others.
 
-Every executor keeps a per-job *budget* (:meth:`set_budget`): a time budget in seconds and
-a memory limit in bytes (the resident memory of the worker process running the job, watched
+Every executor keeps per-job *limits* (:meth:`set_limits`): a *job timeout* in seconds and a
+memory limit in bytes (the resident memory of the worker process running the job, watched
 from the parent every :data:`POLL_S` seconds; a ``MemoryError`` in the job counts too).  A job
-over it is stopped and reported as ``timeout`` or ``memory``.
+over one is stopped from outside and reported as ``timeout`` or ``memory``.  Three time limits
+of the harness, not to be confused:
+
+* the *job timeout* here, a hard stop: ``run --timeout`` or a configuration's ``timeout:``
+  (default :data:`.config.DEFAULT_TIMEOUT`);
+* the regression gate's *job budgets* (:mod:`benchmarks.gate.budget`): a job timeout per job,
+  derived from the job's recorded cost, which ``check`` sets here job by job;
+* the *projected stop* of a run (``observers.run(..., budget=...)``, :func:`.runner.execute_job`
+  ``budget``): the observer's run itself ends early once its steps project it past the
+  budget; only the scaling study passes it (its job timeout), ``run`` and ``check`` do not,
+  so that a slow row there runs to its job timeout as before.
 
 ``serial``
     one job after the other (the default; the honest timing mode): the project's own
@@ -25,7 +35,7 @@ over it is stopped and reported as ``timeout`` or ``memory``.
     a Dask cluster (``run --executor dask [--address tcp://HOST:PORT]``, needs the optional
     ``distributed`` package): the scheduler at ``address``, or a ``LocalCluster`` on the
     loopback interface started for the run.  Each task runs its job in a child process of
-    its Dask worker (the same one-worker pool), which keeps the time budget and the memory
+    its Dask worker (the same one-worker pool), which keeps the job timeout and the memory
     limit; where a worker may not start processes (a daemonic worker of a cluster not
     started by us) the job runs in the task itself, without them.  A task whose worker died
     (the scheduler's ``KilledWorker``) may only have shared the worker with the culprit:
@@ -45,7 +55,7 @@ in the server (see :mod:`benchmarks`): no oversubscription by N workers.
 Jobs are handed to local workers in chunks (:func:`chunks`): the jobs of one scenario
 instance go to one worker together, so that it builds the scenario and what its observers
 share (the data-driven observers' learned model, a quarter of the sweep's CPU) once, as the serial
-run does, and a result travels back per job (its failure, budget and row stay per job).
+run does, and a result travels back per job (its failure, limits and row stay per job).
 """
 
 from __future__ import annotations
@@ -73,7 +83,7 @@ _KILLED = object()  # a Dask task whose worker died
 PRELOAD = ("benchmarks.run.workerinit",)
 #: seconds between two looks at the workers' resident memory
 POLL_S = 0.2
-#: statuses of jobs stopped by their budget
+#: statuses of jobs stopped by their limits
 BUDGET_STATUSES = ("timeout", "memory")
 
 
@@ -117,14 +127,14 @@ def _memory_message(limit: int, used: int | None = None) -> str:
 
 
 class JobTimeout(BaseException):
-    """Raised in a job run in this process when its time budget is over (a BaseException, so
+    """Raised in a job run in this process when its job timeout is over (a BaseException, so
     that the observer loop's ``except Exception`` does not turn it into an ``error``)."""
 
 
 @contextmanager
 def _alarm(timeout: float | None) -> Iterator[None]:
     """Raise :class:`JobTimeout` in the block after ``timeout`` seconds (``SIGALRM``; only in
-    the main thread of a POSIX process: elsewhere no budget)."""
+    the main thread of a POSIX process: elsewhere no timeout)."""
     usable = (timeout is not None and hasattr(signal, "setitimer")
               and threading.current_thread() is threading.main_thread())
     if not usable:
@@ -148,14 +158,14 @@ def default_jobs() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-class _Budgeted:
-    """The per-job budget of an executor (see the module docstring)."""
+class _Limited:
+    """The per-job limits of an executor (see the module docstring)."""
 
     timeout: float | None = None
     memory_limit: int | None = None
 
-    def set_budget(self, timeout: float | None, memory_limit: int | None) -> None:
-        """Time budget (seconds) and memory limit (bytes) per job; None: no limit."""
+    def set_limits(self, timeout: float | None, memory_limit: int | None) -> None:
+        """Job timeout (seconds) and memory limit (bytes) per job; None: no limit."""
         if timeout is not None and not timeout > 0:
             raise ConfigError(f"the job time budget must be positive, got {timeout!r}")
         if memory_limit is not None and not memory_limit > 0:
@@ -163,13 +173,13 @@ class _Budgeted:
         self.timeout, self.memory_limit = timeout, memory_limit
 
 
-class SerialExecutor(_Budgeted):
+class SerialExecutor(_Limited):
     """Every job in order: in this process, or (``isolate``) in one worker process.
 
     Parameters
     ----------
     timeout, memory_limit : optional
-        The per-job budget (:meth:`set_budget`).  In this process only the time budget is
+        The per-job limits (:meth:`set_limits`).  In this process only the job timeout is
         kept (``SIGALRM`` in the main thread: it stops Python code, not a long call into
         compiled code); an isolated job keeps both, and cannot end this process.
     """
@@ -178,7 +188,7 @@ class SerialExecutor(_Budgeted):
     workers = 1
 
     def __init__(self, timeout: float | None = None, memory_limit: int | None = None):
-        self.set_budget(timeout, memory_limit)
+        self.set_limits(timeout, memory_limit)
         self._pool: ProcessExecutor | None = None
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any],
@@ -230,7 +240,7 @@ def _worker_loop(conn, env: dict[str, str],
                  preload: bool = False) -> None:  # pragma: no cover - in the worker
     _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    if preload:  # a spawned worker: what the server would have preloaded, before any budget
+    if preload:  # a spawned worker: what the server would have preloaded, before any timeout
         try:
             for module in PRELOAD:
                 importlib.import_module(module)
@@ -249,7 +259,7 @@ def _worker_loop(conn, env: dict[str, str],
             return
         fn, chunk = msg
         for _, job in chunk:
-            conn.send(("started", None))  # the budget counts from here (not the worker start)
+            conn.send(("started", None))  # the timeout counts from here (not the worker start)
             try:
                 out = ("ok", fn(job))
             except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
@@ -343,7 +353,7 @@ def _context(method: str | None = None):
     return mp.get_context("spawn")
 
 
-class ProcessExecutor(_Budgeted):
+class ProcessExecutor(_Limited):
     """A pool of ``jobs`` local worker processes, one job per worker at a time.
 
     Parameters
@@ -364,7 +374,7 @@ class ProcessExecutor(_Budgeted):
                  memory_limit: int | None = None, start_method: str | None = None):
         if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
             raise ConfigError(f"--jobs must be an integer >= 1, got {jobs!r}")
-        self.set_budget(timeout, memory_limit)
+        self.set_limits(timeout, memory_limit)
         self.workers = jobs
         self._ctx = _context(start_method)
         self._idle: list[_Worker] = []
@@ -382,7 +392,7 @@ class ProcessExecutor(_Budgeted):
         ``keys`` (one per job): consecutive jobs with the same key go to one worker together
         (:func:`chunks`), so that what they share is built once in that worker (a scenario,
         a learned model).  A worker still reports each job on its own: if it dies or
-        exceeds the budget, the job it was running gets the failure and the rest of its chunk
+        exceeds the job timeout, the job it was running gets the failure and the rest of its chunk
         goes to another worker.
         """
         pending = deque([(i, jobs[i]) for i in c] for c in chunks(keys, len(jobs), self.workers))
@@ -481,8 +491,8 @@ _TASK_POOLS: dict[tuple, ProcessExecutor] = {}
 
 def _isolated_task(fn: Callable[[Any], Any], job: Any, timeout: float | None,
                    memory_limit: int | None) -> Any:
-    """A Dask task: ``fn(job)`` in a child process of this Dask worker with the budget (one
-    pool per worker process and budget, kept for the next tasks); ``fn(job)`` here where
+    """A Dask task: ``fn(job)`` in a child process of this Dask worker with the limits (one
+    pool per worker process and limits, kept for the next tasks); ``fn(job)`` here where
     this process may not have children (a daemonic worker).  The child is spawned, not
     forked from a server: a direct child dies with its Dask worker (no orphan left running
     a hung job when the cluster closes)."""
@@ -495,7 +505,7 @@ def _isolated_task(fn: Callable[[Any], Any], job: Any, timeout: float | None,
         return fn(job)
 
 
-class DaskExecutor(_Budgeted):
+class DaskExecutor(_Limited):
     """Jobs as tasks of a Dask cluster (``distributed``).
 
     Parameters
@@ -521,7 +531,7 @@ class DaskExecutor(_Budgeted):
             self.workers = jobs or default_jobs()
             # one task per worker thread at a time (no queued tasks on a worker that dies),
             # and a task whose worker died is not retried on another one: reported at once
-            # (non-daemonic workers: each task runs its job in a child process, with the budget)
+            # (non-daemonic workers: each task runs its job in a child process, with the limits)
             # no HTTP routes (dashboard, /health, /metrics, /info): the HTTP server each Dask
             # node starts anyway then serves nothing; workers ignore Ctrl-C (the parent
             # handles it and closes the cluster: no page of worker tracebacks)

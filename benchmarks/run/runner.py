@@ -550,7 +550,7 @@ def run_config(cfg: BenchConfig, out: str | Path | None = None, progress: bool |
     check_memory(cfg)
     own = executor is None
     executor = executor or SerialExecutor()
-    executor.set_budget(cfg.timeout, cfg.job_memory_limit(executor.workers))
+    executor.set_limits(cfg.timeout, cfg.job_memory_limit(executor.workers))
     jobs = make_jobs(cfg)
     # the serial executor sends an isolated job with its scenario (built here already)
     payloads = [dataclasses.replace(j, scenario=scenario_of(j)) if j.isolate and

@@ -211,7 +211,7 @@ def prewarm_floors(plans: list[Plan], executor, notify=print) -> int:
         return 0  # nothing to share out: the configuration's own run computes it
     order = sorted(range(len(tasks)), key=lambda i: (-sizes[i], keys[i]))
     tasks, keys = [tasks[i] for i in order], [keys[i] for i in order]
-    executor.set_budget(budget or None, None)
+    executor.set_limits(budget or None, None)
     t0 = time.perf_counter()
     for _ in executor.map(floor_task, tasks, keys=keys):
         pass
