@@ -89,6 +89,24 @@ def test_divergence_is_reported_not_raised():
         registry._REGISTRY.pop("Test-Unstable")
 
 
+def test_an_exploding_hull_diverges_at_the_growth_bound_before_1e12():
+    # a set doubling every step from radius 1 (bounds far below 1e12 when it passes 1e7): the
+    # run stops at the first step whose radius exceeds GROWTH_BOUND = 1e7 times the first,
+    # 2^k > 1e7 <=> k >= 24 (2^23 = 8.4e6, 2^24 = 1.7e7)
+    from observers.base import GROWTH_BOUND
+    from observers.sets import Interval
+
+    class Doubling:
+        def step(self, u_prev, y):
+            self.k = getattr(self, "k", -1) + 1
+            return Interval([-(2.0 ** self.k)], [2.0 ** self.k])
+
+    res = observers.run(Doubling(), np.zeros((40, 0)), np.zeros((40, 1)))
+    assert GROWTH_BOUND == 1e7
+    assert res.status == "diverged" and res.failed_step == 24, res.message
+    assert "grew" in res.message and np.isnan(res.lo[24:]).all() and res.lo[23, 0] == -2.0**23
+
+
 def test_entry_point_plugins_are_discovered(monkeypatch):
     class FakeEP:
         name = "my-plugin"
