@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
 from importlib import resources
 from typing import Any
 
@@ -20,6 +21,7 @@ import yaml
 
 from observers.sets import Zonotope
 
+from . import textbook
 from .alamo import alamo2d
 from .errors import ModelError
 from .memory import available_memory
@@ -337,6 +339,23 @@ def robot_range_sim(seed: int = 0, noise: str = "uniform", steps: int = 150) -> 
     )
 
 
+def textbook_sim(name: str, seed: int = 0, noise: str = "uniform", steps: int = 200) -> Scenario:
+    """A textbook plant of :mod:`systems.textbook` (CTMS parameters, zero-order hold) with its
+    known square-wave input and a seeded simulated record."""
+    p = textbook.plant(name)
+    system = p.system()
+    sim = simulate(system, p.input(steps), steps=steps, seed=seed, noise=noise)
+    sc = _make(
+        name=name, system=system, u=sim.u, y=sim.y, x_true=sim.x_true,
+        options={"order": 20, "reduction": "pca"},
+        description=f"{p.title} (CTMS), zero-order hold at {p.dt:g} s, simulated ({noise} "
+                    f"noise, seed {seed})",
+        source=textbook.SOURCE, state_names=p.states,
+    )
+    # offline experiment for the data-driven observers: inputs within the square wave's swing
+    return _with_training(sc, seed, 500, p.wave[0], 0.1)
+
+
 _FIXED: dict[str, Callable[..., Scenario]] = {
     "vehicle2d-cora": vehicle2d_cora,
     "vehicle6d-cora": vehicle6d_cora,
@@ -349,6 +368,7 @@ _FIXED: dict[str, Callable[..., Scenario]] = {
     "rego2d-nonlinear": rego2d_nonlinear_sim,
     "rego2d-linear": rego2d_linear_sim,
     "robot-range": robot_range_sim,
+    **{name: partial(textbook_sim, name) for name in textbook.PLANTS},
 }
 _PATTERNS: list[tuple[re.Pattern, Callable[..., Scenario]]] = [
     (re.compile(r"vehicle([246])d-sim"), lambda m, **kw: vehicle_sim(int(m.group(1)), **kw)),
@@ -360,7 +380,7 @@ _LISTED = [
     "vehicle2d-sim", "vehicle4d-sim", "vehicle6d-sim", "alamo2d-sim", "tank12-linear",
     "tank18-linear", "tank24-linear", "tank30-linear", "tank6-nonlinear", "tank12-nonlinear",
     "tank30-nonlinear", "tank6-nonlinear-cora", "vanderpol-sim", "rotating-target",
-    "rego2d-nonlinear", "rego2d-linear", "robot-range",
+    "rego2d-nonlinear", "rego2d-linear", "robot-range", *textbook.PLANTS,
 ]
 
 
