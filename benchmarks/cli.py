@@ -193,9 +193,9 @@ def _progress(args) -> bool | None:
 
 
 def _cmd_check(args) -> int:
-    return _print(policy.check(args.config, args.baseline, use_cache=args.use_cache,
-                               progress=_progress(args), out=args.out, strict=args.strict,
-                               show_all=args.all, reports=args.reports))
+    options = policy.CheckOptions(use_cache=args.use_cache, progress=_progress(args),
+                                  out=args.out, strict=args.strict, show_all=args.all)
+    return _print(policy.check(args.config, args.baseline, options, reports=args.reports))
 
 
 def _cmd_baseline(args) -> int:
@@ -207,16 +207,18 @@ def _cmd_baseline(args) -> int:
 
 
 def _cmd_audit(args) -> int:
+    options = policy.AuditOptions(jobs=args.jobs, short=args.short, out=args.out,
+                                  report=args.report, progress=_progress(args), cold=args.cold)
     return _print(policy.audit(args.scenarios, args.observers, realisations=args.realisations,
-                               jobs=args.jobs, short=args.short, out=args.out,
-                               report=args.report, progress=_progress(args), cold=args.cold))
+                               options=options))
 
 
 def _cmd_time(args) -> int:
     if args.json is not None:
         check_output_file(args.json, "--json")  # before the timing, not after it
-    sc, warmup, rows = timing.time_observers(args.names, args.scenario, args.repeat, args.warmup,
-                                             args.steps, args.steady)
+    plan = timing.TimingPlan(repeat=args.repeat, warmup=args.warmup, steps=args.steps,
+                             steady=args.steady)
+    sc, warmup, rows = timing.time_observers(args.names, args.scenario, plan)
     print(timing.format_table(sc, args.repeat, warmup, rows))
     if args.json:
         atomic_write_json(args.json, timing.to_json(sc, args.repeat, warmup, rows))
@@ -360,6 +362,26 @@ def build_parser() -> argparse.ArgumentParser:
         return _add_parser(*a, allow_abbrev=False, **k)
 
     sub.add_parser = add_parser
+    _add_run(sub)
+    _add_bench(sub)
+    _add_reports(sub)
+    _add_stale(sub)
+    _add_report(sub)
+    _add_index(sub)
+    _add_history(sub)
+    _add_list(sub)
+    subset = _subset_options()
+    _add_check(sub, subset)
+    _add_baseline(sub, subset)
+    _add_audit(sub)
+    _add_time(sub)
+    _add_designs(sub)
+    _add_speed(sub)
+    return p
+
+
+def _add_run(sub) -> None:
+    """The ``run`` sub-command."""
     r = sub.add_parser("run", help="run a YAML benchmark config, or observers on scenarios",
                        epilog=verdicts.EXIT_CODES_HELP,
                        description="Run every observer of a config (or the --observer names) on "
@@ -400,6 +422,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "its stored rows: only NAME's rows run, the others come from the "
                         "result store where their fingerprints are current")
     r.set_defaults(func=_cmd_run)
+
+
+def _add_bench(sub) -> None:
+    """The ``bench`` sub-command."""
     be = sub.add_parser("bench", help="bring the result stores up to date (only stale or "
                                       "missing rows run) and render reports/<config>.md",
                         description=store_bench.__doc__.splitlines()[0])
@@ -415,11 +441,19 @@ def build_parser() -> argparse.ArgumentParser:
                     help="also write RESULTS/<config>/index.html with figures for each "
                          "configuration that ran rows (make report: every store)")
     be.set_defaults(func=_cmd_bench)
+
+
+def _add_reports(sub) -> None:
+    """The ``reports`` sub-command."""
     rr = sub.add_parser("reports", help="render every committed report from its store "
                                         "(no run; changes no byte when nothing changed)")
     rr.add_argument("--results", default="results", help="folder of the stores")
     rr.add_argument("--reports", default="reports", help="folder of the committed reports")
     rr.set_defaults(func=_cmd_reports)
+
+
+def _add_stale(sub) -> None:
+    """The ``stale`` sub-command."""
     st = sub.add_parser("stale", help="name the stored rows and committed reports that are "
                                       "out of date (no run; exit 1 if any)",
                         description=store_stale.__doc__.splitlines()[0])
@@ -429,12 +463,20 @@ def build_parser() -> argparse.ArgumentParser:
                     help="record that the study report REPORT (reports/soundness.md, "
                          "reports/datadriven.md) was just produced from this tree")
     st.set_defaults(func=_cmd_stale)
+
+
+def _add_report(sub) -> None:
+    """The ``report`` sub-command."""
     rep = sub.add_parser("report", help="write the Markdown and HTML reports of a results dir")
     rep.add_argument("dir", help="folder with summary.csv (and runs.csv, meta.json)")
     rep.add_argument("--out", help="Markdown file to write (default DIR/report.md; without "
                                    "--out DIR/index.html is written too)")
     rep.add_argument("--no-figures", action="store_true", help="tables only")
     rep.set_defaults(func=_cmd_report)
+
+
+def _add_index(sub) -> None:
+    """The ``index`` sub-command."""
     ix = sub.add_parser("index", help="write RESULTS/index.html linking every report and the "
                                       "local HTML reports (--committed: REPORTS/index.html)",
                         description="Write an index of the reports. By default "
@@ -453,6 +495,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "only, no local runs)")
     ix.add_argument("--out", help="write the page to this file instead")
     ix.set_defaults(func=_cmd_index)
+
+
+def _add_history(sub) -> None:
+    """The ``history`` sub-command."""
     hi = sub.add_parser("history", help="relative RMS and violations of the golden summaries "
                                         "across the git history (HTML page)")
     hi.add_argument("--baseline", default=str(regression.DEFAULT_BASELINE),
@@ -460,10 +506,19 @@ def build_parser() -> argparse.ArgumentParser:
     hi.add_argument("--out", default=str(Path("results") / "history"),
                     help="output folder of index.html (default results/history)")
     hi.set_defaults(func=_cmd_history)
+
+
+def _add_list(sub) -> None:
+    """The ``list`` sub-command."""
     ls = sub.add_parser("list", help="list observers, scenarios and shipped configs")
     ls.add_argument("what", nargs="?", default="all",
                     choices=["observers", "scenarios", "configs", "all"])
     ls.set_defaults(func=_cmd_list)
+
+
+def _subset_options() -> argparse.ArgumentParser:
+    """The options ``check`` and ``baseline`` share (the regression subset and its golden
+    files)."""
     subset = argparse.ArgumentParser(add_help=False)
     subset.add_argument("--config", default=str(regression.DEFAULT_CONFIG),
                         help="the regression subset (default benchmarks/configs/regression.yaml)")
@@ -472,6 +527,11 @@ def build_parser() -> argparse.ArgumentParser:
     subset.add_argument("--use-cache", action="store_true",
                         help="use cached offline designs (default: recompute every design)")
     subset.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return subset
+
+
+def _add_check(sub, subset: argparse.ArgumentParser) -> None:
+    """The ``check`` sub-command."""
     ch = sub.add_parser("check", parents=[subset],
                         help="re-run the regression subset and compare with the golden files")
     ch.add_argument("--out", default=str(Path("results") / "check"),
@@ -485,6 +545,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="fail on installed third-party plugins that are not in the baseline "
                          "(default: list them)")
     ch.set_defaults(func=_cmd_check)
+
+
+def _add_baseline(sub, subset: argparse.ArgumentParser) -> None:
+    """The ``baseline`` sub-command."""
     bl = sub.add_parser("baseline", parents=[subset],
                         help="show the golden files, or rewrite them with --update")
     bl.add_argument("--update", action="store_true", help="re-run the subset and rewrite them")
@@ -501,6 +565,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "rewrite only the cost of each job (cost.json beside the golden files, "
                          "check's time budget per job); the golden files are untouched")
     bl.set_defaults(func=_cmd_baseline)
+
+
+def _add_audit(sub) -> None:
+    """The ``audit`` sub-command."""
     au = sub.add_parser("audit", help="soundness audit on many seeded realisations")
     au.add_argument("--realisations", type=int, default=audit.DEFAULT_REALISATIONS,
                     help=f"realisations per observer and scenario "
@@ -523,6 +591,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the full audit: run every observer x scenario pair, stale or not "
                          "(default: only the stale ones of results/soundness/)")
     au.set_defaults(func=_cmd_audit)
+
+
+def _add_time(sub) -> None:
+    """The ``time`` sub-command."""
     ti = sub.add_parser("time", help="per-step times of observers against a Kalman filter step",
                         description=timing.__doc__.splitlines()[0])
     ti.add_argument("names", nargs="+", metavar="NAME", help="observer names")
@@ -540,6 +612,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "(generators, constraints) stays constant")
     ti.add_argument("--json", metavar="F", help="also write every number to this JSON file")
     ti.set_defaults(func=_cmd_time)
+
+
+def _add_designs(sub) -> None:
+    """The ``designs`` sub-command."""
     de = sub.add_parser("designs", help="compute the offline designs of configs in parallel "
                         "into the design cache", description=designs.__doc__.splitlines()[0])
     de.add_argument("configs", nargs="+", metavar="CONFIG",
@@ -549,6 +625,10 @@ def build_parser() -> argparse.ArgumentParser:
     de.add_argument("--top", type=int, default=None,
                     help="list only the N slowest designs (default: all)")
     de.set_defaults(func=_cmd_designs)
+
+
+def _add_speed(sub) -> None:
+    """The ``speed`` sub-command."""
     sp = sub.add_parser("speed", help="time the cases of the speed table -> reports/speed.md",
                         description=speed.__doc__.splitlines()[0])
     sp.add_argument("--out", default=str(speed.DEFAULT_REPORT),
@@ -557,7 +637,6 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"previous measurement, overwritten with this one "
                          f"(default {speed.DEFAULT_JSON})")
     sp.set_defaults(func=_cmd_speed)
-    return p
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:

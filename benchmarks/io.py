@@ -315,25 +315,51 @@ def write_results(out: str | Path, frames: dict[str, pd.DataFrame], meta: dict) 
             except OSError as exc:  # another writer created it just now: swap as below
                 if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
                     raise
-        moved = [e.name for e in out.iterdir()
-                 if e.name not in RESULT_FILES and e.name not in REPORT_ARTEFACTS]
-        try:
-            for name in moved:  # reports, figures: kept beside the new results
-                os.rename(out / name, tmp / name)
-            swapped = _exchange(tmp, out)
-        except BaseException:
-            for name in moved:  # put them back before the temporary folder goes
-                if (tmp / name).exists():
-                    os.rename(tmp / name, out / name)
-            raise
-        if not swapped:  # pragma: no cover - no renameat2: two renames
-            old = out.parent / f".{out.name}.old-{os.getpid()}-{run_id}"
-            os.rename(out, old)
-            os.rename(tmp, out)
-            tmp = old
+        # reports, figures: kept beside the new results
+        tmp = swap_in(tmp, out, {*RESULT_FILES, *REPORT_ARTEFACTS}, run_id)
         return run_id
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def read_json_object(path: Path, what: str = "", fix: str = "") -> dict:
+    """The JSON object in the file ``path``; a :class:`ConfigError` naming the file (``what``:
+    its kind, e.g. ``baseline``) and ``fix`` (what to do) where it is not valid JSON or not an
+    object."""
+    name = f"{what} {path}" if what else str(path)
+    tail = f"; {fix}" if fix else ""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        why = getattr(exc, "msg", None) or getattr(exc, "reason", "")
+        raise ConfigError(f"{name} is not valid JSON ({why}){tail}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{name} is not a JSON object{tail}")
+    return data
+
+
+def swap_in(tmp: Path, out: Path, own: set[str] | tuple[str, ...], stamp: str) -> Path:
+    """Put the new generation in folder ``tmp`` in place of the existing folder ``out``,
+    atomically where the system can exchange two paths: the entries of ``out`` not named in
+    ``own`` (the old generation's own files) move into ``tmp`` first, and back if the swap
+    fails.  Returns the folder that now holds the old generation, for the caller to remove
+    (``stamp`` names it where two renames replace the exchange)."""
+    moved = [e.name for e in out.iterdir() if e.name not in own]
+    try:
+        for name in moved:
+            os.rename(out / name, tmp / name)
+        swapped = _exchange(tmp, out)
+    except BaseException:
+        for name in moved:  # put them back before the temporary folder goes
+            if (tmp / name).exists():
+                os.rename(tmp / name, out / name)
+        raise
+    if not swapped:  # pragma: no cover - no renameat2: two renames
+        old = out.parent / f".{out.name}.old-{os.getpid()}-{stamp}"
+        os.rename(out, old)
+        os.rename(tmp, out)
+        return old
+    return tmp
 
 
 def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:

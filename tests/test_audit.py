@@ -76,13 +76,13 @@ def test_held_vertices_hold_and_switch():
 
 
 def test_tiny_audit_of_the_sound_observers_serial_and_parallel():
-    df = audit.run_audit(("alamo2d-sim",), ["FRad-A", "FRad-B", "FRad-C"], count=5, jobs=1,
-                         progress=False)
+    df = audit.run_audit(("alamo2d-sim",), ["FRad-A", "FRad-B", "FRad-C"],
+                         audit.Realisations(5), jobs=1, progress=False)
     agg = audit.aggregate(df)
     assert list(agg["runs"]) == [5, 5, 5] and list(agg["steps"]) == [100, 100, 100]
     assert (agg["violations"] == 0).all() and (agg["undecided"] == 0).all()
-    par = audit.run_audit(("alamo2d-sim",), ["FRad-A", "FRad-B", "FRad-C"], count=5, jobs=2,
-                          progress=False)
+    par = audit.run_audit(("alamo2d-sim",), ["FRad-A", "FRad-B", "FRad-C"],
+                          audit.Realisations(5), jobs=2, progress=False)
     cols = ["observer", "kind", "runs", "steps", "violations", "lp_tests"]
     pd.testing.assert_frame_equal(df[cols], par[cols])
 

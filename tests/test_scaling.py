@@ -32,8 +32,9 @@ def test_study_rows_exponent_timeout_and_missing_scenarios(tmp_path):
     out = tmp_path / "scaling.md"
     fig, pdf = figures.scaling(df, ("linear", "bogus"), scaling.REALTIME_MS,
                                tmp_path / "scaling")
-    text = scaling.report(df, fig, out, sizes=(3, 4, 6), steps=8, design_budget=60,
-                          run_budget=60, elapsed=1.0)
+    text = scaling.report(df, fig, out, scaling.StudyRun(sizes=(3, 4, 6), steps=8,
+                                                         design_budget=60, run_budget=60,
+                                                         elapsed=1.0))
     assert "real-time limit" in text.lower() and "scenario not available" in text
     assert fig.is_file() and pdf.is_file() and fig.name == "scaling.png"
 

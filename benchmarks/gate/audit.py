@@ -76,6 +76,21 @@ SHORT_REALISATIONS = 10
 #: a nonlinear record): a few, since the exact reference of a 350-step record costs ~30 s
 FLOOR_REALISATIONS = 10
 SHORT_FLOOR_REALISATIONS = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Realisations:
+    """Which realisations of each scenario an audit runs: those among the first ``count``
+    whose kind is in ``kinds``; the first ``floors`` of them are also held against the
+    record's floor."""
+
+    count: int = DEFAULT_REALISATIONS
+    kinds: tuple[str, ...] = KINDS
+    floors: int = FLOOR_REALISATIONS
+
+
+#: the short audit's realisations (``audit --short``, the proof of a tighter observer)
+SHORT = Realisations(SHORT_REALISATIONS, ADVERSARIAL, SHORT_FLOOR_REALISATIONS)
 RESULT_COLUMNS = ["observer", "guaranteed", "scenario", "kind", "runs", "steps", "violations",
                   "undecided", "worst_violation", "worst_at", "floor_steps", "uncovered",
                   "uncovered_at", "ok", "noGain", "unsupported", "diverged", "empty",
@@ -281,15 +296,15 @@ def _audit_task(task: tuple[str, str, int, tuple[str, ...], int]) -> list[dict]:
     return audit_pair(*task)
 
 
-def run_audit(scenarios=AUDIT_SCENARIOS, names=None, count: int = DEFAULT_REALISATIONS,
-              jobs: int = 1, progress: bool | None = None,
-              kinds: tuple[str, ...] = KINDS, floors: int = FLOOR_REALISATIONS,
+def run_audit(scenarios=AUDIT_SCENARIOS, names=None,
+              realisations: Realisations = Realisations(), jobs: int = 1,
+              progress: bool | None = None,
               only: set[tuple[str, str]] | None = None) -> pd.DataFrame:
     """Audit every observer in ``names`` (default: every registered one but the exact
-    reference, whose floor the others are held to) on every scenario, on the realisations
-    among the first ``count`` whose kind is in ``kinds``; the first ``floors`` of them per
-    scenario are also held against the record's floor.  ``only``: just these
-    ``(scenario, observer)`` pairs (the stale ones of the audit's store)."""
+    reference, whose floor the others are held to) on every scenario, on the
+    ``realisations`` (:class:`Realisations`).  ``only``: just these ``(scenario, observer)``
+    pairs (the stale ones of the audit's store)."""
+    count, kinds, floors = realisations.count, realisations.kinds, realisations.floors
     if not isinstance(count, int) or count < 1:
         raise ConfigError(f"audit: the number of realisations must be >= 1, got {count!r}")
     if jobs < 1:

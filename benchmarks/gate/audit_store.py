@@ -23,6 +23,7 @@ from ..store.graph import ROOT
 from ..store.stale import Line
 from ..store.store import (
     Layout,
+    RunRows,
     Store,
     StoreLock,
     compare,
@@ -107,8 +108,8 @@ def bench_audit(count: int, jobs: int, results: Path = ROOT / "results",
         store, df = p.store, None
         if p.stale:
             only = {p.pairs[k] for k in p.stale}
-            df = audit.run_audit(audit.AUDIT_SCENARIOS, sorted({o for _, o in only}), count,
-                                 jobs, progress=progress, only=only)
+            df = audit.run_audit(audit.AUDIT_SCENARIOS, sorted({o for _, o in only}),
+                                 audit.Realisations(count), jobs, progress=progress, only=only)
             again = Fingerprinter()  # the tree must not have changed under the run
             moved = [k for k in p.stale if pair_fingerprint(again, *p.pairs[k], count).digest
                      != p.prints[k].digest]
@@ -117,10 +118,10 @@ def bench_audit(count: int, jobs: int, results: Path = ROOT / "results",
                                   "stored, run `make audit` again")
             run_id, run = new_run(ROOT, {"name": "processes" if jobs > 1 else "serial",
                                          "workers": jobs})
-            store = merge(p.store, df, {k: p.prints[k] for k in p.stale}, p.order, run_id, run,
-                          run_meta(count), LAYOUT)
+            new = RunRows(df, {k: p.prints[k] for k in p.stale}, run_id, run, run_meta(count))
+            store = merge(p.store, new, p.order, LAYOUT)
         elif p.dropped and store is not None:
-            store = merge(store, None, {}, p.order, None, None, run_meta(count), LAYOUT)
+            store = merge(store, RunRows.nothing(run_meta(count)), p.order, LAYOUT)
         if store is None:
             return None, df, 0
         if p.stale or p.dropped:

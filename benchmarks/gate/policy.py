@@ -54,9 +54,8 @@ def prove_tighter(names: Sequence[str], progress: bool | None = None) -> dict[st
     # only (a notebook, a test) is audited here
     jobs = (soundness.default_jobs() if all(regression.is_project_observer(n) for n in names)
             else 1)
-    df = soundness.run_audit(PROOF_SCENARIOS, list(names), soundness.SHORT_REALISATIONS,
-                             jobs, progress=progress, kinds=soundness.ADVERSARIAL,
-                             floors=soundness.SHORT_FLOOR_REALISATIONS)
+    df = soundness.run_audit(PROOF_SCENARIOS, list(names), soundness.SHORT, jobs,
+                             progress=progress)
     agg = soundness.aggregate(df)
     bad = agg[(agg["violations"] > 0) | (agg["uncovered"] > 0)]
     return {o: ", ".join(f"{int(v)} steps{f' ({int(u)} missing the floor)' if u else ''} "
@@ -91,18 +90,41 @@ class Outcome:
         self.messages.append((True, text))
 
 
-def check(config: str | Path, baseline: str | Path, *, use_cache: bool = False,
-          progress: bool | None = None, out: str | Path | None = None, strict: bool = False,
-          show_all: bool = False, reports: str | Path | None = None) -> Outcome:
+@dataclass(frozen=True)
+class CheckOptions:
+    """How ``check`` runs the regression subset and what it shows.
+
+    Attributes
+    ----------
+    use_cache : bool
+        Read the offline designs from their cache (else recomputed).
+    progress : bool or None
+        Progress bars (None: in a terminal).
+    out : str or Path, optional
+        Folder for the subset's results and ``diff.csv``.
+    strict : bool
+        A third-party plugin not in the baseline fails.
+    show_all : bool
+        Print every compared value, not just the failures.
+    """
+
+    use_cache: bool = False
+    progress: bool | None = None
+    out: str | Path | None = None
+    strict: bool = False
+    show_all: bool = False
+
+
+def check(config: str | Path, baseline: str | Path, options: CheckOptions = CheckOptions(), *,
+          reports: str | Path | None = None) -> Outcome:
     """``check``: nothing stale (``reports``: the stored rows and the committed reports of
     that folder, :func:`stale`), then the regression subset against the golden files of
-    ``baseline``."""
+    ``baseline`` (run as ``options`` say)."""
     res = Outcome()
     found = stale(reports=Path(reports)) if reports else []
     if found:  # cheap (no run): reported first, and the regression subset still runs
         res.warn("\n".join(map(str, found)))
-    res.code = _check_regression(res, config, baseline, use_cache, progress, out, strict,
-                                 show_all)
+    res.code = _check_regression(res, config, baseline, options)
     if found:
         res.warn(f"check FAILED: {len(found)} stale row(s) or report(s) (listed above): "
                  "`make bench` / `make audit` re-run the rows, `make reports` renders the "
@@ -130,8 +152,8 @@ def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
     return found
 
 
-def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, strict,
-                      show_all) -> int:
+def _check_regression(res: Outcome, config, baseline, opts: CheckOptions) -> int:
+    use_cache, progress, out = opts.use_cache, opts.progress, opts.out
     cfg = regression.subset_config(config)
     base, meta = regression.load_baseline(baseline)
     if regression.config_changed(cfg, meta):
@@ -140,12 +162,12 @@ def _check_regression(res: Outcome, config, baseline, use_cache, progress, out, 
         return 1
     executor = _gate_executor(res, cfg, baseline)
     frame, cache_note = regression.run_subset(cfg, use_cache, progress, out, executor=executor)
-    diff = _with_proof(regression.compare(base, frame, strict=strict), progress)
+    diff = _with_proof(regression.compare(base, frame, strict=opts.strict), progress)
     if out:
         atomic_write_csv(Path(out) / "diff.csv", diff)
     n, bad = len(diff), int((~diff["ok"]).sum())
-    if bad or show_all:
-        res.say(regression.format_diff(diff, only_failures=not show_all))
+    if bad or opts.show_all:
+        res.say(regression.format_diff(diff, only_failures=not opts.show_all))
     plugins = diff[diff["ok"] & (diff["metric"] == "observer")]
     for r in plugins.itertuples(index=False):
         res.warn(f"note: {r.observer} on {r.scenario}: {r.note}")
@@ -275,17 +297,44 @@ def update_baseline(config: str | Path, baseline: str | Path, *, use_cache: bool
     return res
 
 
+@dataclass(frozen=True)
+class AuditOptions:
+    """How ``audit`` runs and where it writes.
+
+    Attributes
+    ----------
+    jobs : int, optional
+        Worker processes (default :func:`.audit.default_jobs`).
+    short : bool
+        The CI mode: adversarial realisations only, into ``results/audit-short/``.
+    out, report : str, optional
+        The folder of the CSV and the report file of a direct run.
+    progress : bool or None
+        Progress bars (None: in a terminal).
+    cold : bool
+        The full audit re-runs every pair, not just the stale ones.
+    """
+
+    jobs: int | None = None
+    short: bool = False
+    out: str | None = None
+    report: str | None = None
+    progress: bool | None = None
+    cold: bool = False
+
+
 def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
-          realisations: int, jobs: int | None = None, short: bool = False,
-          out: str | None = None, report: str | None = None,
-          progress: bool | None = None, cold: bool = False) -> Outcome:
+          realisations: int, options: AuditOptions = AuditOptions()) -> Outcome:
     """``audit``: run the soundness audit and fail on a violation of a guaranteed observer.
 
     The full audit (default scenarios and observers, ``reports/soundness.md``) is a result
-    store re-run where stale (:mod:`.audit_store`; ``cold``: every pair); ``short`` (the CI
-    mode: adversarial realisations only, into ``results/audit-short/``) and an audit of chosen
-    scenarios, observers or outputs are direct runs that write their CSV and report."""
-    jobs = jobs if jobs is not None else soundness.default_jobs()
+    store re-run where stale (:mod:`.audit_store`; ``options.cold``: every pair);
+    ``options.short`` (the CI mode: adversarial realisations only, into
+    ``results/audit-short/``) and an audit of chosen scenarios, observers or outputs are
+    direct runs that write their CSV and report."""
+    short, out, report = options.short, options.out, options.report
+    progress, cold = options.progress, options.cold
+    jobs = options.jobs if options.jobs is not None else soundness.default_jobs()
     full = (not short and out is None and report is None and not observer_names
             and tuple(scenarios) == tuple(soundness.AUDIT_SCENARIOS))
     t0 = time.perf_counter()
@@ -299,22 +348,19 @@ def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
         lines = [f"wrote {audit_store.REPORT} from {audit_store.STORE} ({ran} pair(s) run in "
                  f"{elapsed:.0f} s, the others current)"]
     else:
-        count, kinds, command = realisations, soundness.KINDS, (
-            f"python -m benchmarks audit --realisations {realisations}")
-        floors = soundness.FLOOR_REALISATIONS
+        chosen = soundness.Realisations(realisations)
+        command = f"python -m benchmarks audit --realisations {realisations}"
         if short:
-            count, kinds = soundness.SHORT_REALISATIONS, soundness.ADVERSARIAL
-            floors = soundness.SHORT_FLOOR_REALISATIONS
+            chosen = soundness.SHORT
             command = "python -m benchmarks audit --short"
             out = out or str(Path("results") / "audit-short")
             report = report or str(Path(out) / "soundness.md")
         out = out or str(Path("results") / "audit")
         report = report or str(Path(out) / "soundness.md")
-        df = soundness.run_audit(scenarios, observer_names, count, jobs, progress=progress,
-                                 kinds=kinds, floors=floors)
+        df = soundness.run_audit(scenarios, observer_names, chosen, jobs, progress=progress)
         elapsed = time.perf_counter() - t0
-        csv_path, report = audit_report.write_audit(df, out, report, count, elapsed, jobs,
-                                                    command)
+        csv_path, report = audit_report.write_audit(df, out, report, chosen.count, elapsed,
+                                                    jobs, command)
         lines = [f"wrote {report} and {csv_path}"]
     agg = soundness.aggregate(df)
     bad = agg[agg["guaranteed"] & ((agg["violations"] > 0) | (agg["uncovered"] > 0))]

@@ -55,6 +55,7 @@ import math
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -63,7 +64,13 @@ import pandas as pd
 import observers
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv, atomic_write_json, environment, path_component
+from ..io import (
+    atomic_write_csv,
+    atomic_write_json,
+    environment,
+    path_component,
+    read_json_object,
+)
 from ..metrics import add_relative_rms
 from ..report.citation import project_version
 from ..report.numbers import fmt, text_table
@@ -196,12 +203,7 @@ def record_version(folder: str | Path, version: str | None = None) -> Path:
     path = Path(folder) / "meta.json"
     if not path.is_file():
         raise ConfigError(f"no golden meta data {path} (make the baseline first)")
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"baseline {path} is not valid JSON: {exc.msg}") from None
-    if not isinstance(meta, dict):
-        raise ConfigError(f"baseline {path} is not a JSON object")
+    meta = read_json_object(path, "baseline")
     atomic_write_json(path, _with_version(meta, version))
     return path
 
@@ -318,12 +320,21 @@ def _rel(a: float, b: float) -> float:
     return abs(a - b) / abs(b)
 
 
-def _row(sc, obs, state, metric, base, cur, tol, ok, note="") -> dict:
-    rel = _rel(float(cur), float(base)) if isinstance(base, (int, float)) and isinstance(
-        cur, (int, float)) else math.nan
-    return {"scenario": sc, "observer": obs, "state": state, "metric": metric,
-            "baseline": base, "current": cur, "rel_diff": rel, "tol": tol, "ok": bool(ok),
-            "note": note}
+@dataclass(frozen=True)
+class _At:
+    """Where a compared value is: scenario, observer and state (``-``: the observer's row)."""
+
+    scenario: str
+    observer: str
+    state: str = "-"
+
+    def row(self, metric, base, cur, tol, ok, note="") -> dict:
+        """One row of :func:`compare` at this place."""
+        rel = _rel(float(cur), float(base)) if isinstance(base, (int, float)) and isinstance(
+            cur, (int, float)) else math.nan
+        return {"scenario": self.scenario, "observer": self.observer, "state": self.state,
+                "metric": metric, "baseline": base, "current": cur, "rel_diff": rel,
+                "tol": tol, "ok": bool(ok), "note": note}
 
 
 def _best_rtol(base: pd.DataFrame, rtols: dict[tuple[str, str], float]
@@ -358,8 +369,8 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
     bpairs = set(zip(base["scenario"], base["observer"], strict=True))
     cpairs = set(zip(cur["scenario"], cur["observer"], strict=True))
     for sc, obs in sorted(bpairs - cpairs):
-        rows.append(_row(sc, obs, "-", "observer", "present", "missing", "", False,
-                         "in the baseline but not run now (removed or unregistered?)"))
+        rows.append(_At(sc, obs).row("observer", "present", "missing", "", False,
+                                     "in the baseline but not run now (removed or unregistered?)"))
     bad_verdicts: dict[tuple[str, str], list[str]] = {}
     for s_, o, c in unsound_pairs(cur):
         bad_verdicts.setdefault((s_, o), []).append(c)
@@ -373,13 +384,14 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
         # a plugin's numbers are not gated, but a plugin that crashed, was stopped or is
         # unsound fails the gate (named on the last line)
         culprit = _culprit(cur_status[(sc, obs)], bad_verdicts.get((sc, obs)))
-        rows.append(_row(sc, obs, "-", "observer", "absent", "present", "",
-                         plugin and not strict and not culprit,
-                         note + (f"; {FAILING}{culprit}" if culprit else "")))
+        rows.append(_At(sc, obs).row("observer", "absent", "present", "",
+                                     plugin and not strict and not culprit,
+                                     note + (f"; {FAILING}{culprit}" if culprit else "")))
     for (sc, obs), cols in sorted(bad_verdicts.items()):
         if (sc, obs) in bpairs:
-            rows += [_row(sc, obs, "-", col, "-", NO, "", False, VERDICT_NOTES.get(
-                col, "a soundness verdict says no")) for col in cols]
+            rows += [_At(sc, obs).row(col, "-", NO, "", False,
+                                      VERDICT_NOTES.get(col, "a soundness verdict says no"))
+                     for col in cols]
     keep = [p in bpairs for p in zip(cur["scenario"], cur["observer"], strict=True)]
     common = add_relative_rms(cur[keep].drop(columns="rel_rms"))
     # the larger of the stored (class or measured) and the current class tolerance
@@ -397,9 +409,10 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
         sc, obs, st = r.scenario, r.observer, int(r.state)
         name = r.state_name_b if isinstance(r.state_name_b, str) else r.state_name_c
         label = f"{name}" if isinstance(name, str) else f"x{st + 1}"
+        pair, cell = _At(sc, obs), _At(sc, obs, label)
         if r.origin == "right_only":
-            rows.append(_row(sc, obs, label, "state", "absent", "present", "", False,
-                             "state not in the baseline"))
+            rows.append(cell.row("state", "absent", "present", "", False,
+                                 "state not in the baseline"))
             continue
         rtol = rtols[(sc, obs)]
         first = (sc, obs) not in status_done  # status and violations: once per observer
@@ -408,31 +421,29 @@ def compare(base: pd.DataFrame, cur: pd.DataFrame, strict: bool = False) -> pd.D
             if first:
                 note = "the observer crashed (see the warning above)" if (
                     r.status_c == "error") else ""
-                rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", False,
-                                 note))
+                rows.append(pair.row("status", r.status_b, r.status_c, "", False, note))
             continue
         if first:
-            rows.append(_row(sc, obs, "-", "status", r.status_b, r.status_c, "", True))
+            rows.append(pair.row("status", r.status_b, r.status_c, "", True))
             vb, vc = float(r.violations_b), float(r.violations_c)
             same = (math.isnan(vb) and math.isnan(vc)) or vb == vc
-            rows.append(_row(sc, obs, "-", "violations", vb, vc, 0.0, same,
-                             "" if same else "containment changed"))
+            rows.append(pair.row("violations", vb, vc, 0.0, same,
+                                 "" if same else "containment changed"))
             cb, cc = r.covers_exact_b, r.covers_exact_c
             if cb != "n/a" or cc != "n/a":  # gated once the baseline has the exact floor
-                rows.append(_row(sc, obs, "-", "covers_exact", cb, cc, 0.0, cb == cc,
-                                 "" if cb == cc else "covering of the exact floor changed"))
+                rows.append(pair.row("covers_exact", cb, cc, 0.0, cb == cc,
+                                     "" if cb == cc else "covering of the exact floor changed"))
         if r.status_c == "ok":
-            rows.append(_row(sc, obs, label, "rms_radius", float(r.rms_radius_b),
-                             float(r.rms_radius_c), rtol,
-                             _close(float(r.rms_radius_c), float(r.rms_radius_b), rtol)))
+            rows.append(cell.row("rms_radius", float(r.rms_radius_b),
+                                 float(r.rms_radius_c), rtol,
+                                 _close(float(r.rms_radius_c), float(r.rms_radius_b), rtol)))
             tol_rel = rtol + best.get((sc, st), rtol)
-            rows.append(_row(sc, obs, label, "rel_rms", float(r.rel_rms_b), float(r.rel_rms_c),
-                             tol_rel, _close(float(r.rel_rms_c), float(r.rel_rms_b), tol_rel)))
+            rows.append(cell.row("rel_rms", float(r.rel_rms_b), float(r.rel_rms_c), tol_rel,
+                                 _close(float(r.rel_rms_c), float(r.rel_rms_b), tol_rel)))
             gb, gc = float(r.gap_b), float(r.gap_c)
             if not math.isnan(gb):  # an upper bound (nonlinear record) moves with its search
                 tol_gap = rtol + GAP_RTOL
-                rows.append(_row(sc, obs, label, "gap", gb, gc, tol_gap,
-                                 _close(gc, gb, tol_gap)))
+                rows.append(cell.row("gap", gb, gc, tol_gap, _close(gc, gb, tol_gap)))
     return pd.DataFrame(rows, columns=["scenario", "observer", "state", "metric", "baseline",
                                        "current", "rel_diff", "tol", "ok", "note"])
 
@@ -469,9 +480,10 @@ def culprits(diff: pd.DataFrame) -> str:
 def proof_rows(violations: dict[str, str]) -> pd.DataFrame:
     """Failing ``audit`` rows of the diff for observers that got tighter but whose sets
     missed the true state in the short soundness audit (``observer -> where``)."""
-    return pd.DataFrame([_row("audit --short", o, "-", "audit", "0 violations", where, "",
-                              False, "tighter, but the short soundness audit found the true "
-                                     "state outside its sets: not an improvement")
+    note = ("tighter, but the short soundness audit found the true state outside its sets: "
+            "not an improvement")
+    return pd.DataFrame([_At("audit --short", o).row("audit", "0 violations", where, "", False,
+                                                     note)
                          for o, where in violations.items()],
                         columns=["scenario", "observer", "state", "metric", "baseline",
                                  "current", "rel_diff", "tol", "ok", "note"])

@@ -209,11 +209,31 @@ def _fit_first_view(ax, bounds: list[tuple[np.ndarray, np.ndarray]], i: int) -> 
     ax.set_ylim(lo - pad, hi + pad)
 
 
+@dataclass(frozen=True)
+class BoundsView:
+    """What :func:`bounds_and_radii` shows beside the observers' bounds.
+
+    Attributes
+    ----------
+    visible : collection of str, optional
+        The observers shown at first (default: all); the others are drawn hidden. Observers
+        with a containment violation are always shown at first.
+    bands : mapping of str to (lo, hi), optional
+        Extra bands per state, e.g. ``{"exact": (lo, hi)}`` with ``lo`` and ``hi`` arrays of
+        shape (steps, states) over the record's time steps: drawn filled behind the bounds and
+        as a radius curve, each a selectable layer named by its key.
+    title : str
+        Figure title.
+    """
+
+    visible: Collection[str] | None = None
+    bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None
+    title: str = ""
+
+
 def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str],
-                     state_names: Sequence[str], base: Path, *,
-                     visible: Collection[str] | None = None,
-                     bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
-                     title: str = "") -> LayeredFigure | None:
+                     state_names: Sequence[str], base: Path,
+                     view: BoundsView = BoundsView()) -> LayeredFigure | None:
     """Every state's bounds over time (left) and interval radius on a log scale (right), one
     row per state (two states per row above :data:`WIDE_STATES`), each observer a selectable
     layer, with the true state and the steps of any containment violation marked.
@@ -231,15 +251,8 @@ def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str]
         Axis labels of the states (default ``x1, x2, ...``).
     base : Path
         ``base.png`` and ``base.pdf`` get the first view (the visible layers).
-    visible : collection of str, optional
-        The observers shown at first (default: all); the others are drawn hidden. Observers
-        with a containment violation are always shown at first.
-    bands : mapping of str to (lo, hi), optional
-        Extra bands per state, e.g. ``{"exact": (lo, hi)}`` with ``lo`` and ``hi`` arrays of
-        shape (steps, states) over the record's time steps: drawn filled behind the bounds and
-        as a radius curve, each a selectable layer named by its key.
-    title : str
-        Figure title.
+    view : BoundsView
+        The observers shown at first, extra bands and the title.
 
     Returns
     -------
@@ -250,126 +263,157 @@ def bounds_and_radii(runs: pd.DataFrame, scenario: str, observers: Sequence[str]
     g = g[g["observer"].isin(list(observers))]
     if g.empty:
         return None
-    t_all = np.sort(g["t"].unique())
-    steps = len(t_all)
-    n = int(g["state"].max()) + 1
-    names = [state_names[i] if i < len(state_names) else f"x{i + 1}" for i in range(n)]
-
-    def grid(frame: pd.DataFrame, column: str) -> np.ndarray:
-        piv = frame.pivot_table(index="t", columns="state", values=column, aggfunc="first",
-                                dropna=False)
-        return piv.reindex(index=t_all, columns=range(n)).to_numpy(float)
-
-    data, truth = {}, None
-    for obs in observers:
-        o = g[g["observer"] == obs]
-        if o.empty or not np.isfinite(o["lo"].to_numpy(float)).any():
-            continue
-        # a violation: the set missed the true state at that step (exact test, ``in_set``)
-        miss = grid(o.assign(_bad=(o["in_set"] == 0).astype(float)), "_bad")
-        data[obs] = (grid(o, "lo"), grid(o, "hi"), np.nan_to_num(miss).any(axis=1))
-        if truth is None and np.isfinite(o["x_true"].to_numpy(float)).any():
-            truth = grid(o, "x_true")
-    if not data:
+    plot = _BoundsPlot(g, observers, view)
+    if not plot.data:
         return None
-    bands = dict(bands or {})
-    budget = max(MAX_POINTS_PER_FIGURE // max(3 * n * (len(data) + len(bands)), 1), 50)
-    edges = _buckets(steps, budget)
-    t = _envelope(t_all[:, None], edges, "first")[:, 0]
-
-    layers: list[Layer] = []
-    shown = set(data) if visible is None else set(visible)
-    for k, obs in enumerate(data):
-        color, _, dash = _style(k)
-        bad = data[obs][2]
-        note = f"{int(bad.sum())} violating steps" if bad.any() else ""
-        layers.append(Layer(f"layer-{len(layers)}", obs, color, dash,
-                            obs in shown or bad.any(), "observer", note))
-    for j, name in enumerate(bands):
-        layers.append(Layer(f"layer-{len(layers)}", name,
-                            matplotlib.colors.to_hex(BAND_COLORS[j % len(BAND_COLORS)]), "",
-                            True, "band"))
-    if truth is not None:
-        layers.append(Layer(f"layer-{len(layers)}", "true state", "#000000", "3,2", True,
-                            "truth"))
-    by_name = {la.name: la for la in layers}
-    count = [0]
-
-    def gid(name: str) -> str:
-        count[0] += 1
-        return f"{by_name[name].key}__{count[0]}"
-
+    n = plot.n
+    names = [state_names[i] if i < len(state_names) else f"x{i + 1}" for i in range(n)]
     per_row = 2 if n > WIDE_STATES else 1
     rows = -(-n // per_row)
     fig, axes = plt.subplots(rows, 2 * per_row, figsize=(14, 0.6 + 2.3 * rows), squeeze=False,
                              sharex=True)
-    artists: dict[str, list] = {la.key: [] for la in layers}
     for i in range(n):
         ax_b, ax_r = axes[i // per_row, 2 * (i % per_row)], axes[i // per_row,
                                                                   2 * (i % per_row) + 1]
-        for j, (name, (blo, bhi)) in enumerate(bands.items()):
+        plot.draw_state(i, ax_b, ax_r)
+        _label_state(ax_b, ax_r, names[i])
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]", fontsize=8)
+    for j in range(n, rows * per_row):  # an empty slot of the last row
+        axes[-1, 2 * (j % per_row)].set_visible(False)
+        axes[-1, 2 * (j % per_row) + 1].set_visible(False)
+    if view.title:
+        fig.suptitle(view.title, fontsize=9, x=0.01, ha="left")
+    fig.tight_layout()
+    buf = io.StringIO()
+    with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": str(base)}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    svg = _layer_svg(buf.getvalue(), plot.layers)
+    for la in plot.layers:
+        for a in plot.artists[la.key]:
+            a.set_visible(la.visible)
+    return LayeredFigure(svg, plot.layers, save_figure(fig, base))
+
+
+def _label_state(ax_b, ax_r, name: str) -> None:
+    """Titles, scales and ticks of one state's bounds and radius axes."""
+    ax_b.set_ylabel(name, fontsize=8)
+    ax_b.set_title(f"{name}: bounds", fontsize=8, loc="left")
+    ax_r.set_yscale("log")
+    _log_ticks(ax_r.yaxis)
+    ax_r.set_title(f"{name}: interval radius (log scale)", fontsize=8, loc="left")
+    for ax in (ax_b, ax_r):
+        ax.tick_params(labelsize=7)
+        ax.grid(True, which="major", alpha=0.25)
+
+
+class _BoundsPlot:
+    """The data and layers of :func:`bounds_and_radii` (the observers' bounds on the time
+    grid, the true state, the bands) and the drawing of one state."""
+
+    def __init__(self, g: pd.DataFrame, observers: Sequence[str], view: BoundsView):
+        self.t_all = np.sort(g["t"].unique())
+        self.n = int(g["state"].max()) + 1
+        self.data, self.truth = {}, None
+        for obs in observers:
+            o = g[g["observer"] == obs]
+            if o.empty or not np.isfinite(o["lo"].to_numpy(float)).any():
+                continue
+            # a violation: the set missed the true state at that step (exact test, ``in_set``)
+            miss = self._grid(o.assign(_bad=(o["in_set"] == 0).astype(float)), "_bad")
+            self.data[obs] = (self._grid(o, "lo"), self._grid(o, "hi"),
+                              np.nan_to_num(miss).any(axis=1))
+            if self.truth is None and np.isfinite(o["x_true"].to_numpy(float)).any():
+                self.truth = self._grid(o, "x_true")
+        if not self.data:
+            return
+        self.bands = dict(view.bands or {})
+        budget = max(MAX_POINTS_PER_FIGURE // max(3 * self.n * (len(self.data)
+                                                                + len(self.bands)), 1), 50)
+        self.edges = _buckets(len(self.t_all), budget)
+        self.t = _envelope(self.t_all[:, None], self.edges, "first")[:, 0]
+        self.layers = self._layers(view.visible)
+        self.by_name = {la.name: la for la in self.layers}
+        self.artists: dict[str, list] = {la.key: [] for la in self.layers}
+        self._count = 0
+
+    def _grid(self, frame: pd.DataFrame, column: str) -> np.ndarray:
+        piv = frame.pivot_table(index="t", columns="state", values=column, aggfunc="first",
+                                dropna=False)
+        return piv.reindex(index=self.t_all, columns=range(self.n)).to_numpy(float)
+
+    def _layers(self, visible: Collection[str] | None) -> list[Layer]:
+        """One layer per observer, band and the true state, in drawing order."""
+        layers: list[Layer] = []
+        shown = set(self.data) if visible is None else set(visible)
+        for k, obs in enumerate(self.data):
+            color, _, dash = _style(k)
+            bad = self.data[obs][2]
+            note = f"{int(bad.sum())} violating steps" if bad.any() else ""
+            layers.append(Layer(f"layer-{len(layers)}", obs, color, dash,
+                                obs in shown or bad.any(), "observer", note))
+        for j, name in enumerate(self.bands):
+            layers.append(Layer(f"layer-{len(layers)}", name,
+                                matplotlib.colors.to_hex(BAND_COLORS[j % len(BAND_COLORS)]),
+                                "", True, "band"))
+        if self.truth is not None:
+            layers.append(Layer(f"layer-{len(layers)}", "true state", "#000000", "3,2", True,
+                                "truth"))
+        return layers
+
+    def _gid(self, name: str) -> str:
+        self._count += 1
+        return f"{self.by_name[name].key}__{self._count}"
+
+    def draw_state(self, i: int, ax_b, ax_r) -> None:
+        """State ``i``: the bands, every observer's bounds and radius (with its violations)
+        and the true state; the first view fitted to the visible layers."""
+        t, edges, gid = self.t, self.edges, self._gid
+        for j, (name, (blo, bhi)) in enumerate(self.bands.items()):
             lo_b = _envelope(np.asarray(blo, float), edges, "min")[:, i]
             hi_b = _envelope(np.asarray(bhi, float), edges, "max")[:, i]
             color = BAND_COLORS[j % len(BAND_COLORS)]
             a = ax_b.fill_between(t, lo_b, hi_b, color=color, alpha=0.3, lw=0, gid=gid(name))
             (b,) = ax_r.plot(t, np.where(hi_b > lo_b, (hi_b - lo_b) / 2, np.nan), color=color,
                              lw=2.5, alpha=0.6, gid=gid(name))
-            artists[by_name[name].key] += [a, b]
-        for k, (obs, (lo, hi, bad)) in enumerate(data.items()):
-            color, ls, _ = _style(k)
-            lo_i = _envelope(lo, edges, "min")[:, i]
-            hi_i = _envelope(hi, edges, "max")[:, i]
-            radius = (hi_i - lo_i) / 2
-            radius = np.where(radius > 0, radius, np.nan)
-            key = by_name[obs].key
-            (a,) = ax_b.plot(t, lo_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
-            (b,) = ax_b.plot(t, hi_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
-            (c,) = ax_r.plot(t, radius, color=color, ls=ls, lw=0.9, gid=gid(obs))
-            artists[key] += [a, b, c]
-            if bad.any():
-                steps_bad = np.flatnonzero(bad)
-                xs = t_all[steps_bad]
-                ref = truth[steps_bad, i] if truth is not None else lo[steps_bad, i]
-                (d,) = ax_b.plot(xs, ref, ls="none", marker="x", ms=5, mew=1.2,
-                                 color=VIOLATION_COLOR, gid=gid(obs))
-                r_bad = (hi[steps_bad, i] - lo[steps_bad, i]) / 2
-                (e,) = ax_r.plot(xs, np.where(r_bad > 0, r_bad, np.nan), ls="none",
-                                 marker="x", ms=5, mew=1.2, color=VIOLATION_COLOR,
-                                 gid=gid(obs))
-                artists[key] += [d, e]
-        if truth is not None:
-            x_i = _envelope(truth, edges, "first")[:, i]
+            self.artists[self.by_name[name].key] += [a, b]
+        for k, obs in enumerate(self.data):
+            self._draw_observer(i, (ax_b, ax_r), k, obs)
+        if self.truth is not None:
+            x_i = _envelope(self.truth, edges, "first")[:, i]
             (a,) = ax_b.plot(t, x_i, color="k", lw=1.1, ls=(0, (3, 2)), gid=gid("true state"),
                              label="_truth")
-            artists[by_name["true state"].key].append(a)
-        _fit_first_view(ax_b, [data[la.name][:2] for la in layers
+            self.artists[self.by_name["true state"].key].append(a)
+        _fit_first_view(ax_b, [self.data[la.name][:2] for la in self.layers
                                if la.kind == "observer" and la.visible]
-                        + [tuple(np.asarray(b, float) for b in pair) for pair in bands.values()],
-                        i)
-        ax_b.set_ylabel(names[i], fontsize=8)
-        ax_b.set_title(f"{names[i]}: bounds", fontsize=8, loc="left")
-        ax_r.set_yscale("log")
-        _log_ticks(ax_r.yaxis)
-        ax_r.set_title(f"{names[i]}: interval radius (log scale)", fontsize=8, loc="left")
-        for ax in (ax_b, ax_r):
-            ax.tick_params(labelsize=7)
-            ax.grid(True, which="major", alpha=0.25)
-    for ax in axes[-1]:
-        ax.set_xlabel("t [s]", fontsize=8)
-    for j in range(n, rows * per_row):  # an empty slot of the last row
-        axes[-1, 2 * (j % per_row)].set_visible(False)
-        axes[-1, 2 * (j % per_row) + 1].set_visible(False)
-    if title:
-        fig.suptitle(title, fontsize=9, x=0.01, ha="left")
-    fig.tight_layout()
-    buf = io.StringIO()
-    with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": str(base)}):
-        fig.savefig(buf, format="svg", metadata={"Date": None})
-    svg = _layer_svg(buf.getvalue(), layers)
-    for la in layers:
-        for a in artists[la.key]:
-            a.set_visible(la.visible)
-    return LayeredFigure(svg, layers, save_figure(fig, base))
+                        + [tuple(np.asarray(b, float) for b in pair)
+                           for pair in self.bands.values()], i)
+
+    def _draw_observer(self, i: int, axes: tuple, k: int, obs: str) -> None:
+        """Observer ``obs`` (the ``k``-th) on state ``i``: bounds, radius, violations."""
+        ax_b, ax_r = axes
+        t, edges, gid = self.t, self.edges, self._gid
+        lo, hi, bad = self.data[obs]
+        color, ls, _ = _style(k)
+        lo_i = _envelope(lo, edges, "min")[:, i]
+        hi_i = _envelope(hi, edges, "max")[:, i]
+        radius = (hi_i - lo_i) / 2
+        radius = np.where(radius > 0, radius, np.nan)
+        key = self.by_name[obs].key
+        (a,) = ax_b.plot(t, lo_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
+        (b,) = ax_b.plot(t, hi_i, color=color, ls=ls, lw=0.9, gid=gid(obs))
+        (c,) = ax_r.plot(t, radius, color=color, ls=ls, lw=0.9, gid=gid(obs))
+        self.artists[key] += [a, b, c]
+        if bad.any():
+            steps_bad = np.flatnonzero(bad)
+            xs = self.t_all[steps_bad]
+            ref = self.truth[steps_bad, i] if self.truth is not None else lo[steps_bad, i]
+            (d,) = ax_b.plot(xs, ref, ls="none", marker="x", ms=5, mew=1.2,
+                             color=VIOLATION_COLOR, gid=gid(obs))
+            r_bad = (hi[steps_bad, i] - lo[steps_bad, i]) / 2
+            (e,) = ax_r.plot(xs, np.where(r_bad > 0, r_bad, np.nan), ls="none",
+                             marker="x", ms=5, mew=1.2, color=VIOLATION_COLOR, gid=gid(obs))
+            self.artists[key] += [d, e]
 
 
 def heat_map(values: pd.DataFrame, title: str, reference: str,
@@ -518,13 +562,38 @@ def frontier(df: pd.DataFrame, base: Path) -> list[Path]:
     return save_figure(fig, base, dpi=110)
 
 
-def datadriven(steps: np.ndarray, x_true: np.ndarray, bounds: Mapping[str, tuple],
-               panels: Sequence[tuple[Sequence[str], str]], polygons: Mapping[str, np.ndarray],
-               snapshot: int, colors: Mapping[str, str], base: Path) -> list[Path]:
+@dataclass(frozen=True)
+class DataDrivenRuns:
+    """The runs drawn by :func:`datadriven`.
+
+    Attributes
+    ----------
+    steps : (N,) array
+        The time steps.
+    x_true : (N, n) array
+        The true states.
+    bounds : mapping
+        Observer name -> ``(lo, hi)`` (N x n; the first column is drawn).
+    polygons : mapping
+        Observer name -> the vertices of its set at step ``snapshot``, one per row.
+    snapshot : int
+        The step of the polygons.
+    """
+
+    steps: np.ndarray
+    x_true: np.ndarray
+    bounds: Mapping[str, tuple]
+    polygons: Mapping[str, np.ndarray]
+    snapshot: int
+
+
+def datadriven(runs: DataDrivenRuns, panels: Sequence[tuple[Sequence[str], str]],
+               colors: Mapping[str, str], base: Path) -> list[Path]:
     """The figure of the data-driven study (like Alanwar et al.'s Figs. 2-3): per panel of
-    ``panels`` (observer names, title) the bounds of x1 minus the true x1 over the steps
-    (``bounds[name] = (lo, hi)``, first column used), and the sets at step ``snapshot`` as
-    polygons (``polygons[name]``: vertices, one per row) with the true state."""
+    ``panels`` (observer names, title) the bounds of x1 minus the true x1 over the steps,
+    and the sets at the snapshot step as polygons with the true state (``runs``)."""
+    steps, x_true, bounds = runs.steps, runs.x_true, runs.bounds
+    polygons, snapshot = runs.polygons, runs.snapshot
     fig, axes = plt.subplots(1, len(panels) + 1, figsize=(15, 4.5))
     for ax, (names, title) in zip(axes, panels, strict=False):
         for name in names:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import html
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,7 @@ from ..io import atomic_write_text, environment, load_results, load_runs, path_c
 from ..metrics import timed_in_parallel
 from .aggregate import is_sweep, sweep_tables
 from .citation import citation_html, citation_lines
-from .figures import LayeredFigure, bounds_and_radii, heat_map, step_times
+from .figures import BoundsView, LayeredFigure, bounds_and_radii, heat_map, step_times
 from .markdown import shown_tables
 from .numbers import MISSING, Num, format_columns
 from .paper import paper_rows, paper_title
@@ -357,9 +358,9 @@ def bounds_figure(runs: pd.DataFrame, df: pd.DataFrame, scenario: str, info: dic
     ok = ok[(ok["status"] == "ok") & ok["_rel"].notna()]
     order = ok.groupby("observer")["_rel"].mean().sort_values()
     names = table_order(df[df["status"] != "unsupported"]["observer"].unique())
-    fig = bounds_and_radii(runs, scenario, names, info.get("state_names") or [], base,
-                           visible=set(order.index[:FIRST_VIEW]), bands=bands,
-                           title=f"{scenario}: bounds and interval radius of every state")
+    view = BoundsView(visible=set(order.index[:FIRST_VIEW]), bands=bands,
+                      title=f"{scenario}: bounds and interval radius of every state")
+    fig = bounds_and_radii(runs, scenario, names, info.get("state_names") or [], base, view)
     truth = runs.loc[runs["scenario"] == scenario, "x_true"].notna().any()
     caption = ("every state's interval bounds (left) and radius on a log scale (right) over "
                "time, " + ("with the true state (dashed black) and the steps where a set "
@@ -452,84 +453,133 @@ def write_html(results_dir: str | Path, out: str | Path | None = None,
                  "successful runs; reference: the best observer of the same scenario and "
                  "seed), as in report.md.</p>"]
         body += markdown_to_html(sweep_tables(summary))
+    page = _Page(page_dir, fig_dir, runs if figures else None, bands or {}, figures)
     for sc in scenarios:
-        full = summary[summary["scenario"] == sc]
-        info = meta.get("scenarios", {}).get(sc, {})
-        df = full[full["status"] != "unsupported"]
-        body += [f'<h2 id="sc-{html.escape(sc)}">{html.escape(sc)}</h2>',
-                 f"<p>{inline(info.get('description', ''))}</p>"]
-        facts = scenario_facts(info)
-        if facts:
-            body.append(f'<p class="facts">{inline(facts[0].upper() + facts[1:])}</p>')
-        body += [f'<p class="caption">{inline(scenario_table_caption(full, meta))}</p>',
-                 html_table(*scenario_table_data(full, meta), table_id=f"table-{sc}")]
-        absolute = absolute_table_data(df, meta) if len(df) else None
-        if absolute:
-            body += ["<h3>Absolute RMS radii</h3>",
-                     f'<p class="caption">{inline(absolute_table_caption(df, meta))}</p>',
-                     html_table(*absolute, table_id=f"absolute-{sc}")]
-        gaps = gap_table_data(df, meta) if len(df) else None
-        if gaps:
-            body += ["<h3>Gap to the exact floor</h3>",
-                     f'<p class="caption">{inline(gap_table_caption(df))}</p>',
-                     html_table(gaps[0], format_columns(gaps[1]), table_id=f"gap-{sc}")]
-        phases = phase_table_data(df) if len(df) else None
-        if phases:
-            body += ["<h3>Time per phase of a step</h3>",
-                     f'<p class="caption">{inline(PHASE_CAPTION)}</p>',
-                     html_table(phases[0], format_columns(phases[1]), table_id=f"phases-{sc}")]
-        notes = scenario_notes(full)
-        if notes:
-            body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"
-                                                      for n in notes) + "</ul>")
-        if figures and len(df):
-            base = fig_dir / path_component(sc)  # a name, never a path
-            if runs is not None:
-                sc_bands = {**floor_bands(runs, df, sc), **(bands or {}).get(sc, {})}
-                fig, caption = bounds_figure(runs, df, sc, info, meta, base / "bounds",
-                                             sc_bands or None)
-                body.append(layered_figure_html(fig, f"bounds-{sc}", page_dir, caption))
-            rel, reference = relative_values(df, meta)
-            mat = (df.assign(_rel=rel)[df["status"] == "ok"]
-                   .pivot_table(index="observer", columns="state", values="_rel"))
-            mat = mat.reindex(table_order(mat.index))
-            names = info.get("state_names") or []
-            mat.columns = [names[i] if i < len(names) else f"x{i + 1}" for i in mat.columns]
-            heat = heat_map(mat, f"{sc}: v_i per observer and state (1 = the reference)",
-                            reference, base / "rel_rms_heatmap") if len(mat) else None
-            gap_heat, gap_caption = gap_heat_map(df, sc, names, base / "gap_heatmap")
-            times, time_caption = time_figure(full, sc, meta, base / "step_time")
-            figs = [figure_html(heat, page_dir, f"v_i of the table above, per observer and "
-                                f"state, log colour scale; {reference}"),
-                    figure_html(gap_heat, page_dir, gap_caption),
-                    figure_html(times, page_dir, time_caption)]
-            body.append('<div class="figures">' + "".join(f for f in figs if f) + "</div>")
-    body += ['<h2 id="ranking">Ranking summary</h2>',
-             "<p>Mean over the scenarios of each observer's average relative RMS (reference: "
-             "eq. 9 against all guaranteed observers of the run, <code>rel_rms</code> of "
-             "summary.csv, not a paper's observers) and of its rank in each scenario "
-             "(1 = tightest); failed runs are not ranked. Violations: steps whose true state "
-             "lay outside the set, summed over the scenarios where containment was checked "
-             "(n/a: checked in none).</p>",
-             html_table(*ranking_table(summary), table_id="ranking-table")] if not sweep else []
+        body += _scenario_section(summary, meta, sc, page)
+    body += _ranking_section(summary) if not sweep else []
+    body += _environment_section(summary, meta, results_dir.name)
+    atomic_write_text(out, html_page(title, body))
+    return out
+
+
+@dataclass(frozen=True)
+class _Page:
+    """Where a page of :func:`write_html` goes and what its figures draw from."""
+
+    page_dir: Path
+    fig_dir: Path
+    runs: pd.DataFrame | None
+    bands: dict
+    figures: bool
+
+
+def _scenario_section(summary: pd.DataFrame, meta: dict, sc: str, page: _Page) -> list[str]:
+    """The section of scenario ``sc``: its tables, notes and figures."""
+    full = summary[summary["scenario"] == sc]
+    info = meta.get("scenarios", {}).get(sc, {})
+    df = full[full["status"] != "unsupported"]
+    body = [f'<h2 id="sc-{html.escape(sc)}">{html.escape(sc)}</h2>',
+            f"<p>{inline(info.get('description', ''))}</p>"]
+    facts = scenario_facts(info)
+    if facts:
+        body.append(f'<p class="facts">{inline(facts[0].upper() + facts[1:])}</p>')
+    body += [f'<p class="caption">{inline(scenario_table_caption(full, meta))}</p>',
+             html_table(*scenario_table_data(full, meta), table_id=f"table-{sc}")]
+    body += _scenario_tables(df, meta, sc)
+    notes = scenario_notes(full)
+    if notes:
+        body.append('<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>"
+                                                  for n in notes) + "</ul>")
+    if page.figures and len(df):
+        body += _scenario_figures(full, df, (sc, info, meta), page)
+    return body
+
+
+def _scenario_tables(df: pd.DataFrame, meta: dict, sc: str) -> list[str]:
+    """The absolute radii, the gap to the exact floor and the phases of scenario ``sc``
+    (those with rows)."""
+    body: list[str] = []
+    absolute = absolute_table_data(df, meta) if len(df) else None
+    if absolute:
+        body += ["<h3>Absolute RMS radii</h3>",
+                 f'<p class="caption">{inline(absolute_table_caption(df, meta))}</p>',
+                 html_table(*absolute, table_id=f"absolute-{sc}")]
+    gaps = gap_table_data(df, meta) if len(df) else None
+    if gaps:
+        body += ["<h3>Gap to the exact floor</h3>",
+                 f'<p class="caption">{inline(gap_table_caption(df))}</p>',
+                 html_table(gaps[0], format_columns(gaps[1]), table_id=f"gap-{sc}")]
+    phases = phase_table_data(df) if len(df) else None
+    if phases:
+        body += ["<h3>Time per phase of a step</h3>",
+                 f'<p class="caption">{inline(PHASE_CAPTION)}</p>',
+                 html_table(phases[0], format_columns(phases[1]), table_id=f"phases-{sc}")]
+    return body
+
+
+def _scenario_figures(full: pd.DataFrame, df: pd.DataFrame, about: tuple, page: _Page
+                      ) -> list[str]:
+    """The figures of one scenario (``about``: its name, its ``meta.json`` entry and the
+    run's meta data): the bounds figure where the run has ``runs.csv``, the heat maps of
+    v_i and of the gap, and the step times."""
+    sc, info, meta = about
+    body: list[str] = []
+    base = page.fig_dir / path_component(sc)  # a name, never a path
+    page_dir = page.page_dir
+    if page.runs is not None:
+        sc_bands = {**floor_bands(page.runs, df, sc), **page.bands.get(sc, {})}
+        fig, caption = bounds_figure(page.runs, df, sc, info, meta, base / "bounds",
+                                     sc_bands or None)
+        body.append(layered_figure_html(fig, f"bounds-{sc}", page_dir, caption))
+    rel, reference = relative_values(df, meta)
+    mat = (df.assign(_rel=rel)[df["status"] == "ok"]
+           .pivot_table(index="observer", columns="state", values="_rel"))
+    mat = mat.reindex(table_order(mat.index))
+    names = info.get("state_names") or []
+    mat.columns = [names[i] if i < len(names) else f"x{i + 1}" for i in mat.columns]
+    heat = heat_map(mat, f"{sc}: v_i per observer and state (1 = the reference)",
+                    reference, base / "rel_rms_heatmap") if len(mat) else None
+    gap_heat, gap_caption = gap_heat_map(df, sc, names, base / "gap_heatmap")
+    times, time_caption = time_figure(full, sc, meta, base / "step_time")
+    figs = [figure_html(heat, page_dir, f"v_i of the table above, per observer and "
+                        f"state, log colour scale; {reference}"),
+            figure_html(gap_heat, page_dir, gap_caption),
+            figure_html(times, page_dir, time_caption)]
+    body.append('<div class="figures">' + "".join(f for f in figs if f) + "</div>")
+    return body
+
+
+def _ranking_section(summary: pd.DataFrame) -> list[str]:
+    """The ranking over the scenarios (not of a sweep)."""
+    return ['<h2 id="ranking">Ranking summary</h2>',
+            "<p>Mean over the scenarios of each observer's average relative RMS (reference: "
+            "eq. 9 against all guaranteed observers of the run, <code>rel_rms</code> of "
+            "summary.csv, not a paper's observers) and of its rank in each scenario "
+            "(1 = tightest); failed runs are not ranked. Violations: steps whose true state "
+            "lay outside the set, summed over the scenarios where containment was checked "
+            "(n/a: checked in none).</p>",
+            html_table(*ranking_table(summary), table_id="ranking-table")]
+
+
+def _environment_section(summary: pd.DataFrame, meta: dict, folder: str) -> list[str]:
+    """The configuration, the environments of the run and of the report, and what to cite
+    (``folder``: the results folder's name, the configuration's name by default)."""
     raw = meta.get("config", {}).get("raw")
     env = {"run_id": meta.get("run_id", "?"), "created": meta.get("created", "?"),
            **meta.get("versions", {})}
     now = environment()
-    body += ['<h2 id="environment">Configuration and environment</h2>',
-             f"<p>git commit of the run: <code>{html.escape(env.get('git') or 'unknown')}</code>"
-             f"; report written at commit <code>{html.escape(now.get('git') or 'unknown')}"
-             "</code>.</p>",
-             "<h3>Configuration</h3>",
-             "<pre>" + html.escape(yaml.safe_dump(raw, sort_keys=False) if raw else
-                                   "(no meta.json)") + "</pre>",
-             "<h3>Environment of the run</h3>", _definition_table(env),
-             "<h3>Environment of this report</h3>", _definition_table(now),
-             '<h2 id="cite">What to cite</h2>',
-             citation_html(meta.get("config", {}).get("name") or results_dir.name,
-                           shown_tables(summary, meta))]
-    atomic_write_text(out, html_page(title, body))
-    return out
+    return ['<h2 id="environment">Configuration and environment</h2>',
+            f"<p>git commit of the run: <code>{html.escape(env.get('git') or 'unknown')}</code>"
+            f"; report written at commit <code>{html.escape(now.get('git') or 'unknown')}"
+            "</code>.</p>",
+            "<h3>Configuration</h3>",
+            "<pre>" + html.escape(yaml.safe_dump(raw, sort_keys=False) if raw else
+                                  "(no meta.json)") + "</pre>",
+            "<h3>Environment of the run</h3>", _definition_table(env),
+            "<h3>Environment of this report</h3>", _definition_table(now),
+            '<h2 id="cite">What to cite</h2>',
+            citation_html(meta.get("config", {}).get("name") or folder,
+                          shown_tables(summary, meta))]
 
 
 def _title(path: Path) -> str:

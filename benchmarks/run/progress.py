@@ -8,8 +8,12 @@ redirected output stays clean.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Iterable, Iterator
+from typing import TypeVar
 
 from tqdm.auto import tqdm
+
+T = TypeVar("T")
 
 
 def progress_enabled(progress: bool | None) -> bool:
@@ -17,6 +21,15 @@ def progress_enabled(progress: bool | None) -> bool:
     if progress is not None:
         return bool(progress)
     return sys.stderr.isatty() or "ipykernel" in sys.modules
+
+
+def announced(items: Iterable[T], progress: bool, line: Callable[[T], str]) -> Iterator[T]:
+    """``items``, each announced on standard output by ``line(item)`` before it is used
+    (where ``progress``): the one-line progress of the timing reports' measurements."""
+    for item in items:
+        if progress:
+            print(line(item), flush=True)
+        yield item
 
 
 def progress_bar(total: int, desc: str, progress: bool | None = None) -> tqdm:

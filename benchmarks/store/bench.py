@@ -37,6 +37,7 @@ from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
 from .graph import ROOT
 from .store import (
     FORMAT,
+    RunRows,
     Store,
     StoreLock,
     compare,
@@ -133,8 +134,8 @@ def run_stale(p: Plan, executor, out: Path, progress: bool | None = None):
         raise ConfigError(f"{p.cfg.name}: the code changed while its rows ran ({key}: {why}); "
                           "nothing stored, run `make bench` again")
     run_id, run = new_run(ROOT, {"name": executor.name, "workers": executor.workers})
-    merged = merge(p.store, result.summary, {k: p.prints[k] for k in ran}, p.order, run_id,
-                   run, _run_meta(out))
+    new = RunRows(result.summary, {k: p.prints[k] for k in ran}, run_id, run, _run_meta(out))
+    merged = merge(p.store, new, p.order)
     return merged, result
 
 
@@ -167,8 +168,8 @@ def bench_config(p: Plan, results: Path, reports: Path, executor,
         store = merged
         notify(f"{p.cfg.name}: {len(p.stale)} rows run in {time.perf_counter() - t0:.0f} s")
     elif p.dropped and store is not None:
-        store = merge(store, None, {}, p.order, None, None,
-                      {k: store.meta.get(k, {}) for k in ("config", "scenarios")})
+        kept = {k: store.meta.get(k, {}) for k in ("config", "scenarios")}
+        store = merge(store, RunRows.nothing(kept), p.order)
     if store is None:
         return Outcome(p.cfg.name, 0, len(p.order), code, problems, None)
     if p.stale or p.dropped:

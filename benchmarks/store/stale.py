@@ -20,14 +20,13 @@
 from __future__ import annotations
 
 import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import observers
 
 from ..errors import ConfigError
-from ..io import json_text
+from ..io import json_text, read_json_object
 from ..run.config import load_config
 from ..run.shipped import shipped_configs
 from .bench import REPORTS, RESULTS, plan, render
@@ -107,13 +106,7 @@ def _read_record(root: Path) -> dict:
     path = root / STUDY_RECORD
     if not path.is_file():
         return {}
-    try:
-        rec = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{path} is not valid JSON ({exc.msg}); restore it with git") from None
-    if not isinstance(rec, dict):
-        raise ConfigError(f"{path} is not a mapping of report names; restore it with git")
-    return rec
+    return read_json_object(path, fix="restore it with git")
 
 
 def record_study(report: str | Path, root: Path = ROOT) -> str:

@@ -40,8 +40,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import ConfigError
-from ..io import _exchange as exchange  # noqa: PLC2701 - the one atomic folder swap
-from ..io import csv_text, json_text, new_run_id, remove_stale_generations
+from ..io import csv_text, json_text, new_run_id, remove_stale_generations, swap_in
 from ..metrics import add_relative_rms
 from ..report.freshness import commit, machine
 from .fingerprint import Fingerprint, canonical, changes, row_key, short
@@ -221,11 +220,40 @@ def new_run(root: Path, executor: dict) -> tuple[str, dict]:
         "executor": executor}
 
 
-def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fingerprint],
-          order: list[str], run_id: str | None, run: dict | None, run_meta: dict,
-          layout: Layout = CONFIG) -> Store:
-    """The store with ``new_rows`` (a run's summary, its rows keyed as in ``prints``) in place
-    of their old versions; rows whose key is not in ``order`` (no longer in the configuration)
+@dataclass(frozen=True)
+class RunRows:
+    """What a run brings to a store (:func:`merge`).
+
+    Attributes
+    ----------
+    rows : DataFrame or None
+        ``summary.csv`` rows of the run (without the store's columns); None: no run, only
+        the rows no longer in the configuration go (:meth:`nothing`).
+    prints : dict
+        Row key -> fingerprint, for every key of ``rows``.
+    run_id, run : str, dict
+        The run's id and record (:func:`new_run`).
+    meta : dict
+        ``config`` and ``scenarios`` of the run (as in a run's ``meta.json``), and any other
+        key to record (the audit's settings).
+    """
+
+    rows: pd.DataFrame | None
+    prints: dict[str, Fingerprint]
+    run_id: str | None
+    run: dict | None
+    meta: dict
+
+    @classmethod
+    def nothing(cls, meta: dict) -> RunRows:
+        """No run: only the rows no longer in the configuration go (``meta`` as above)."""
+        return cls(None, {}, None, None, meta)
+
+
+def merge(old: Store | None, new: RunRows, order: list[str], layout: Layout = CONFIG
+          ) -> Store:
+    """The store with the rows of the run ``new`` (keyed as in its ``prints``) in place of
+    their old versions; rows whose key is not in ``order`` (no longer in the configuration)
     are dropped, and the rest are ordered as ``order``.  The layout's derived columns are
     recomputed over the merged rows (a configuration's ``rel_rms``: its reference is the best
     observer of each scenario, whichever run made it).
@@ -234,21 +262,14 @@ def merge(old: Store | None, new_rows: pd.DataFrame | None, prints: dict[str, Fi
     ----------
     old : Store or None
         The store so far.
-    new_rows : DataFrame or None
-        ``summary.csv`` rows of the run (without the store's columns); None: no run, only
-        the rows no longer in ``order`` go.
-    prints : dict
-        Row key -> fingerprint, for every key of ``new_rows``.
+    new : RunRows
+        The run's rows, fingerprints, id, record and meta data.
     order : list of str
         The row keys of the configuration, in its order.
-    run_id, run : str, dict
-        The run's id and record (:func:`new_run`).
-    run_meta : dict
-        ``config`` and ``scenarios`` of the run (as in a run's ``meta.json``), and any other
-        key to record (the audit's settings).
     layout : Layout
         What the rows are (:data:`CONFIG`), if there is no ``old`` store to say it.
     """
+    new_rows, prints, run_id, run, run_meta = new.rows, new.prints, new.run_id, new.run, new.meta
     layout = old.layout if old is not None else layout
     if new_rows is None:  # only drop the rows no longer in the configuration
         new_rows = old.summary.iloc[0:0].drop(columns=list(STORE_COLUMNS))
@@ -336,21 +357,8 @@ def write_store(folder: str | Path, store: Store) -> None:
         if not folder.exists():
             os.rename(tmp, folder)
             return
-        moved = [e.name for e in folder.iterdir() if e.name not in (SUMMARY, META)]
-        try:
-            for name in moved:  # local run outputs and HTML pages stay with the store
-                os.rename(folder / name, tmp / name)
-            swapped = exchange(tmp, folder)
-        except BaseException:
-            for name in moved:
-                if (tmp / name).exists():
-                    os.rename(tmp / name, folder / name)
-            raise
-        if not swapped:  # pragma: no cover - no renameat2: two renames
-            old = folder.parent / f".{folder.name}.old-{os.getpid()}-{new_run_id()}"
-            os.rename(folder, old)
-            os.rename(tmp, folder)
-            tmp = old
+        # local run outputs and HTML pages stay with the store
+        tmp = swap_in(tmp, folder, (SUMMARY, META), new_run_id())
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

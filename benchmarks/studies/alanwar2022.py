@@ -193,11 +193,12 @@ def figure(base: Path) -> list[str]:
     runs[kf_paper] = observers.run(_create(KF, sc, tuning="paper"), sc.u, sc.y)
     rows = ["| set at step 34 | area |", "|---|---|"]
     rows += [f"| {name} | {set_area(r.sets[SNAPSHOT]):.3f} |" for name, r in runs.items()]
-    figures.datadriven(
+    drawn = figures.DataDrivenRuns(
         np.arange(sc.N), sc.x_true, {name: (r.lo, r.hi) for name, r in runs.items()},
-        ((("DD-Z-A1", "DD-Z-A2", KF, kf_paper), "zonotopes"),
-         (("DD-CZ-A1", "DD-CZ-A2", KF, kf_paper), "constrained zonotopes")),
-        {name: polygon(r.sets[SNAPSHOT]) for name, r in runs.items()}, SNAPSHOT, COLORS, base)
+        {name: polygon(r.sets[SNAPSHOT]) for name, r in runs.items()}, SNAPSHOT)
+    figures.datadriven(drawn, ((("DD-Z-A1", "DD-Z-A2", KF, kf_paper), "zonotopes"),
+                               (("DD-CZ-A1", "DD-CZ-A2", KF, kf_paper), "constrained zonotopes")),
+                       COLORS, base)
     return rows
 
 

@@ -33,6 +33,7 @@ import functools
 import json
 import sys
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -261,9 +262,23 @@ def failures(g: pd.DataFrame) -> list[str]:
     return out + [""]
 
 
-def report(df: pd.DataFrame, fig: Path, out: Path, *, sizes, steps, design_budget,
-           run_budget, elapsed: float) -> str:
-    """The Markdown report; it ends with what to cite (:mod:`benchmarks.report.citation`)."""
+@dataclass(frozen=True)
+class StudyRun:
+    """How the study ran (``scaling.json`` beside ``scaling.csv``): the sizes n, the simulated
+    steps, the design and run budgets (seconds) and the wall time of the whole study."""
+
+    sizes: list
+    steps: int
+    design_budget: float
+    run_budget: float
+    elapsed: float
+
+
+def report(df: pd.DataFrame, fig: Path, out: Path, run: StudyRun) -> str:
+    """The Markdown report of the study that ran as ``run``; it ends with what to cite
+    (:mod:`benchmarks.report.citation`)."""
+    sizes, steps, elapsed = run.sizes, run.steps, run.elapsed
+    design_budget, run_budget = run.design_budget, run.run_budget
     env = environment()
     exp = exponents(df)
     parts = [
@@ -346,22 +361,22 @@ def main(argv: list[str] | None = None) -> int:
         try:
             df = pd.read_csv(results / "scaling.csv", keep_default_na=False,
                              na_values=[""]).fillna({"message": ""})
-            run = json.loads((results / "scaling.json").read_text())
-        except (OSError, ValueError) as exc:
+            run = StudyRun(**json.loads((results / "scaling.json").read_text()))
+        except (OSError, ValueError, TypeError) as exc:
             print(f"error: no earlier study in {results}: {exc}", file=sys.stderr)
             return 2
     else:
         t0 = time.perf_counter()
         df = run_study(args.sizes, names, args.variants, args.steps, args.design_budget,
                        args.run_budget, log=lambda m: print(m, file=sys.stderr))
-        run = {"sizes": args.sizes, "steps": args.steps, "design_budget": args.design_budget,
-               "run_budget": args.run_budget, "elapsed": time.perf_counter() - t0}
+        run = StudyRun(args.sizes, args.steps, args.design_budget, args.run_budget,
+                       time.perf_counter() - t0)
         atomic_write_csv(results / "scaling.csv", df)
-        atomic_write_json(results / "scaling.json", run)
+        atomic_write_json(results / "scaling.json", asdict(run))
     out = Path(args.out)
     fig, _ = figures.scaling(df, list(df["variant"].unique()), REALTIME_MS,
                              out.parent / out.stem)
-    text = report(df, fig, out, **run).rstrip("\n")
+    text = report(df, fig, out, run).rstrip("\n")
     regen = f"python -m benchmarks.studies.scaling --out {out} --results results/scaling"
     atomic_write_text(out, f"{text}\n\n{freshness.measured(regen)}\n")
     print(f"wrote {out}, {fig} and {Path(args.results) / 'scaling.csv'}")

@@ -21,6 +21,7 @@ import observers
 import systems
 
 from ..report.numbers import fmt
+from ..run.progress import announced
 
 
 @dataclass(frozen=True)
@@ -57,12 +58,8 @@ def time_exact(case: ExactCase) -> dict[str, Any]:
 def measure_exact(cases: tuple[ExactCase, ...] = EXACT_CASES,
                   progress: bool = True) -> list[dict[str, Any]]:
     """Time every case of ``cases`` (one dict each, see :func:`time_exact`)."""
-    out = []
-    for case in cases:
-        if progress:
-            print(f"timing the exact reference of {case.scenario}", flush=True)
-        out.append(time_exact(case))
-    return out
+    return [time_exact(case) for case in announced(
+        cases, progress, lambda c: f"timing the exact reference of {c.scenario}")]
 
 
 def render_exact(results: list[dict[str, Any]]) -> list[str]:

@@ -27,6 +27,7 @@ from observers.sets import HullLP
 
 from ..report.numbers import fmt
 from ..run.config import merge_options
+from ..run.progress import announced
 from ..run.runner import design_observer
 from .steps import to_steady_state
 
@@ -110,12 +111,9 @@ def profile_hull(case: HullCase) -> list[dict[str, Any]]:
 def measure_hulls(cases: tuple[HullCase, ...] = HULL_CASES, progress: bool = True
                   ) -> list[dict[str, Any]]:
     """:func:`profile_hull` of every case."""
-    out = []
-    for case in cases:
-        if progress:
-            print(f"profiling the hull of {case.observer} on {case.scenario}", flush=True)
-        out += profile_hull(case)
-    return out
+    return [row for case in announced(
+        cases, progress, lambda c: f"profiling the hull of {c.observer} on {c.scenario}")
+        for row in profile_hull(case)]
 
 
 def render_hulls(rows: list[dict[str, Any]]) -> list[str]:

@@ -36,9 +36,10 @@ from ..report import freshness
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt
 from ..report.paper import paper_rows
+from ..run.progress import announced
 from .exact_cost import EXACT_CASES, ExactCase, measure_exact, render_exact
 from .hull_profile import HULL_CASES, HullCase, measure_hulls, render_hulls
-from .steps import TimingRow, time_observers
+from .steps import TimingPlan, TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
 DEFAULT_JSON = Path("reports") / "speed.json"
@@ -149,12 +150,11 @@ def metric_value(row: TimingRow, metric: str) -> float:
 def measure(cases: tuple[Case, ...] = CASES, progress: bool = True) -> list[dict[str, Any]]:
     """Time every case; one dict per (case, observer) with the row and the metric value."""
     out = []
-    for case in cases:
-        if progress:
-            print(f"timing {', '.join(case.observers)} on {case.scenario}", flush=True)
-        sc, warmup, rows = time_observers(list(case.observers), case.scenario, case.repeat,
-                                          case.warmup, case.steps or None, case.steady,
-                                          case.fast_forward, case.hulls)
+    for case in announced(cases, progress,
+                          lambda c: f"timing {', '.join(c.observers)} on {c.scenario}"):
+        plan = TimingPlan(case.repeat, case.warmup, case.steps or None, case.steady,
+                          case.fast_forward, case.hulls)
+        sc, warmup, rows = time_observers(list(case.observers), case.scenario, plan)
         paper = paper_rows(sc.paper_table, sc.system.A.shape[0])
         for row in rows:
             p = paper.get(row.observer)

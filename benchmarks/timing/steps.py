@@ -285,16 +285,27 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
         stats = getattr(obs, "hull_stats", None)
         if stats is not None:
             lp_runs.append(stats)
-    return _timing_row(name, obs, np.concatenate(steps), np.concatenate(hulls),
-                       _kalman_median_ms(sc, repeat, warmup), warmup + 1, reached, lp_runs)
+    timed = _Timed(np.concatenate(steps), np.concatenate(hulls), warmup + 1, reached)
+    return _timing_row(name, obs, timed, _kalman_median_ms(sc, repeat, warmup), lp_runs)
 
 
-def _timing_row(name: str, obs: Any, step_s: np.ndarray, hull_s: np.ndarray, kalman: float,
-                first_timed: int, steady: bool | None, lp_runs: list) -> TimingRow:
-    """The ``ok`` row of timed steps: ``step_s``/``hull_s`` seconds of each timed step (hull
-    NaN: not timed), ``kalman`` ms, and the median over ``lp_runs`` (the observer's
-    ``hull_stats`` after each timed run) of the hull LP counters."""
-    step, hull = step_s * 1e3, hull_s * 1e3
+@dataclass(frozen=True)
+class _Timed:
+    """The timed steps of one observer: seconds of each step and of its hull (NaN: not
+    timed), the first timed step (1-based) and whether the steady state was reached."""
+
+    step_s: np.ndarray
+    hull_s: np.ndarray
+    first_timed: int
+    steady: bool | None
+
+
+def _timing_row(name: str, obs: Any, timed: _Timed, kalman: float, lp_runs: list
+                ) -> TimingRow:
+    """The ``ok`` row of the ``timed`` steps, ``kalman`` ms, and the median over ``lp_runs``
+    (the observer's ``hull_stats`` after each timed run) of the hull LP counters."""
+    first_timed, steady = timed.first_timed, timed.steady
+    step, hull = timed.step_s * 1e3, timed.hull_s * 1e3
     step_median = float(np.median(step))
     row = TimingRow(
         name, "ok", "", step_median, float(np.percentile(step, 90)), float(np.median(hull)),
@@ -359,8 +370,8 @@ def time_observer_fast_forward(name: str, sc: Scenario, options: dict, timed: in
                          f"{sc.name}", design_s=obs.design_time)
     steady = len(set(sizes[first - MIN_STEADY_STEPS:])) == 1
     stats = getattr(obs, "hull_stats", None)
-    return _timing_row(name, obs, np.array(steps), np.array(hull_times),
-                       _kalman_median_ms(sc, 1, first), first + 1, steady,
+    timed = _Timed(np.array(steps), np.array(hull_times), first + 1, steady)
+    return _timing_row(name, obs, timed, _kalman_median_ms(sc, 1, first),
                        [] if stats is None else [stats])
 
 
@@ -413,18 +424,12 @@ def resolve_warmup(sc: Scenario, warmup: int | None) -> int:
     return warmup
 
 
-def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT,
-                   warmup: int | None = None, steps: int | None = None, steady: bool = False,
-                   fast_forward: int = 0, hulls: bool = True
-                   ) -> tuple[Scenario, int, list[TimingRow]]:
-    """Time every observer of ``names`` on ``scenario`` (see the module docstring).
+@dataclass(frozen=True)
+class TimingPlan:
+    """How :func:`time_observers` times each observer.
 
-    Parameters
+    Attributes
     ----------
-    names : list of str
-        Observer names (each is timed once, in the given order).
-    scenario : str
-        Scenario name (``python -m benchmarks list scenarios``).
     repeat : int
         Runs over the record per observer.
     warmup : int or None
@@ -438,6 +443,28 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
         (:func:`time_observer_fast_forward`; ``repeat``, ``warmup`` and ``steady`` unused).
     hulls : bool
         With ``fast_forward``: time the interval hulls too (else ``step()`` only).
+    """
+
+    repeat: int = DEFAULT_REPEAT
+    warmup: int | None = None
+    steps: int | None = None
+    steady: bool = False
+    fast_forward: int = 0
+    hulls: bool = True
+
+
+def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPlan()
+                   ) -> tuple[Scenario, int, list[TimingRow]]:
+    """Time every observer of ``names`` on ``scenario`` (see the module docstring).
+
+    Parameters
+    ----------
+    names : list of str
+        Observer names (each is timed once, in the given order).
+    scenario : str
+        Scenario name (``python -m benchmarks list scenarios``).
+    plan : TimingPlan
+        Runs, warm-up, steps, steady state or fast forward (default: :class:`TimingPlan`).
 
     Returns
     -------
@@ -453,19 +480,20 @@ def time_observers(names: list[str], scenario: str, repeat: int = DEFAULT_REPEAT
     observers.UnknownObserver, systems.ModelError
         Unknown observer or scenario (before anything runs).
     """
-    if repeat < 1:
-        raise ConfigError(f"--repeat must be at least 1, got {repeat}")
+    if plan.repeat < 1:
+        raise ConfigError(f"--repeat must be at least 1, got {plan.repeat}")
     names = list(dict.fromkeys(names))
     for name in names:
         observers.get(name)  # unknown names fail before anything runs
-    sc = first_steps(systems.scenario(scenario), steps)
-    warmup = resolve_warmup(sc, warmup)
-    if fast_forward > 0:
-        rows = [time_observer_fast_forward(name, sc, merge_options(name, sc), fast_forward,
-                                           hulls)
+    sc = first_steps(systems.scenario(scenario), plan.steps)
+    warmup = resolve_warmup(sc, plan.warmup)
+    if plan.fast_forward > 0:
+        rows = [time_observer_fast_forward(name, sc, merge_options(name, sc),
+                                           plan.fast_forward, plan.hulls)
                 for name in names]
     else:
-        rows = [time_observer(name, sc, merge_options(name, sc), repeat, warmup, steady)
+        rows = [time_observer(name, sc, merge_options(name, sc), plan.repeat, warmup,
+                              plan.steady)
                 for name in names]
     return sc, warmup, rows
 
