@@ -6,6 +6,8 @@ sets (including the first), and ``v_{i,l} = r~_{i,l} / min_l r~_{i,l}``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -20,6 +22,30 @@ PHASE_COLUMNS = {"prediction": "prediction_ms", "update": "update_ms",
 #: the columns of ``summary.csv`` that are measured times (or say how they were timed): they
 #: differ between two runs of the same configuration, every other column must not
 TIMING_COLUMNS = ("step_ms", "hull_ms", "design_s", *PHASE_COLUMNS.values(), "timed")
+
+
+#: the steady part of a record starts after this fraction of its steps: the first steps are
+#: dominated by the initial set, alike for every observer and for the floor, and dilute a
+#: whole-record ratio (``gap``) towards 1; ``gap_steady`` and ``memory`` use the rest
+STEADY_FRACTION = 0.2
+
+
+def steady_start(N: int) -> int:
+    """The first step of the steady part of an ``N``-step record: ``ceil(0.2 N)``
+    (:data:`STEADY_FRACTION`), at most the last step (so that a short record keeps one)."""
+    return min(int(math.ceil(STEADY_FRACTION * N)), max(N - 1, 0))
+
+
+def memory_columns(doubles: np.ndarray | None) -> dict[str, float]:
+    """``memory``: the median number of floating-point values of the estimated set over the
+    steady steps (:func:`steady_start`); ``memory_peak``: the largest over the record
+    (:func:`observers.sets.doubles` per step; NaN where nothing was counted)."""
+    d = np.asarray([] if doubles is None else doubles, float)
+    steady = d[steady_start(d.size):]
+    steady = steady[np.isfinite(steady)]
+    finite = d[np.isfinite(d)]
+    return {"memory": float(np.median(steady)) if steady.size else float("nan"),
+            "memory_peak": float(finite.max()) if finite.size else float("nan")}
 
 
 def rms_radius(radius: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ import numpy as np
 
 from .errors import DesignFailed, Diverged, EmptySet, MeasurementError, OptionError, Unsupported
 from .options import OptionSpec, as_spec
+from .sets import doubles
 
 
 @dataclass(frozen=True)
@@ -250,6 +251,9 @@ class RunResult:
     message: str = ""
     failed_step: int | None = None
     error: BaseException | None = field(default=None, repr=False)  # of status "error"
+    #: the floating-point values each step's set holds (:func:`observers.sets.doubles`; NaN
+    #: where no set was produced or its type is unknown)
+    doubles: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def radius(self) -> np.ndarray:
@@ -356,7 +360,7 @@ def run(
         obs.reset()
     name = getattr(obs, "name", "") or type(obs).__name__
     result = RunResult(name, lo, hi, sets, step_times, hull_times,
-                       float(getattr(obs, "design_time", np.nan)))
+                       float(getattr(obs, "design_time", np.nan)), doubles=np.full(N, np.nan))
     if budget is not None and not (isinstance(budget, (int, float)) and budget > 0):
         raise ValueError(f"budget must be a positive number of seconds, got {budget!r}")
     start = perf_counter()
@@ -397,6 +401,7 @@ def run(
         if not first_radius:  # the first hull with a positive radius sets the scale
             first_radius = float(np.max(I.hi - I.lo, initial=0.0)) / 2
         lo[k], hi[k] = I.lo, I.hi
+        result.doubles[k] = doubles(S)
         if keep_sets:
             sets.append(S)
         if (budget is not None and BUDGET_WINDOW <= k + 1 < N

@@ -130,6 +130,27 @@ def test_floor_columns_on_a_hand_example():
     assert cut["covers_exact"] == "n/a" and np.isnan(cut["gap"]).all()
 
 
+def test_gap_steady_on_a_hand_example_with_a_transient():
+    # 10 steps, 1 state; the floor's radius is 4 on steps 0-1 (the initial set) and 1 after;
+    # the observer's is 4 on steps 0-1 too (the same initial set) and 3 after.  The steady
+    # part starts at ceil(0.2 * 10) = 2: gap_steady = 3 / 1 = 3 exactly, while the whole
+    # record's gap dilutes it: sqrt((2 * 16 + 8 * 9) / 10) / sqrt((2 * 16 + 8) / 10)
+    #                         = sqrt(10.4) / sqrt(4) = 1.6125
+    from benchmarks.metrics import steady_start
+    from benchmarks.run.floor import RecordFloor
+
+    assert steady_start(10) == 2 and steady_start(1) == 0 and steady_start(3) == 1
+    r_floor = np.array([4.0, 4.0] + [1.0] * 8)[:, None]
+    r_obs = np.array([4.0, 4.0] + [3.0] * 8)[:, None]
+    floor = RecordFloor(EXACT, {"filtered": -r_floor}, {"filtered": r_floor})
+    out = floor_columns(floor, "filtered", -r_obs, r_obs, True, 0.0)
+    assert out["gap_steady"][0] == pytest.approx(3.0, rel=1e-15)
+    assert out["gap"][0] == pytest.approx(np.sqrt(10.4) / 2.0, rel=1e-15)
+    # a run cut short has neither
+    cut = floor_columns(floor, "filtered", -r_obs, r_obs * np.nan, False, 0.0)
+    assert np.isnan(cut["gap_steady"]).all()
+
+
 def test_unchecked_steps_of_the_floor_are_not_held_against_observers():
     """Bug: a step whose exact LP was not solved to optimality had a sound but loose floor
     (the predicted bound of the 30-tank record's step 243), and an observer that rightly

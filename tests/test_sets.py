@@ -297,3 +297,26 @@ def test_lifted_pca_uses_wider_clusters():
     U = principal_axes(G @ R, LIFTED_CLUSTER_RTOL)
     np.testing.assert_allclose(np.abs(U), np.eye(2), atol=1e-12)
     assert isinstance(wide, PCA)
+
+
+def test_memory_of_the_set_types_by_hand():
+    # the values that define each set: a zonotope in R^3 with 5 generators holds 3 + 15;
+    # a constrained zonotope with 2 constraints on those 5 factors adds A (10) and b (2);
+    # an ellipsoid in R^3 its centre and 3 x 3 shape matrix, 3 + 9; an interval 2 x 3;
+    # a bundle of the zonotope twice, 36; memory_columns: the median over the steady steps
+    # (from ceil(0.2 N) on) and the peak over all
+    from benchmarks.metrics import memory_columns
+    from observers.sets import ConZonotope, Ellipsoid, Interval, ZonotopeBundle, doubles
+
+    rng = np.random.default_rng(0)
+    Z = Zonotope(rng.normal(size=3), rng.normal(size=(3, 5)))
+    assert doubles(Z) == 18
+    S = ConZonotope(Z.c, Z.G, rng.normal(size=(2, 5)), np.zeros(2))
+    assert doubles(S) == 30
+    assert doubles(Ellipsoid(np.zeros(3), np.eye(3))) == 12
+    assert doubles(Interval(-np.ones(3), np.ones(3))) == 6
+    assert doubles(ZonotopeBundle([Z, Z])) == 36
+    assert np.isnan(doubles(object()))
+    cols = memory_columns(np.array([100.0, 50.0, 10.0, 20.0, 30.0, np.nan]))
+    # N = 6: steady from ceil(1.2) = 2 on: median of (10, 20, 30) = 20; peak 100
+    assert cols == {"memory": 20.0, "memory_peak": 100.0}

@@ -23,6 +23,9 @@ Per observer row (:func:`floor_columns`):
   steps where both are known (every step for a linear record: the observer's ``rms_radius``
   divided by the floor's; the falsifier's steps for a nonlinear one, where the inner box makes
   it an upper bound, ``gap_kind = upper``);
+* ``gap_steady`` per state: the same ratio over the steady steps only, those from
+  :func:`benchmarks.metrics.steady_start` on (the first 20 % of the record, dominated by the
+  initial set for every observer and the floor alike, left out): the gap in operation;
 * ``covers_exact``: ``no`` if at some step the observer's interval hull misses a consistent
   state -- for a linear record, the hull does not contain the exact floor's hull up to
   :data:`COVER_RTOL` of the floor's radius, :data:`COVER_MAG_RTOL` of the bound's magnitude
@@ -54,6 +57,7 @@ from observers.errors import ObserverError, Unsupported
 from observers.sets import SetError
 from systems import ModelError, Scenario
 
+from ..metrics import steady_start
 from ..verdicts import NA, NO, YES
 from .executors import JobFailure
 from .specs import scenario_key, scenario_of
@@ -222,13 +226,13 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
     Returns
     -------
     dict
-        ``floor``, ``gap`` (n,), ``gap_kind``, ``covers_exact``, ``uncovered_steps``,
-        ``first_uncovered_step``.
+        ``floor``, ``gap`` and ``gap_steady`` (n,), ``gap_kind``, ``covers_exact``,
+        ``uncovered_steps``, ``first_uncovered_step``.
     """
     N, n = lo.shape
     out = {"floor": which if floor.usable else NA, "gap": np.full(n, np.nan),
-           "gap_kind": NA, "covers_exact": NA, "uncovered_steps": None,
-           "first_uncovered_step": None}
+           "gap_steady": np.full(n, np.nan), "gap_kind": NA, "covers_exact": NA,
+           "uncovered_steps": None, "first_uncovered_step": None}
     if not floor.usable:
         return out
     flo, fhi = floor.bounds(which, N, n)
@@ -248,10 +252,20 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
     out["uncovered_steps"] = count if exact or count else None
     out["first_uncovered_step"] = int(np.argmax(missed)) if count else -1
     if complete or not exact:
-        r_obs = np.sqrt(np.mean((0.5 * (hi - lo))[have] ** 2, axis=0))
-        r_floor = np.sqrt(np.mean((0.5 * (fhi - flo))[have] ** 2, axis=0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out["gap"] = np.where(r_floor > 0, r_obs / np.where(r_floor > 0, r_floor, 1.0),
-                                  np.inf)
+        steady = have & (np.arange(N) >= steady_start(N))
+        out["gap"] = _rms_ratio(lo, hi, flo, fhi, have)
+        out["gap_steady"] = _rms_ratio(lo, hi, flo, fhi, steady)
         out["gap_kind"] = GAP_EXACT if exact else GAP_UPPER
     return out
+
+
+def _rms_ratio(lo, hi, flo, fhi, steps: np.ndarray) -> np.ndarray:
+    """Per state, the RMS radius of ``[lo, hi]`` over that of ``[flo, fhi]`` on the rows
+    ``steps`` (inf where the floor's is zero, NaN where no step is selected)."""
+    n = lo.shape[1]
+    if not steps.any():
+        return np.full(n, np.nan)
+    r_obs = np.sqrt(np.mean((0.5 * (hi - lo))[steps] ** 2, axis=0))
+    r_floor = np.sqrt(np.mean((0.5 * (fhi - flo))[steps] ** 2, axis=0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(r_floor > 0, r_obs / np.where(r_floor > 0, r_floor, 1.0), np.inf)

@@ -25,7 +25,7 @@ from systems import ModelError, Scenario, available_memory
 
 from ..errors import ConfigError
 from ..io import check_output_dir, environment, write_error, write_results
-from ..metrics import PHASE_COLUMNS, add_relative_rms, median_ms, rms_radius
+from ..metrics import PHASE_COLUMNS, add_relative_rms, median_ms, memory_columns, rms_radius
 from ..verdicts import HULL_AND_EXACT, NA, BenchResult, contained_column, containment_verdict
 from .config import BenchConfig, merge_options
 from .describe import set_bounds
@@ -38,7 +38,7 @@ from .specs import remember_scenario, scenario_key, scenario_of
 RUN_COLUMNS = ["scenario", "seed", "observer", "variant", "step", "t", "state", "lo", "hi",
                "radius", "x_true", "contained", "in_set", "floor_lo", "floor_hi"]
 #: the floor columns of ``summary.csv`` (:mod:`.floor`)
-FLOOR_COLUMNS = ["floor", "gap", "gap_kind", "covers_exact", "uncovered_steps",
+FLOOR_COLUMNS = ["floor", "gap", "gap_steady", "gap_kind", "covers_exact", "uncovered_steps",
                  "first_uncovered_step"]
 
 
@@ -245,6 +245,7 @@ def _rows_summary(run: ObserverRun, containment: str) -> pd.DataFrame:
         "hull_ms": median_ms(res.hull_times) if res is not None else np.nan,
         "design_s": res.design_time if res is not None else np.nan,
         **{col: run.phase_ms.get(col, np.nan) for col in PHASE_COLUMNS.values()},
+        **memory_columns(res.doubles if res is not None else None),
         contained_column(containment): verdict,
         "violations": run.violations if run.in_set is not None else None,
         "first_violation_step": first_violation if run.in_set is not None else None,
@@ -428,7 +429,7 @@ def summary_columns(containment: str) -> list[str]:
     both = ["contained"] if containment == HULL_AND_EXACT else []
     return ["scenario", "seed", "observer", "variant", "state", "state_name", "rms_radius",
             "rel_rms", "step_ms", "hull_ms", "design_s", *PHASE_COLUMNS.values(), "timed",
-            contained_column(containment),
+            "memory", "memory_peak", contained_column(containment),
             *both, "violations", "first_violation_step", *FLOOR_COLUMNS, "status",
             "failed_step", "message", "family", "set_type", "timing", "guaranteed"]
 

@@ -785,6 +785,13 @@ class ExactSet:
         """Dimension n of the state space."""
         return self._hulls.filt_lo.shape[0]
 
+    @property
+    def doubles(self) -> int:
+        """The values that define the set beside the model: the record up to step k (``k``
+        inputs and ``k + 1`` measurements; :func:`observers.sets.doubles`)."""
+        k = self.k
+        return sum(np.size(u) for u in self._u[:k]) + sum(np.size(y) for y in self._y[:k + 1])
+
     def interval(self) -> Interval:
         """The exact (sound) interval hull of the filtered set."""
         return self._hulls.filtered

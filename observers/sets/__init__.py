@@ -31,6 +31,7 @@ from .conzonotope import ConZonotope
 from .ellipsoid import Ellipsoid
 from .interval import Interval
 from .matrix_zonotope import IntervalMatrix, MatrixZonotope
+from .memory import doubles
 from .reduction import (
     PCA,
     CoraPCA,
@@ -58,6 +59,7 @@ __all__ = [
     "SetError",
     "Zonotope",
     "ZonotopeBundle",
+    "doubles",
     "get_reduction",
     "reduction_names",
     "register_reduction",
