@@ -15,7 +15,6 @@ import os
 import sys
 import time
 import warnings
-from importlib import metadata
 from pathlib import Path
 
 import observers
@@ -29,6 +28,7 @@ from .io import (
     blas_corename,
     check_output_dir,
     check_output_file,
+    package_versions,
     path_component,
 )
 from .report import citation, freshness
@@ -327,11 +327,7 @@ def _version() -> str:
     commit = _checkout_commit(Path(__file__).resolve().parent.parent)
     if commit:
         lines.append(f"commit {commit}")
-    for pkg in VERSION_PACKAGES:
-        try:
-            lines.append(f"{pkg} {metadata.version(pkg)}")
-        except metadata.PackageNotFoundError:
-            lines.append(f"{pkg} missing")
+    lines += [f"{pkg} {v}" for pkg, v in package_versions(VERSION_PACKAGES).items()]
     kernel = blas_corename()
     lines.append(f"BLAS {'OpenBLAS ' + kernel if kernel != 'unknown' else 'unknown'}")
     return "\n".join(lines)
@@ -424,6 +420,13 @@ def _add_run(sub) -> None:
     r.set_defaults(func=_cmd_run)
 
 
+def _add_store_folders(parser: argparse.ArgumentParser) -> None:
+    """``--results`` and ``--reports`` of the commands that read the stores and write the
+    committed reports."""
+    parser.add_argument("--results", default="results", help="folder of the stores")
+    parser.add_argument("--reports", default="reports", help="folder of the committed reports")
+
+
 def _add_bench(sub) -> None:
     """The ``bench`` sub-command."""
     be = sub.add_parser("bench", help="bring the result stores up to date (only stale or "
@@ -434,8 +437,7 @@ def _add_bench(sub) -> None:
     be.add_argument("--cold", action="store_true", help="run every row, stale or not")
     be.add_argument("--jobs", type=int, default=None, metavar="N",
                     help="worker processes (default: serial)")
-    be.add_argument("--results", default="results", help="folder of the stores")
-    be.add_argument("--reports", default="reports", help="folder of the committed reports")
+    _add_store_folders(be)
     be.add_argument("--no-progress", action="store_true", help="no progress bar")
     be.add_argument("--html", action="store_true",
                     help="also write RESULTS/<config>/index.html with figures for each "
@@ -447,8 +449,7 @@ def _add_reports(sub) -> None:
     """The ``reports`` sub-command."""
     rr = sub.add_parser("reports", help="render every committed report from its store "
                                         "(no run; changes no byte when nothing changed)")
-    rr.add_argument("--results", default="results", help="folder of the stores")
-    rr.add_argument("--reports", default="reports", help="folder of the committed reports")
+    _add_store_folders(rr)
     rr.set_defaults(func=_cmd_reports)
 
 

@@ -494,6 +494,18 @@ def blas_corename() -> str:
 ENVIRONMENT_PACKAGES = ("numpy", "scipy", "cvxpy", "clarabel", "highspy", "pandas")
 
 
+def package_versions(packages: tuple[str, ...]) -> dict[str, str]:
+    """The installed version of each of ``packages`` (``"missing"`` if not installed): the
+    one reading of versions, for ``meta.json`` (:func:`environment`) and ``--version``."""
+    out = {}
+    for pkg in packages:
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "missing"
+    return out
+
+
 def environment() -> dict[str, str]:
     """Versions and platform of this process, as recorded in ``meta.json`` (``versions``).
 
@@ -506,12 +518,7 @@ def environment() -> dict[str, str]:
         (the short commit of this checkout, ``""`` outside a git checkout).
     """
     out = {"python": sys.version.split()[0], "platform": platform.platform(),
-           "blas_coretype": blas_corename()}
-    for pkg in ENVIRONMENT_PACKAGES:
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "missing"
+           "blas_coretype": blas_corename(), **package_versions(ENVIRONMENT_PACKAGES)}
     try:
         out["git"] = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,

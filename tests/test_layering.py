@@ -5,11 +5,13 @@ cycle; the bottom rooms of ``observers`` importing one way (``observers.kernels`
 ``benchmarks`` importing one way (``cli`` -> wings; ``gate``, ``timing``, ``studies`` ->
 ``run``, ``report``; ``run``, ``report`` -> the shared base modules ``errors``,
 ``io``, ``metrics``, ``verdicts``), matplotlib only in ``benchmarks/report/figures.py``, one
-number formatter (``benchmarks/report/numbers.py``).
+number formatter (``benchmarks/report/numbers.py``), through which every number of a report
+table cell goes; and no import cycle even counting the imports inside functions.
 
 The graph is read from the source with :mod:`ast`: an edge for every import statement at module
 level (also inside ``try``/``if`` blocks, but not under ``if TYPE_CHECKING:``, which never
-runs), none for imports inside functions (they run after every module is loaded).  ``from P
+runs), none for imports inside functions (they run after every module is loaded; the
+``anywhere`` graph counts them too).  ``from P
 import x`` is an edge to the submodule ``P.x`` if there is one, else to the package ``P``;
 the implicit import of parent packages is not an edge (a package that imports its submodules
 in ``__init__`` is the normal layout).  ``python tests/test_layering.py`` prints the cycles.
@@ -18,6 +20,7 @@ in ``__init__`` is the normal layout).  ``python tests/test_layering.py`` prints
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,6 +140,15 @@ def test_the_graph_reads_the_imports():
 
 def test_no_module_level_import_cycle():
     assert cycles(import_graph()) == []
+
+
+def test_no_import_cycle_even_inside_functions():
+    """An import inside a function is an edge too: a circle through one (a module that
+    needs another that needs it back, only later) is still a circle a reader must untie."""
+    modules = all_modules()
+    graph = {name: imports_of(name, path, modules, anywhere=True)
+             for name, path in modules.items()}
+    assert cycles(graph) == []
 
 
 #: the bottom rooms of ``observers`` and what each may import of ours (besides itself), every
@@ -302,6 +314,55 @@ def test_one_number_formatter():
                   for n in ast.walk(ast.parse(path.read_text()))
                   if isinstance(n, ast.FunctionDef) and n.name in ("_fmt", "_num", "fmt"))
     assert defs == ["benchmarks/report/numbers.py:fmt"]
+
+
+#: a format spec that writes a number (``.3g``, ``.4f``, ``.2e``, ``g``, ``%``, ``,``)
+_NUMBER_SPEC = re.compile(r"[eEfFgG%]$|,")
+_PERCENT_SPEC = re.compile(r"%[-+ #0]*\d*(\.\d+)?[eEfFgG]")
+_BRACE_SPEC = re.compile(r"\{[^}]*:[^}]*[eEfFgG%]\}")
+
+
+def own_number_formats(source: str) -> list[str]:
+    """Where ``source`` writes a number itself instead of through ``numbers.fmt``: an
+    f-string field with a number format spec (``f"{v:.3g}"``), ``format(v, spec)``,
+    ``"{:.3g}".format(v)`` or ``"%.3g" % v`` (``line: what``)."""
+    found = []
+    for n in ast.walk(ast.parse(source)):
+        if isinstance(n, ast.FormattedValue) and n.format_spec is not None:
+            spec = "".join(v.value if isinstance(v, ast.Constant) else "{}"
+                           for v in n.format_spec.values)
+            if _NUMBER_SPEC.search(spec):
+                found.append(f"{n.lineno}: f-string :{spec}")
+        elif (isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+              and n.func.id == "format" and len(n.args) > 1):
+            found.append(f"{n.lineno}: format()")
+        elif (isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute)
+              and n.func.attr == "format" and isinstance(n.func.value, ast.Constant)
+              and isinstance(n.func.value.value, str)
+              and _BRACE_SPEC.search(n.func.value.value)):
+            found.append(f"{n.lineno}: str.format")
+        elif (isinstance(n, ast.BinOp) and isinstance(n.op, ast.Mod)
+              and isinstance(n.left, ast.Constant) and isinstance(n.left.value, str)
+              and _PERCENT_SPEC.search(n.left.value)):
+            found.append(f"{n.lineno}: % formatting")
+    return found
+
+
+def test_the_number_format_check_sees_every_way():
+    src = ('a = f"{x:.3g}"\nb = f"{x:{w}.{d}f}"\nc = format(x, ".2e")\n'
+           'd = "{:.4f}".format(x)\ne = "%.1f %%" % x\nf = f"{name!r:>12}"\n')
+    assert sorted(s.split(":")[0] for s in own_number_formats(src)) == ["1", "2", "3", "4", "5"]
+
+
+def test_report_table_cells_use_the_one_formatter():
+    """The modules that make the reports' table cells and the notes beside them
+    (``benchmarks/report/``) write no number themselves: every one goes through
+    ``numbers.fmt`` (numbers.py is the formatter; figures.py draws axis ticks and legend
+    text, no table cell)."""
+    bad = {path.name: own_number_formats(path.read_text())
+           for path in sorted((ROOT / "benchmarks" / "report").glob("*.py"))
+           if path.name not in ("numbers.py", "figures.py")}
+    assert {name: found for name, found in bad.items() if found} == {}
 
 
 if __name__ == "__main__":  # pragma: no cover - a tool for a reader

@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from .freshness import ROOT
+from .numbers import fmt
 
 #: observers whose published rows rest on an undetermined design (see the module docstring)
 CHAOTIC_BY_NATURE = ("PRad-A",)
@@ -63,4 +64,4 @@ def spread_note(observer: str, scenario: str, state: int, baseline: Path = BASEL
         return "kernel spread not measured; design undetermined"
     if spread[state] <= SHOWN_ABOVE:
         return None
-    return f"±{100 * spread[state]:.3g} % across BLAS kernels"
+    return f"±{fmt(100 * spread[state], 3)} % across BLAS kernels"
