@@ -76,6 +76,10 @@ PAPERS = {
         "A. Alanwar, A. Berndt, K. H. Johansson and H. Sandberg",
         "Data-Driven Set-Based Estimation using Matrix Zonotopes with Set Containment "
         "Guarantees", "European Control Conference (ECC)", 2022),
+    "ctms-1999": Paper(
+        "W. C. Messner and D. M. Tilbury",
+        "Control Tutorials for MATLAB and Simulink: A Web-Based Approach",
+        "Addison-Wesley (web edition: Control Tutorials for MATLAB and Simulink, CTMS)", 1999),
 }
 
 #: report (shipped configuration or study) -> the paper it reproduces and what of it
@@ -88,6 +92,7 @@ REPRODUCES = {
     "automatica2021_table3": ("althoff-rath-2021", "the table reproduced: Table 3"),
     "alanwar2022": ("alanwar-2022", "the evaluation reproduced: Sec. IV"),
     "datadriven": ("alanwar-2022", "the evaluation reproduced: Sec. IV"),
+    "textbook": ("ctms-1999", "the plants' models and parameters"),
 }
 
 #: published results table (``systems/data/paper_tables/<key>.yaml``) -> its paper

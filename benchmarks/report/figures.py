@@ -616,3 +616,29 @@ def datadriven(runs: DataDrivenRuns, panels: Sequence[tuple[Sequence[str], str]]
     ax.legend(fontsize=8)
     fig.tight_layout()
     return save_figure(fig, base)
+
+
+def noise_grid(curves: pd.DataFrame, value: str, label: str, record: str,
+               base: Path) -> list[Path]:
+    """The noise-level grid of one record: per axis (the set scaled: W, V, X0 or all), the
+    best ``value`` of each observer family against the scale factor, log-log
+    (``curves``: columns ``axis``, ``family``, ``scale`` and ``value``)."""
+    axes_names = list(dict.fromkeys(curves["axis"]))
+    fig, axes = plt.subplots(1, max(1, len(axes_names)), figsize=(4.2 * len(axes_names), 4),
+                             squeeze=False, sharey=True)
+    families = sorted(curves["family"].unique())
+    colors = plt.get_cmap("tab10").colors
+    for ax, axis in zip(axes[0], axes_names, strict=False):
+        g = curves[curves["axis"] == axis]
+        for k, family in enumerate(families):
+            h = g[g["family"] == family].sort_values("scale")
+            if len(h):
+                ax.loglog(h["scale"], h[value], marker="osD^v<>"[k % 7],
+                          color=colors[k % 10], label=family)
+        ax.set_title(f"{record}: {'W, V and X0' if axis == 'all' else axis} scaled")
+        ax.set_xlabel("scale factor")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].set_ylabel(f"best {label} of the family")
+    axes[0][-1].legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    return save_figure(fig, base, dpi=110)
