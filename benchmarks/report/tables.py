@@ -55,7 +55,11 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "estimator `Exact`, first row; the filtered floor after y_k for observers that use "
          "y_k, the predicted one before it for those ready before it), averaged over the "
          "states (per state in the table below); on a nonlinear record an upper bound "
-         "(`<=`, against an inner box of verified consistent states). `covers exact`: `yes` "
+         "(`<=`, against an inner box of verified consistent states). `gap steady`: the same "
+         "after the first 20 % of the record (the gap in operation: the first steps, where "
+         "the initial set makes every observer and the floor alike, left out). `memory`: the "
+         "floating-point values of the estimated set at steady state (median over the same "
+         "steps; its peak is `memory_peak` in summary.csv). `covers exact`: `yes` "
          "if every interval hull contains the exact floor, `no` with the steps where a state "
          "consistent with the data lies outside it (unsound, whatever the true state did), "
          "`n/a` where nothing could prove it.")
@@ -88,22 +92,30 @@ def _status_cell(g: pd.DataFrame) -> str:
     return f"{status}" + (f" (step {int(step)})" if pd.notna(step) else "")
 
 
-def _gap_values(g: pd.DataFrame) -> np.ndarray:
-    """The per-state gap of one observer's rows (NaN where none: no floor, a failed run)."""
-    if "gap" not in g.columns or g["status"].iloc[0] != "ok":
+def _gap_values(g: pd.DataFrame, column: str = "gap") -> np.ndarray:
+    """The per-state gap of one observer's rows (``column``: ``gap`` over the whole record,
+    ``gap_steady`` after its first 20 %; NaN where none: no floor, a failed run)."""
+    if column not in g.columns or g["status"].iloc[0] != "ok":
         return np.full(len(g), np.nan)
-    return pd.to_numeric(g["gap"], errors="coerce").to_numpy(float)
+    return pd.to_numeric(g[column], errors="coerce").to_numpy(float)
 
 
 def _upper(g: pd.DataFrame) -> bool:
     return "gap_kind" in g.columns and str(g["gap_kind"].iloc[0]).startswith("upper")
 
 
-def _gap_cell(g: pd.DataFrame) -> Num:
-    """The ``gap`` cell: the mean over the states (``<=`` for an upper bound)."""
-    gap = _gap_values(g)
+def _gap_cell(g: pd.DataFrame, column: str = "gap") -> Num:
+    """The ``gap`` (or ``gap steady``) cell: the mean over the states (``<=`` for an upper
+    bound)."""
+    gap = _gap_values(g, column)
     avg = float(np.mean(gap)) if np.isfinite(gap).all() else None
     return Num(avg, prefix="<= " if _upper(g) else "")
+
+
+def _memory_cell(g: pd.DataFrame) -> Num:
+    """The ``memory`` cell: the values of the estimated set at steady state (NaN: unknown)."""
+    value = g["memory"].iloc[0] if "memory" in g.columns else None
+    return Num(None if value is None or pd.isna(value) else float(value))
 
 
 def _covers_cell(g: pd.DataFrame) -> str:
@@ -129,7 +141,8 @@ def gap_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[A
     n = int(df["state"].max()) + 1
     names = info.get("state_names") or [f"x{i + 1}" for i in range(n)]
     show = list(range(n)) if n <= 12 else []
-    head = ["Observer", "floor"] + [f"g{i + 1} {names[i]}" for i in show] + ["mean"]
+    head = ["Observer", "floor"] + [f"g{i + 1} {names[i]}" for i in show] + ["mean",
+                                                                              "steady mean"]
     rows: list[list[Any]] = []
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
@@ -139,7 +152,7 @@ def gap_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[A
         pre = "<= " if _upper(g) else ""
         rows.append([obs, str(g["floor"].iloc[0])] + [Num(gap[i], prefix=pre) for i in show]
                     + [Num(float(np.mean(gap)) if np.isfinite(gap).all() else None,
-                           prefix=pre)])
+                           prefix=pre), _gap_cell(g, "gap_steady")])
     return head, rows
 
 
@@ -279,15 +292,15 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
     # times of jobs that ran concurrently (``run --jobs``) are marked in the header itself
     par = " (parallel)" if timed_in_parallel(df) else ""
     head = (["Observer"] + [f"v{i + 1} {names[i]}" for i in show]
-            + ["avg", "gap", f"step ms{par}", f"hull ms{par}", f"design s{par}", contained,
-               "covers exact"])
+            + ["avg", "gap", "gap steady", f"step ms{par}", f"hull ms{par}", f"design s{par}",
+               "memory", contained, "covers exact"])
     rows: list[list[Any]] = []
     rel, _ = relative_values(df, meta)
     df = df.assign(_rel=rel, _bad=violating(df))
     for obs in table_order(df["observer"].unique()):
         g = df[df["observer"] == obs].sort_values("state")
         if g["status"].iloc[0] == "unsupported":
-            rows.append([obs] + [Num(None)] * (len(show) + 5) + [_status_cell(g), NA])
+            rows.append([obs] + [Num(None)] * (len(show) + 7) + [_status_cell(g), NA])
             continue
         p = paper.get(obs.split("[")[0])  # a labelled variant NAME[tag]: NAME's published row
         r = g["_rel"].to_numpy(float)
@@ -299,13 +312,14 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
         if paper and p is None and not pstat:  # not part of the published comparison
-            cells += [Num(avg, note=NA), _gap_cell(g), Num(g["step_ms"].iloc[0], note=NA)]
+            cells += [Num(avg, note=NA), _gap_cell(g), _gap_cell(g, "gap_steady"),
+                      Num(g["step_ms"].iloc[0], note=NA)]
         else:
             cells.append(Num(avg, p.avg if p else None) if not pstat else Num(avg, note=pstat))
-            cells.append(_gap_cell(g))
+            cells += [_gap_cell(g), _gap_cell(g, "gap_steady")]
             cells.append(Num(g["step_ms"].iloc[0], p.t_ms if p else None))
-        cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _status_cell(g),
-                  _covers_cell(g)]
+        cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _memory_cell(g),
+                  _status_cell(g), _covers_cell(g)]
         rows.append(cells)
     return head, format_columns(rows)
 
