@@ -35,9 +35,15 @@ def test_tiny_study_runs_and_reports(tmp_path):
     assert df["pareto"].any()
     out = tmp_path / "frontier.md"
     fig = frontier.figures.frontier(df, tmp_path / "frontier")[0]
-    text = frontier.report(df, fig, out, budget=120, elapsed=1.0)
+    fig_memory = frontier.figures.frontier(df, tmp_path / "frontier_memory", x="memory")[0]
+    text = frontier.report(df, fig, out, budget=120, elapsed=1.0, fig_memory=fig_memory)
     assert "Pareto front, cheapest first:" in text and "| MHE | window=1 |" in text
-    assert fig.is_file()
+    assert fig.is_file() and fig_memory.is_file() and "gap against memory" in text
+    # MHE returns the interval hull of its window (2 n values of the 2-D state); FRad-A a
+    # zonotope of order at most 5: at most 2 + 2 * 10 values
+    assert (df[df["observer"] == "MHE"]["memory"] == 4).all()
+    assert 0 < df[df["observer"] == "FRad-A"]["memory"].iloc[0] <= 22
+    assert (df["gap_steady"] >= 1 - 1e-6).all()
 
 
 def test_budget_spent_marks_the_rest_not_run():

@@ -526,10 +526,16 @@ def scaling(df: pd.DataFrame, variants: Sequence[str], realtime_ms: float,
     return save_figure(fig, base, dpi=110)
 
 
-def frontier(df: pd.DataFrame, base: Path) -> list[Path]:
-    """Log-log plot of the gap to the exact floor against the cost (ratio to a Kalman step),
-    one panel per record: each observer's settings joined in knob order and labelled with
-    the knob's value, the Pareto front as a black staircase."""
+#: the x axes of the frontier figure: column -> label
+FRONTIER_AXES = {"cost_ratio": "cost per step (step + hull) / Kalman step",
+                 "memory": "memory of the set (floating-point values, steady state)"}
+
+
+def frontier(df: pd.DataFrame, base: Path, x: str = "cost_ratio") -> list[Path]:
+    """Log-log plot of the gap to the exact floor against the cost (ratio to a Kalman step)
+    or, ``x="memory"``, against the memory of the estimated set, one panel per record: each
+    observer's settings joined in knob order and labelled with the knob's value, the Pareto
+    front of gap and cost as a black staircase (on the cost axis only)."""
     records = list(dict.fromkeys(df["record"]))
     fig, axes = plt.subplots(1, max(1, len(records)), figsize=(6 * max(1, len(records)), 5),
                              squeeze=False)
@@ -538,13 +544,13 @@ def frontier(df: pd.DataFrame, base: Path) -> list[Path]:
         g = df[(df["record"] == record) & (df["status"] == "ok")]
         for k, name in enumerate(dict.fromkeys(g["observer"])):
             h = g[g["observer"] == name]
-            ax.loglog(h["cost_ratio"], h["gap"], marker="osD^v<>"[k % 7], ms=5,
+            ax.loglog(h[x], h["gap"], marker="osD^v<>"[k % 7], ms=5,
                       color=colors[k % 10], label=name, linewidth=1)
             for r in h.itertuples(index=False):
-                ax.annotate(str(r.value), (r.cost_ratio, r.gap), fontsize=6,
+                ax.annotate(str(r.value), (getattr(r, x), r.gap), fontsize=6,
                             xytext=(3, 3), textcoords="offset points", color=colors[k % 10])
         f = g[g["pareto"].astype(bool)].sort_values("cost_ratio")
-        if len(f):
+        if len(f) and x == "cost_ratio":
             ax.step(f["cost_ratio"], f["gap"], where="post", color="k", linewidth=1.5,
                     alpha=0.6, label="Pareto front")
             ax.scatter(f["cost_ratio"], f["gap"], s=60, facecolors="none", edgecolors="k")
@@ -554,7 +560,7 @@ def frontier(df: pd.DataFrame, base: Path) -> list[Path]:
             ax.text(0.5, 0.5, "no setting ran (see the report)", ha="center",
                     transform=ax.transAxes)
         ax.set_title(record)
-        ax.set_xlabel("cost per step (step + hull) / Kalman step")
+        ax.set_xlabel(FRONTIER_AXES[x])
         ax.set_ylabel("gap to the exact floor (1 = optimal)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="upper right")

@@ -43,7 +43,7 @@ from observers.errors import ObserverError
 from systems import ModelError
 
 from ..io import atomic_write_csv, atomic_write_text, environment
-from ..metrics import warmup_steps
+from ..metrics import memory_columns, warmup_steps
 from ..report import figures, freshness
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
@@ -86,7 +86,8 @@ SETTINGS: dict[str, list[tuple[str, str, tuple]]] = {
 #: fixed options of a labelled variant ``NAME[tag]``
 VARIANTS = {"MHE[lp]": {"formulation": "lp"}, "FRad-A[girard]": {"reduction": "girard"}}
 COLUMNS = ["record", "steps", "observer", "knob", "value", "status", "message", "gap",
-           "cost_ms", "kalman_ms", "cost_ratio", "covers_exact", "violations", "pareto"]
+           "gap_steady", "cost_ms", "kalman_ms", "cost_ratio", "memory", "covers_exact",
+           "violations", "pareto"]
 
 
 def _options(sc, name: str, knob: str, value) -> dict:
@@ -105,8 +106,9 @@ def _options(sc, name: str, knob: str, value) -> dict:
 def run_setting(sc, floor, kalman_ms: float, name: str, knob: str, value) -> dict:
     """One observer setting on one record: status, gap, cost, soundness."""
     row = {"observer": name, "knob": knob, "value": str(value), "status": "ok", "message": "",
-           "gap": np.nan, "cost_ms": np.nan, "kalman_ms": kalman_ms, "cost_ratio": np.nan,
-           "covers_exact": "n/a", "violations": np.nan}
+           "gap": np.nan, "gap_steady": np.nan, "cost_ms": np.nan, "kalman_ms": kalman_ms,
+           "cost_ratio": np.nan, "memory": np.nan, "covers_exact": "n/a",
+           "violations": np.nan}
     base = name.split("[")[0]
     try:
         obs = observers.create(base, sc.system, **_options(sc, name, knob, value))
@@ -124,7 +126,9 @@ def run_setting(sc, floor, kalman_ms: float, name: str, knob: str, value) -> dic
     cols = floor_columns(floor, observer_floor(base), res.lo, res.hi, True, tol)
     viol = int((((res.lo > sc.x_true + tol) | (sc.x_true > res.hi + tol)).any(axis=1)).sum()
                ) if sc.x_true is not None else np.nan
-    row.update(gap=float(np.mean(cols["gap"])), cost_ms=cost, cost_ratio=cost / kalman_ms,
+    row.update(gap=float(np.mean(cols["gap"])), gap_steady=float(np.mean(cols["gap_steady"])),
+               cost_ms=cost, cost_ratio=cost / kalman_ms,
+               memory=memory_columns(res.doubles)["memory"],
                covers_exact=cols["covers_exact"], violations=viol)
     return row
 
@@ -204,7 +208,8 @@ def front_sentence(g: pd.DataFrame) -> str:
     return "Pareto front, cheapest first: " + "; ".join(parts) + "."
 
 
-def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: float) -> str:
+def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: float,
+           fig_memory: Path | None = None) -> str:
     """The Markdown report; it ends with what to cite (:mod:`benchmarks.report.citation`)."""
     env = environment()
     parts = [
@@ -220,8 +225,14 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: fl
         f"(git {env.get('git', '?')}).", "",
         f"![gap against cost]({fig.relative_to(out.parent).as_posix()})", "",
     ]
-    head = ["observer", "setting", "gap", "ms / step", "x Kalman", "covers exact",
-            "violations", "Pareto"]
+    if fig_memory is not None:
+        parts += ["**Memory**: the floating-point values of the estimated set at steady state "
+                  "(median over the steps after the first 20 % of the record); **gap steady**: "
+                  "the gap over the same steps.", "",
+                  f"![gap against memory]({fig_memory.relative_to(out.parent).as_posix()})",
+                  ""]
+    head = ["observer", "setting", "gap", "gap steady", "ms / step", "x Kalman", "memory",
+            "covers exact", "violations", "Pareto"]
     for record, g in df.groupby("record", sort=False):
         kal = g["kalman_ms"].dropna()
         parts += [f"## {record} ({int(g['steps'].iloc[0])} steps, Kalman step "
@@ -231,10 +242,11 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: fl
         for r in g.itertuples(index=False):
             if r.status != "ok":
                 rows.append([r.observer, f"{r.knob}={r.value}", f"{r.status}: {r.message}",
-                             MISSING, MISSING, MISSING, MISSING, ""])
+                             MISSING, MISSING, MISSING, MISSING, MISSING, MISSING, ""])
                 continue
-            rows.append([r.observer, f"{r.knob}={r.value}", fmt(r.gap, 3), fmt(r.cost_ms, 3),
-                         fmt(r.cost_ratio, 3), r.covers_exact, fmt(r.violations),
+            rows.append([r.observer, f"{r.knob}={r.value}", fmt(r.gap, 3),
+                         fmt(r.gap_steady, 3), fmt(r.cost_ms, 3), fmt(r.cost_ratio, 3),
+                         fmt(r.memory), r.covers_exact, fmt(r.violations),
                          "*" if r.pareto else ""])
         parts += markdown_table(head, rows).splitlines() + [""]
     parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
@@ -262,7 +274,9 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_csv(Path(args.results) / "frontier.csv", df)
     out = Path(args.out)
     fig = figures.frontier(df, out.parent / out.stem)[0]
-    text = report(df, fig, out, budget=args.budget, elapsed=elapsed).rstrip("\n")
+    fig_memory = figures.frontier(df, out.parent / f"{out.stem}_memory", x="memory")[0]
+    text = report(df, fig, out, budget=args.budget, elapsed=elapsed,
+                  fig_memory=fig_memory).rstrip("\n")
     regen = f"python -m benchmarks.studies.frontier --out {out} --results {args.results}"
     atomic_write_text(out, f"{text}\n\n{freshness.measured(regen)}\n")
     print(f"wrote {out}, {fig} and {Path(args.results) / 'frontier.csv'}")
