@@ -14,12 +14,24 @@ def frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def vector(x, name: str, dim: int | None = None) -> np.ndarray:
-    """Validate ``x`` as a finite 1-D float vector (scalars become length-1 vectors)."""
+def _numeric(x, name: str) -> np.ndarray:
+    """``x`` as a float array, or a :class:`SetError` naming ``name``."""
     try:
-        a = np.asarray(x, dtype=float)
+        return np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
         raise SetError(f"{name} must be numeric, got {type(x).__name__}") from exc
+
+
+def _finite(a: np.ndarray, name: str) -> np.ndarray:
+    """``a`` if every entry is finite, else a :class:`SetError` naming ``name``."""
+    if not np.all(np.isfinite(a)):
+        raise SetError(f"{name} contains non-finite values")
+    return a
+
+
+def vector(x, name: str, dim: int | None = None) -> np.ndarray:
+    """Validate ``x`` as a finite 1-D float vector (scalars become length-1 vectors)."""
+    a = _numeric(x, name)
     if a.ndim == 0:
         a = a.reshape(1)
     elif a.ndim == 2 and 1 in a.shape:
@@ -28,17 +40,12 @@ def vector(x, name: str, dim: int | None = None) -> np.ndarray:
         raise SetError(f"{name} must be a vector, got an array of shape {a.shape}")
     if dim is not None and a.shape[0] != dim:
         raise SetError(f"{name} must have length {dim}, got {a.shape[0]}")
-    if not np.all(np.isfinite(a)):
-        raise SetError(f"{name} contains non-finite values")
-    return a
+    return _finite(a, name)
 
 
 def matrix(M, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
     """Validate ``M`` as a finite 2-D float matrix with optional fixed row/column counts."""
-    try:
-        a = np.asarray(M, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise SetError(f"{name} must be numeric, got {type(M).__name__}") from exc
+    a = _numeric(M, name)
     if a.ndim == 0:
         a = a.reshape(1, 1)
     elif a.ndim == 1:
@@ -56,9 +63,7 @@ def matrix(M, name: str, rows: int | None = None, cols: int | None = None) -> np
         raise SetError(f"{name} must have {rows} rows, got shape {a.shape}")
     if cols is not None and a.shape[1] != cols:
         raise SetError(f"{name} must have {cols} columns, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise SetError(f"{name} contains non-finite values")
-    return a
+    return _finite(a, name)
 
 
 def linear_map_matrix(M, dim: int) -> np.ndarray:
@@ -98,3 +103,25 @@ def strips(C, y, sigma, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if np.any(sigma < 0):
         raise SetError("strip half-widths sigma must be non-negative")
     return C, y, sigma
+
+
+class CentreGenerators:
+    """The shape queries of a set given by a centre ``_c`` (n) and generators ``_G`` (n x r):
+    :attr:`dim`, :attr:`num_generators` and :meth:`center` (zonotopes and constrained
+    zonotopes; no state of its own)."""
+
+    __slots__ = ()
+
+    @property
+    def dim(self) -> int:
+        """Dimension n of the ambient space."""
+        return self._c.shape[0]
+
+    @property
+    def num_generators(self) -> int:
+        """Number r of generators."""
+        return self._G.shape[1]
+
+    def center(self) -> np.ndarray:
+        """Centre ``c`` (of a constrained zonotope not necessarily a point of the set)."""
+        return self._c

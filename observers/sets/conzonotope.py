@@ -7,13 +7,21 @@ import numpy as np
 from ..errors import EmptySet, SetError
 from ..lp import HullLP, box_feasible
 from . import conzono_ops as ops
-from ._arrays import direction, frozen, linear_map_matrix, matrix, strips, vector
+from ._arrays import (
+    CentreGenerators,
+    direction,
+    frozen,
+    linear_map_matrix,
+    matrix,
+    strips,
+    vector,
+)
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope
 
 
-class ConZonotope:
+class ConZonotope(CentreGenerators):
     """Constrained zonotope with centre ``c`` (n), generators ``G`` (n x r) and constraints
     ``A xi = b`` (``A``: nc x r, ``b``: nc).
 
@@ -98,23 +106,9 @@ class ConZonotope:
     b = property(lambda self: self._b, doc="Constraint offsets (nc).")
 
     @property
-    def dim(self) -> int:
-        """Dimension n of the ambient space."""
-        return self._c.shape[0]
-
-    @property
-    def num_generators(self) -> int:
-        """Number r of generators."""
-        return self._G.shape[1]
-
-    @property
     def num_constraints(self) -> int:
         """Number nc of equality constraints."""
         return self._A.shape[0]
-
-    def center(self) -> np.ndarray:
-        """Centre ``c`` (not necessarily a point of the set)."""
-        return self._c
 
     # -- operations -------------------------------------------------------------------------
     def __add__(self, other) -> ConZonotope:

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..errors import SetError
 from ..lp import box_feasible
-from ._arrays import direction, frozen, linear_map_matrix, matrix, vector
+from ._arrays import CentreGenerators, direction, frozen, linear_map_matrix, matrix, vector
 from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 
@@ -36,7 +36,7 @@ def strip_generators(G: np.ndarray, Lam: np.ndarray, C: np.ndarray,
     return out
 
 
-class Zonotope:
+class Zonotope(CentreGenerators):
     """Zonotope with centre ``c`` (length n) and generator matrix ``G`` (n x r).
 
     Operators: ``Z1 + Z2`` is the Minkowski sum (generators concatenated in this order,
@@ -100,23 +100,9 @@ class Zonotope:
         return self._G
 
     @property
-    def dim(self) -> int:
-        """Dimension n of the ambient space."""
-        return self._c.shape[0]
-
-    @property
-    def num_generators(self) -> int:
-        """Number r of generators."""
-        return self._G.shape[1]
-
-    @property
     def order(self) -> float:
         """Order ``r / n`` (CORA's definition)."""
         return self.num_generators / self.dim
-
-    def center(self) -> np.ndarray:
-        """Centre (alias of :attr:`c`)."""
-        return self._c
 
     # -- operations -------------------------------------------------------------------------
     def __add__(self, other) -> Zonotope:
