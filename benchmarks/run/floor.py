@@ -17,6 +17,10 @@ it:
   :data:`FALSIFIER_FIRST` of the record on; the extremes form an *inner* box of the filtered
   consistent set (also inside the predicted one).
 
+A run computes the floor of every scenario instance before the observers' jobs, by its
+executor (:func:`compute_floors`: one :class:`FloorTask` per instance, run by
+:func:`floor_task` in this process or a worker).
+
 Per observer row (:func:`floor_columns`):
 
 * ``gap`` per state: the RMS radius of the observer over the RMS radius of its floor, over the
