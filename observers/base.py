@@ -378,19 +378,8 @@ def run(
                 result.lo = lo = np.full((N, n), np.nan)
                 result.hi = hi = np.full((N, n), np.nan)
             _check_hull(I, k, n)
-        except Diverged as exc:
-            result.status, result.message = "diverged", str(exc)
-            result.failed_step = k if exc.step is None else exc.step
-            break
-        except EmptySet as exc:  # no state is consistent with the record: a failed estimate
-            result.status, result.failed_step = "empty", k
-            result.message = f"step {k}: the estimate is empty ({exc})"
-            break
         except Exception as exc:
-            if on_error == "raise":
-                raise
-            result.status, result.failed_step, result.error = "error", k, exc
-            result.message = f"step {k}: {type(exc).__name__}: {exc}"
+            _stop(result, k, exc, on_error)
             break
         step_times[k], hull_times[k] = t1 - t0, t2 - t1
         why = _divergence(I, divergence_bound, first_radius)
@@ -408,6 +397,23 @@ def run(
                 and _over_budget(result, k, N, start, budget)):
             break
     return result
+
+
+def _stop(result: RunResult, k: int, exc: Exception, on_error: str) -> None:
+    """The status of a run whose step ``k`` raised ``exc``: ``diverged`` (a
+    :class:`Diverged`), ``empty`` (an :class:`EmptySet`: no state is consistent with the
+    record, a failed estimate), else ``error`` (``on_error="status"``) or ``exc`` again."""
+    if isinstance(exc, Diverged):
+        result.status, result.message = "diverged", str(exc)
+        result.failed_step = k if exc.step is None else exc.step
+    elif isinstance(exc, EmptySet):
+        result.status, result.failed_step = "empty", k
+        result.message = f"step {k}: the estimate is empty ({exc})"
+    elif on_error == "raise":
+        raise exc
+    else:
+        result.status, result.failed_step, result.error = "error", k, exc
+        result.message = f"step {k}: {type(exc).__name__}: {exc}"
 
 
 #: a hull whose largest radius exceeds this multiple of the first hull's has diverged: its
