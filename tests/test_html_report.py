@@ -94,6 +94,20 @@ def test_ranking_hand_example():
     assert rk.loc["b", "mean_rel_rms"] == pytest.approx((1.5 + 1.0) / 2)
 
 
+def test_ranking_gap_steady_and_memory_by_hand():
+    # one observer on two linear scenarios and a nonlinear one (one state each): mean gap over
+    # the linear ones (2 + 4) / 2 = 3, mean steady gap (3 + 5) / 2 = 4 (the nonlinear
+    # scenario's upper-bound gap is not averaged in); memory the median of (10, 30, 50) = 30
+    s = pd.DataFrame({
+        "scenario": ["s1", "s2", "s3"], "observer": ["a"] * 3, "state": [0, 0, 0],
+        "rel_rms": [1.0, 1.0, 1.0], "status": ["ok"] * 3, "violations": [0, 0, 0],
+        "gap": [2.0, 4.0, 9.0], "gap_steady": [3.0, 5.0, 9.0],
+        "gap_kind": ["exact", "exact", "upper bound"], "memory": [10.0, 30.0, 50.0]})
+    rk = ranking(s)
+    assert rk.loc["a", "mean_gap"] == 3.0 and rk.loc["a", "mean_gap_steady"] == 4.0
+    assert rk.loc["a", "memory"] == 30.0  # the median over the three scenarios
+
+
 def test_index_links_reports_and_html(tmp_path, results):
     reports = tmp_path / "reports"
     reports.mkdir()

@@ -189,7 +189,9 @@ def ranking(summary: pd.DataFrame) -> pd.DataFrame:
     """Ranking summary over the scenarios of a run: per observer the mean relative RMS per
     scenario (eq. 9 against all observers of the run), its rank in each scenario (1 = the
     tightest), the mean rank over the scenarios where it ran, the mean over the linear records
-    of its mean gap to the exact floor (1 = optimal), and its containment violations.
+    of its mean gap to the exact floor (1 = optimal; also over the steady steps, after the
+    first 20 % of each record), the median over the scenarios of the memory of its set, and
+    its containment violations.
     Observers that failed or do not apply in a scenario are not ranked there."""
     df = summary[summary["status"] != "unsupported"]
     per = (df[df["status"] == "ok"].groupby(["scenario", "observer"])["rel_rms"].mean()
@@ -203,13 +205,22 @@ def ranking(summary: pd.DataFrame) -> pd.DataFrame:
     out = out.reindex(table_order(pairs["observer"].unique()))
     out["failed"] = failed.reindex(out.index).fillna(0).astype(int)
     out["violations"] = viol.reindex(out.index)
-    if "gap" in df.columns:  # mean over the scenarios of the mean gap to the exact floor
-        exact = df[(df["status"] == "ok") & (df["gap_kind"] == "exact")]
-        gap = exact.assign(gap=pd.to_numeric(exact["gap"], errors="coerce")).groupby(
-            ["scenario", "observer"])["gap"].mean().groupby("observer").mean()
-        out["mean_gap"] = gap.reindex(out.index)
+    exact = df[(df["status"] == "ok") & (df["gap_kind"] == "exact")] if "gap_kind" in \
+        df.columns else df.iloc[:0]
+    for column, name in (("gap", "mean_gap"), ("gap_steady", "mean_gap_steady")):
+        # the mean over the linear scenarios of the observer's mean gap to the exact floor
+        if column in exact.columns:
+            gap = exact.assign(v=pd.to_numeric(exact[column], errors="coerce")).groupby(
+                ["scenario", "observer"])["v"].mean().groupby("observer").mean()
+            out[name] = gap.reindex(out.index)
+        else:
+            out[name] = np.nan
+    if "memory" in df.columns:  # the median over the scenarios of the set's memory
+        mem = df[df["status"] == "ok"].drop_duplicates(["scenario", "observer"])
+        out["memory"] = pd.to_numeric(mem["memory"], errors="coerce").groupby(
+            mem["observer"]).median().reindex(out.index)
     else:
-        out["mean_gap"] = np.nan
+        out["memory"] = np.nan
     return out.sort_values(["mean_rank", "mean_rel_rms"], na_position="last")
 
 
@@ -217,9 +228,10 @@ def ranking_table(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """Header and rows of :func:`ranking` (each number column in one notation)."""
     rk = ranking(summary)
     head = ["Observer", "mean rank", "mean rel. RMS", "mean gap (exact floor)",
-            "scenarios ranked", "failed", "violations"]
-    rows = [[obs, Num(r.mean_rank), Num(r.mean_rel_rms), Num(r.mean_gap), str(int(r.ranked))
-             if pd.notna(r.ranked) else "0", str(int(r.failed)),
+            "mean gap steady", "memory (median)", "scenarios ranked", "failed", "violations"]
+    rows = [[obs, Num(r.mean_rank), Num(r.mean_rel_rms), Num(r.mean_gap),
+             Num(r.mean_gap_steady), Num(r.memory),
+             str(int(r.ranked)) if pd.notna(r.ranked) else "0", str(int(r.failed)),
              MISSING if pd.isna(r.violations) else str(int(r.violations))]
             for obs, r in rk.iterrows()]
     return head, format_columns(rows)

@@ -245,9 +245,9 @@ def report(df: pd.DataFrame, fig: Path, out: Path, *, budget: float, elapsed: fl
                              MISSING, MISSING, MISSING, MISSING, MISSING, MISSING, ""])
                 continue
             rows.append([r.observer, f"{r.knob}={r.value}", fmt(r.gap, 3),
-                         fmt(r.gap_steady, 3), fmt(r.cost_ms, 3), fmt(r.cost_ratio, 3),
-                         fmt(r.memory), r.covers_exact, fmt(r.violations),
-                         "*" if r.pareto else ""])
+                         fmt(getattr(r, "gap_steady", np.nan), 3), fmt(r.cost_ms, 3),
+                         fmt(r.cost_ratio, 3), fmt(getattr(r, "memory", np.nan)),
+                         r.covers_exact, fmt(r.violations), "*" if r.pareto else ""])
         parts += markdown_table(head, rows).splitlines() + [""]
     parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
               *citation_lines("frontier"), ""]
