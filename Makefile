@@ -23,11 +23,12 @@ help:  ## list the targets
 	@echo
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | awk -F'\t' '{printf "  make %-12s %s\n", $$1, $$2}'
 	@echo
-	@echo "code: observers/ (sets, family loops, plugins builtin/X.py + numerics/X.py), systems/ (models,"
-	@echo "scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner -> executors),"
-	@echo "report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph, fingerprint,"
-	@echo "store, bench, stale), gate/ (regression, budget, blas, policy, audit, audit_store, history),"
-	@echo "timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, alanwar2022); cli.py parses and prints"
+	@echo "code: observers/ (kernels/ <- lp/ <- sets/ <- family loops, plugins builtin/X.py + numerics/X.py),"
+	@echo "systems/ (models, scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner ->"
+	@echo "executors), report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph,"
+	@echo "fingerprint, store, bench, stale), gate/ (regression, budget, blas, policy, audit, audit_store,"
+	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, alanwar2022); cli.py"
+	@echo "parses and prints"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
