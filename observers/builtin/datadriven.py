@@ -304,23 +304,10 @@ class DDCZA1(ReverseMapping, ConZonotopeDD):
 
     Notes
     -----
-    *Time update* (Alanwar et al. 2022, Theorem 1, eq. (15)) with the learned set of models
-    :math:`\mathcal{M}_\Sigma = \langle C_M, G_M^{(1:h)} \rangle \ni [A\ B]` and the
-    input as a point, :math:`\tilde{\mathcal{R}}_{k} = \mathcal{M}_\Sigma
-    (\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\}) + \mathcal{Z}_w`, enclosed soundly: for
-    :math:`\hat{\mathcal{R}}_{k-1} \times \{u_{k-1}\} = \langle c_e, G_e \rangle`,
-    :math:`c_e = [\hat c; u_{k-1}]`, :math:`G_e = [\hat G; 0]`,
-
-    .. math::
-
-        \tilde c_k = C_M c_e + c_w, \qquad
-        \tilde G_k = \begin{bmatrix} C_M G_e & G_M^{(1)} c_e & \cdots & G_M^{(h)} c_e &
-        \operatorname{diag}\bigl(\sum_i |G_M^{(i)} G_e| \mathbf{1}\bigr) & G_w
-        \end{bmatrix}
-
-    (the last block before :math:`G_w` boxes the bilinear terms
-    :math:`\beta_i G_M^{(i)} G_e \xi`).  The constraints :math:`\hat A \xi = \hat b` of the estimate
-    carry over, padded with zero columns for the new generators.
+    *Time update*: the sound enclosure of Alanwar et al. 2022, Theorem 1, eq. (15), as in
+    :class:`DDZA1` (the learned set of models applied to the estimate and the input as a
+    point, the bilinear terms boxed).  The constraints :math:`\hat A \xi = \hat b` of the
+    estimate carry over, padded with zero columns for the new generators.
 
     *Measurement update* (approach 1 with constrained zonotopes, Sec. III-C1): the
     prediction :math:`\tilde{\mathcal{C}}_k = \langle c, G, A, b \rangle` is intersected
