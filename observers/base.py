@@ -324,8 +324,9 @@ def run(
 
     ``step()`` and the interval hull are timed separately (``step_times``, ``hull_times``).
     A :class:`~observers.errors.Diverged` raised by the observer, a non-finite hull, a hull
-    beyond ``divergence_bound`` or one that grew beyond :data:`GROWTH_BOUND` times the first
-    hull (largest radii) ends the run with status ``"diverged"``; an empty estimate
+    beyond ``divergence_bound`` or one that grew beyond :data:`GROWTH_BOUND` times the initial
+    scale (the largest radius of ``X0`` or of the first hull) ends the run with status
+    ``"diverged"``; an empty estimate
     (:class:`~observers.sets.EmptySet`: the measurements contradict the model and noise
     bounds, or a numerical failure) with status ``"empty"``; the remaining rows are NaN.
     Any other exception of ``step`` or ``interval`` propagates (``on_error="raise"``) or ends
@@ -364,7 +365,9 @@ def run(
     if budget is not None and not (isinstance(budget, (int, float)) and budget > 0):
         raise ValueError(f"budget must be a positive number of seconds, got {budget!r}")
     start = perf_counter()
-    first_radius = 0.0  # the largest radius of the first hull (the scale of the growth test)
+    # the scale of the growth test: the largest radius of X0 (where the system gives it) or,
+    # if larger, of the first hull with a positive radius
+    first_radius, first_hull_seen = _initial_radius(obs), False
     for k in range(N):
         u_prev = u[k - 1] if k > 0 else None
         try:
@@ -387,8 +390,9 @@ def run(
             result.status, result.failed_step = "diverged", k
             result.message = f"step {k}: {why}"
             break
-        if not first_radius:  # the first hull with a positive radius sets the scale
-            first_radius = float(np.max(I.hi - I.lo, initial=0.0)) / 2
+        if not first_hull_seen and np.max(I.hi - I.lo, initial=0.0) > 0:
+            first_hull_seen = True
+            first_radius = max(first_radius, float(np.max(I.hi - I.lo)) / 2)
         lo[k], hi[k] = I.lo, I.hi
         result.doubles[k] = doubles(S)
         if keep_sets:
@@ -416,7 +420,9 @@ def _stop(result: RunResult, k: int, exc: Exception, on_error: str) -> None:
         result.message = f"step {k}: {type(exc).__name__}: {exc}"
 
 
-#: a hull whose largest radius exceeds this multiple of the first hull's has diverged: its
+#: a hull whose largest radius exceeds this multiple of the initial scale (the largest radius
+#: of X0, or of the first hull if that is larger: a first estimate pinned by an exact-looking
+#: measurement, 1e-13 wide on a vertex realisation, is no scale) has diverged: its
 #: generators are then so large that rounding, not the measurements, decides its thin
 #: directions (an exploding estimate loses the true state in the last bits long before it
 #: leaves +-1e12: measured on the bus suspension, a data-driven estimate growing 1.4x per step
@@ -427,10 +433,21 @@ def _stop(result: RunResult, k: int, exc: Exception, on_error: str) -> None:
 GROWTH_BOUND = 1e7
 
 
+def _initial_radius(obs: Any) -> float:
+    """The largest radius of the interval hull of the system's initial set ``X0`` (0 where
+    the observer has no system with one)."""
+    X0 = getattr(getattr(obs, "system", None), "X0", None)
+    try:
+        I = X0.interval()
+        return float(np.max(I.hi - I.lo, initial=0.0)) / 2
+    except (AttributeError, TypeError, ValueError):
+        return 0.0
+
+
 def _divergence(I: Any, bound: float, first_radius: float) -> str:
     """Why the hull ``I`` means the run diverged (empty string: it did not): a non-finite
     bound, a bound beyond ``+-bound``, or a largest radius beyond :data:`GROWTH_BOUND` times
-    ``first_radius`` (the largest radius of the first hull with a positive one; 0: none yet)."""
+    ``first_radius`` (the initial scale: X0's largest radius or the first hull's; 0: none)."""
     if not (np.all(np.isfinite(I.lo)) and np.all(np.isfinite(I.hi))):
         return "interval hull not finite"
     if max(np.abs(I.lo).max(initial=0.0), np.abs(I.hi).max(initial=0.0)) > bound:
@@ -438,7 +455,7 @@ def _divergence(I: Any, bound: float, first_radius: float) -> str:
     radius = float(np.max(I.hi - I.lo, initial=0.0)) / 2
     if first_radius and radius > GROWTH_BOUND * first_radius:
         return (f"interval hull grew to {radius:.3g}, more than {GROWTH_BOUND:g} times the "
-                f"first estimate's {first_radius:.3g}")
+                f"initial {first_radius:.3g} (X0 or the first estimate)")
     return ""
 
 

@@ -107,6 +107,27 @@ def test_an_exploding_hull_diverges_at_the_growth_bound_before_1e12():
     assert "grew" in res.message and np.isnan(res.lo[24:]).all() and res.lo[23, 0] == -2.0**23
 
 
+def test_a_pinned_first_estimate_is_no_scale_of_growth():
+    # bug: a vertex realisation pins the first estimate to 1e-13 (X0's vertex seen by an
+    # exact-looking measurement); the next hulls grow to the noise level, 0.1, which is 1e12
+    # times the first but a hundredth of X0's radius 10: not a divergence.  The scale is the
+    # larger of X0's largest radius and the first hull's
+    from types import SimpleNamespace
+
+    from observers.sets import Interval, Zonotope
+
+    class Pinned:
+        system = SimpleNamespace(X0=Zonotope([0.0], [[10.0]]))
+
+        def step(self, u_prev, y):
+            self.k = getattr(self, "k", -1) + 1
+            r = 1e-13 if self.k == 0 else 0.1
+            return Interval([-r], [r])
+
+    res = observers.run(Pinned(), np.zeros((10, 0)), np.zeros((10, 1)))
+    assert res.status == "ok", res.message
+
+
 def test_entry_point_plugins_are_discovered(monkeypatch):
     class FakeEP:
         name = "my-plugin"

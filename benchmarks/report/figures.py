@@ -648,3 +648,26 @@ def noise_grid(curves: pd.DataFrame, value: str, label: str, record: str,
     axes[0][-1].legend(fontsize=7, loc="best")
     fig.tight_layout()
     return save_figure(fig, base, dpi=110)
+
+
+def rank_distributions(ranks: pd.DataFrame, base: Path) -> list[Path]:
+    """Box plots of each observer's rank over the realisations (1 = the tightest), one panel
+    per scenario, observers by median rank (``ranks``: columns ``scenario``, ``observer``,
+    ``rank``)."""
+    scenarios = list(dict.fromkeys(ranks["scenario"]))
+    cols = min(3, len(scenarios))
+    rows = -(-len(scenarios) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(6.2 * cols, 4.2 * rows), squeeze=False)
+    for ax, scenario in zip(axes.ravel(), scenarios, strict=False):
+        g = ranks[ranks["scenario"] == scenario]
+        order = g.groupby("observer")["rank"].median().sort_values(kind="stable").index
+        data = [g[g["observer"] == name]["rank"].to_numpy(float) for name in order]
+        ax.boxplot(data, vert=True, showfliers=True, flierprops={"markersize": 2})
+        ax.set_xticks(range(1, len(order) + 1), order, rotation=90, fontsize=6)
+        ax.set_title(f"{scenario}: rank over the realisations")
+        ax.set_ylabel("rank (1 = tightest)")
+        ax.grid(True, axis="y", alpha=0.3)
+    for ax in axes.ravel()[len(scenarios):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    return save_figure(fig, base, dpi=110)

@@ -1,0 +1,312 @@
+"""Rankings that hold: every guaranteed observer over many noise realisations.
+
+``python -m benchmarks.studies.robustness`` (``make robustness``) runs every guaranteed
+observer (the reference and the non-guaranteed baseline aside) on the first
+:data:`REALISATIONS` realisations of each scenario of the soundness audit (the simulated
+versions of the papers' records: :data:`benchmarks.gate.audit.AUDIT_SCENARIOS`), the same
+realisations the audit draws (:func:`benchmarks.gate.audit.realisation`: uniform,
+truncated-Gaussian and vertex noise, vertex noise held for random dwell times, a bang-bang
+worst-case input), holds each linear record's rows against its exact floor and writes
+``reports/robustness.md``, a figure of the rank distributions beside it and the tidy table
+``results/robustness/robustness.csv`` (a row per scenario, realisation and observer):
+
+* per observer and scenario, the mean and the 10/50/90 % quantiles over the realisations of
+  its **relative RMS** (its mean RMS radius over the smallest sound one of the same
+  realisation) and of its **gap** and **gap steady** to the exact floor (linear records; the
+  nonlinear ones have no exact floor, and the falsifier's inner box costs minutes per record);
+* its **rank** per realisation (1 = the tightest sound observer) and the distribution of the
+  ranks;
+* a **pairwise win table** of the observers of each scenario with the best median rank: how
+  often the row is tighter than the column over the realisations where both ran soundly;
+* per paper table whose record the audit covers, one sentence on whether its single-record
+  ranking (the committed result store) holds over the realisations;
+* the **containment violations** of the true state over all runs (interval hulls).
+
+Every (scenario, realisation) is one task (its floor and every observer) run in ``--jobs``
+processes; the exact floors are cached on disk, so those the audit computed are reused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import observers
+
+from ..gate import audit
+from ..io import atomic_write_csv, atomic_write_text, environment
+from ..report import figures
+from ..report.citation import citation_lines
+from ..report.numbers import MISSING, fmt, markdown_table
+from ..run.config import merge_options
+from ..run.executors import run_tasks
+from ..run.floor import compute_floor, floor_columns, observer_floor
+from ..run.runner import run_observer
+
+#: realisations per scenario (the audit's first ones)
+REALISATIONS = 20
+#: observers with the best median rank shown in a scenario's pairwise win table
+WIN_TABLE_SIZE = 8
+#: the published tables (committed result stores) whose record the audit simulates:
+#: (store, its scenario = the audit's scenario)
+PAPER_TABLES = (
+    ("arch2021_table3", "tank6-linear"),
+    ("arch2021_table4", "tank6-nonlinear"),
+    ("automatica2021_table3", "vehicle6d-sim"),
+    ("nonlinear_comparison", "tank6-nonlinear"),
+    ("nonlinear_comparison", "vanderpol-sim"),
+)
+COLUMNS = ["scenario", "realisation", "kind", "observer", "status", "violations", "rms",
+           "rel_rms", "rank", "gap", "gap_steady"]
+
+
+def study_observers() -> list[str]:
+    """Every guaranteed observer but the exact reference, in table order."""
+    return [i.name for i in observers.available() if i.guaranteed and i.family != "reference"]
+
+
+def run_realisation(task: tuple[str, int, tuple[str, ...]]) -> list[dict]:
+    """Every observer of ``names`` on realisation ``index`` of ``scenario``."""
+    scenario, index, names = task
+    kind, sc = audit.realisation(scenario, index)
+    linear = getattr(sc.system, "is_linear", False)
+    floor = compute_floor(sc) if linear else None
+    rows = []
+    for name in names:
+        row = {"scenario": scenario, "realisation": index, "kind": kind, "observer": name,
+               "status": "ok", "violations": np.nan, "rms": np.nan, "gap": np.nan,
+               "gap_steady": np.nan}
+        run = run_observer(name, sc, merge_options(name, sc), "hull")
+        row["status"] = run.status
+        res = run.result
+        if run.in_set is not None:
+            row["violations"] = int((~run.in_set).sum())
+        if run.status == "ok" and res is not None:
+            row["rms"] = float(np.mean(np.sqrt(np.mean(res.radius ** 2, axis=0))))
+            if floor is not None and floor.kind == "exact":
+                cols = floor_columns(floor, observer_floor(name), res.lo, res.hi, True,
+                                     sc.tolerance)
+                if cols["covers_exact"] == "no":
+                    row["violations"] = max(int(row["violations"] or 0), 1)
+                row["gap"] = float(np.mean(cols["gap"]))
+                row["gap_steady"] = float(np.mean(cols["gap_steady"]))
+        rows.append(row)
+    return rows
+
+
+def sound(df: pd.DataFrame) -> pd.Series:
+    """The rows that may be ranked: run to the end without a violation."""
+    return (df["status"] == "ok") & (df["violations"].fillna(0) == 0) & np.isfinite(df["rms"])
+
+
+def add_ranks(df: pd.DataFrame) -> pd.DataFrame:
+    """``rel_rms`` (over the smallest sound ``rms`` of the same realisation) and ``rank``
+    (1 = the tightest sound row of the realisation; ties share the smaller rank)."""
+    out = df.copy()
+    ok = sound(out)
+    keys = ["scenario", "realisation"]
+    best = out[ok].groupby(keys)["rms"].min().rename("_best")
+    out = out.join(best, on=keys)
+    out["rel_rms"] = np.where(ok, out["rms"] / out["_best"], np.nan)
+    out["rank"] = np.nan
+    out.loc[ok, "rank"] = out[ok].groupby(keys)["rms"].rank(method="min")
+    return out.drop(columns="_best")
+
+
+def per_observer(df: pd.DataFrame, scenario: str) -> pd.DataFrame:
+    """Per observer of ``scenario``: realisations run soundly, mean and quantiles of the
+    relative RMS, of the gap and of the gap steady, the median and mean rank, failures and
+    violations; sorted by median rank."""
+    g = df[df["scenario"] == scenario]
+    rows = []
+    for name, h in g.groupby("observer", sort=False):
+        ok = h[sound(h)]
+        r = ok["rel_rms"].to_numpy(float)
+        gap = ok["gap"].dropna().to_numpy(float)
+        steady = ok["gap_steady"].dropna().to_numpy(float)
+
+        def q(a, p):
+            return float(np.quantile(a, p)) if a.size else np.nan
+
+        rows.append({"observer": name, "runs": len(h), "sound": len(ok),
+                     "failed": int((h["status"] != "ok").sum()),
+                     "violations": int(h["violations"].fillna(0).sum()),
+                     "rel_mean": float(r.mean()) if r.size else np.nan,
+                     "rel_q10": q(r, 0.1), "rel_q50": q(r, 0.5), "rel_q90": q(r, 0.9),
+                     "gap_mean": float(gap.mean()) if gap.size else np.nan,
+                     "gap_q10": q(gap, 0.1), "gap_q90": q(gap, 0.9),
+                     "steady_mean": float(steady.mean()) if steady.size else np.nan,
+                     "rank_median": q(ok["rank"].to_numpy(float), 0.5),
+                     "rank_mean": float(ok["rank"].mean()) if len(ok) else np.nan})
+    out = pd.DataFrame(rows)
+    return out.sort_values(["rank_median", "rank_mean", "observer"], na_position="last")
+
+
+def win_table(df: pd.DataFrame, scenario: str, names: list[str]) -> pd.DataFrame:
+    """``W[a, b]``: the fraction of the realisations of ``scenario`` where both ran soundly in
+    which ``a``'s mean RMS radius is smaller than ``b``'s (NaN where they never both did)."""
+    g = df[(df["scenario"] == scenario) & sound(df)]
+    rms = g.pivot_table(index="realisation", columns="observer", values="rms")
+    out = pd.DataFrame(np.nan, index=names, columns=names)
+    for a in names:
+        for b in names:
+            if a == b or a not in rms or b not in rms:
+                continue
+            both = rms[[a, b]].dropna()
+            if len(both):
+                out.loc[a, b] = float((both[a] < both[b]).mean())
+    return out
+
+
+def single_record_order(store: Path, scenario: str) -> pd.Series:
+    """The mean relative RMS per observer of ``scenario`` in a committed result store (its
+    ``summary.csv``; sound rows only): the single-record ranking of a paper table."""
+    s = pd.read_csv(store / "summary.csv")
+    col = "contained" if "contained" in s.columns else s.columns[s.columns.str.startswith(
+        "contained")][0]
+    s = s[(s["scenario"] == scenario) & (s["status"] == "ok")
+          & (s[col].astype(str) != "no") & s["variant"].isna()]
+    return s.groupby("observer")["rms_radius"].mean().sort_values()
+
+
+def holds_sentence(table: str, scenario: str, df: pd.DataFrame, results: Path) -> str:
+    """Whether the single-record ranking of a paper table holds over the realisations."""
+    store = results / table
+    if not (store / "summary.csv").is_file():
+        return f"{table}: no committed store to compare with."
+    single = single_record_order(store, scenario)
+    g = df[(df["scenario"] == scenario) & sound(df)]
+    rms = g.pivot_table(index="realisation", columns="observer", values="rms")
+    names = [n for n in single.index if n in rms.columns]
+    if len(names) < 2:
+        return f"{table}: fewer than two observers in common."
+    kept = total = 0
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:  # the record ranks a above (tighter than) b
+            both = rms[[a, b]].dropna()
+            if len(both):
+                total += 1
+                kept += int((both[a] < both[b]).mean() > 0.5)
+    best = names[0]
+    top = rms[names].idxmin(axis=1)
+    share = float((top == best).mean()) if len(top) else np.nan
+    verdict = ("holds" if kept >= 0.9 * total else
+               "holds in the main" if kept >= 0.75 * total else "does not hold")
+    return (f"**{table}** ({scenario}, {len(single)} observers): the single-record "
+            f"ranking {verdict} over {len(rms)} realisations: {kept} of {total} pairs keep "
+            f"their order in most realisations; its best observer, {best}, is the tightest "
+            f"of them in {fmt(100 * share, 3)} % of the realisations.")
+
+
+def report(df: pd.DataFrame, fig: Path | None, out: Path, results: Path,
+           elapsed: float) -> str:
+    """The Markdown report (see the module docstring)."""
+    env = environment()
+    viol = int(df["violations"].fillna(0).sum())
+    runs = len(df)
+    parts = [
+        "# Rankings that hold: every guaranteed observer over many noise realisations", "",
+        f"Every guaranteed observer on the first {df['realisation'].nunique()} realisations of "
+        "each scenario of the soundness audit (uniform, truncated-Gaussian and vertex noise, "
+        "vertex noise held for random dwell times, a bang-bang worst-case input; the same "
+        "records the audit draws). **rel. RMS**: the observer's mean RMS radius over the "
+        "smallest sound one of the same realisation; **gap**, **gap steady**: to the exact "
+        "floor (linear records only), over the whole record and after its first 20 %; "
+        "**rank**: 1 = the tightest sound observer of the realisation; quantiles q10/q50/q90 "
+        f"over the realisations. {runs} runs; **containment violations of the true state: "
+        f"{viol}** (interval hulls at every step, and the exact floor on the linear records). "
+        "Produced by `python -m benchmarks.studies.robustness`"
+        + (f" in {elapsed / 60:.1f} min" if np.isfinite(elapsed) else "")
+        + f" (git {env.get('git', '?')}).", "",
+        "## Do the paper tables' rankings hold?", "",
+    ]
+    parts += [f"- {holds_sentence(t, s, df, results)}" for t, s in PAPER_TABLES
+              if s in set(df["scenario"])]
+    parts += ["- ARCH 2021 Tables 5 and 6 (tank scaling, 12 to 30 tanks): their records are not "
+              "among the audit's scenarios.", ""]
+    if fig is not None:
+        parts += [f"![rank distributions]({fig.relative_to(out.parent).as_posix()})", ""]
+    for scenario in dict.fromkeys(df["scenario"]):
+        per = per_observer(df, scenario)
+        parts += [f"## {scenario}", ""]
+        head = ["observer", "sound / runs", "rel. RMS mean", "q10", "q50", "q90", "gap mean",
+                "gap q10", "gap q90", "gap steady mean", "median rank", "failed",
+                "violations"]
+        rows = [[r.observer, f"{r.sound} / {r.runs}", fmt(r.rel_mean, 3), fmt(r.rel_q10, 3),
+                 fmt(r.rel_q50, 3), fmt(r.rel_q90, 3), fmt(r.gap_mean, 3), fmt(r.gap_q10, 3),
+                 fmt(r.gap_q90, 3), fmt(r.steady_mean, 3), fmt(r.rank_median),
+                 str(r.failed), str(r.violations)] for r in per.itertuples()]
+        parts += markdown_table(head, rows).splitlines() + [""]
+        names = [n for n in per["observer"] if per.set_index("observer").loc[n, "sound"]]
+        names = names[:WIN_TABLE_SIZE]
+        if len(names) >= 2:
+            w = win_table(df, scenario, names)
+            parts += [f"How often the row is tighter than the column ({scenario}, the "
+                      f"{len(names)} best by median rank):", ""]
+            rows = [[a, *(MISSING if np.isnan(w.loc[a, b]) else fmt(w.loc[a, b], 2)
+                          for b in names)] for a in names]
+            parts += markdown_table(["", *names], rows).splitlines() + [""]
+    parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
+              *citation_lines("robustness"), ""]
+    return "\n".join(parts)
+
+
+def run_study(jobs: int = 1, scenarios=audit.AUDIT_SCENARIOS, count: int = REALISATIONS,
+              names=None, log=lambda m: None) -> pd.DataFrame:
+    """Every (scenario, realisation) in ``jobs`` processes, as one table."""
+    names = tuple(study_observers() if names is None else names)
+    tasks = [(s, i, names) for s in scenarios for i in range(count)]
+    outs = run_tasks(run_realisation, tasks, jobs,
+                     lambda task, _: log(f"{task[0]} realisation {task[1]}: done"))
+    return add_ranks(pd.DataFrame([row for out in outs for row in out]))[COLUMNS]
+
+
+def render(df: pd.DataFrame, out: Path, results: Path, elapsed: float) -> None:
+    """The figure and the report of the table ``df``."""
+    ranks = df[sound(df)][["scenario", "observer", "rank"]]
+    fig = figures.rank_distributions(ranks, out.parent / "figures" / "robustness_ranks")[0] \
+        if len(ranks) else None
+    atomic_write_text(out, report(df, fig, out, results, elapsed))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line of the study."""
+    p = argparse.ArgumentParser(prog="python -m benchmarks.studies.robustness",
+                                description=__doc__.splitlines()[0])
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--realisations", type=int, default=REALISATIONS,
+                   help=f"per scenario (default {REALISATIONS})")
+    p.add_argument("--out", default="reports/robustness.md", help="Markdown report")
+    p.add_argument("--results", default="results", help="folder of the stores (the paper "
+                   "tables' single records) and of robustness/robustness.csv")
+    p.add_argument("--render", action="store_true",
+                   help="no run: the report and figure from the table in --results")
+    args = p.parse_args(argv)
+    if args.jobs < 1 or args.realisations < 1:
+        print("error: --jobs and --realisations must be >= 1", file=sys.stderr)
+        return 2
+    results, out = Path(args.results), Path(args.out)
+    table = results / "robustness" / "robustness.csv"
+    t0 = time.perf_counter()
+    if args.render:
+        if not table.is_file():
+            print(f"error: no table {table} to render (run the study first)", file=sys.stderr)
+            return 2
+        df, elapsed = pd.read_csv(table), float("nan")
+    else:
+        df = run_study(args.jobs, count=args.realisations,
+                       log=lambda m: print(m, file=sys.stderr))
+        atomic_write_csv(table, df)
+        elapsed = time.perf_counter() - t0
+    render(df, out, results, elapsed)
+    print(f"wrote {out} and {table}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
