@@ -16,7 +16,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence check baseline history audit audit-short speed scaling frontier noise-grid clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence check baseline history audit audit-short speed scaling frontier noise-grid robustness clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -27,8 +27,8 @@ help:  ## list the targets
 	@echo "systems/ (models, scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner ->"
 	@echo "executors), report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph,"
 	@echo "fingerprint, store, bench, stale), gate/ (regression, budget, blas, policy, audit, audit_store,"
-	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, alanwar2022); cli.py"
-	@echo "parses and prints"
+	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, robustness, alanwar2022);"
+	@echo "cli.py parses and prints"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "Python >= 3.10 is required, found " + sys.version.split()[0]'
@@ -80,6 +80,9 @@ scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.
 noise-grid: $(STAMP)  ## noise-level grid, gap and relative RMS against the scale of W, V, X0 on the 6-tank and the 6-D vehicle -> reports/noise_grid.md (JOBS workers)
 	$(PY) -m benchmarks.studies.noise_grid --jobs $(JOBS) --out reports/noise_grid.md --results $(RESULTS)/noise_grid
 
+robustness: $(STAMP)  ## rankings over the audit's realisations (20 per scenario, every guaranteed observer) -> reports/robustness.md (JOBS workers)
+	$(PY) -m benchmarks.studies.robustness --jobs $(JOBS) --out reports/robustness.md --results $(RESULTS)
+
 frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)
 	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier
 
@@ -93,7 +96,7 @@ datadriven: $(STAMP)  ## the data-driven study (Alanwar et al. 2022) -> reports/
 	$(PY) -m benchmarks.studies.alanwar2022 --out reports/datadriven.md
 	$(PY) -m benchmarks stale --record reports/datadriven.md
 
-evidence: bench audit datadriven speed scaling frontier noise-grid  ## everything committed: the stale rows, the audit, the data-driven study and the timing reports
+evidence: bench audit datadriven speed scaling frontier noise-grid robustness  ## everything committed: the stale rows, the audit, the data-driven study and the timing reports
 
 history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
 	$(PY) -m benchmarks history

@@ -1,0 +1,73 @@
+"""The ranking studies: the noise-level grid's scaled records and family curves, and the
+robustness study's ranks, win tables and sentences, on small hand-made inputs and a tiny run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.studies import noise_grid, robustness
+
+
+def test_scaled_scenario_scales_one_set_and_keeps_the_input():
+    base = noise_grid.scaled_scenario("alamo2d-sim", ("W",), 1.0)
+    W3 = noise_grid.scaled_scenario("alamo2d-sim", ("W",), 3.0)
+    np.testing.assert_allclose(W3.system.W.G, 3.0 * base.system.W.G)
+    np.testing.assert_allclose(W3.system.V.G, base.system.V.G)
+    np.testing.assert_allclose(W3.system.X0.G, base.system.X0.G)
+    np.testing.assert_array_equal(W3.u, base.u)
+    # the record lies in the scaled sets: y - C x in V
+    resid = W3.y - W3.x_true @ W3.system.C.T - W3.system.V.c
+    assert np.all(np.abs(resid) <= np.abs(W3.system.V.G).sum(axis=1) + 1e-12)
+    assert "W x3" in W3.name
+
+
+def test_grid_points_and_family_curves_by_hand():
+    pts = noise_grid.grid_points(("r",), (0.1, 1.0, 10.0))
+    # 4 axes x 2 off-nominal scales + the nominal record once
+    assert len(pts) == 9 and ("r", "all", 1.0) in pts and ("r", "W", 1.0) not in pts
+    df = pd.DataFrame({
+        "record": "r", "axis": ["W", "W", "all", "all"], "scale": [0.1, 0.1, 1.0, 1.0],
+        "observer": ["a", "b", "a", "b"], "family": ["f", "f", "f", "g"],
+        "status": "ok", "violations": 0, "covers_exact": "yes", "gap": [3.0, 2.0, 1.5, 1.2]})
+    curves = noise_grid.family_curves(df, "gap")
+    w = curves[(curves["axis"] == "W") & (curves["family"] == "f")].set_index("scale")["gap"]
+    assert w[0.1] == 2.0 and w[1.0] == 1.5  # the best member; the nominal point on every axis
+    assert "x0.1: f (gap 2)" in noise_grid.winners_sentence(curves, "r", "W")
+
+
+def test_scale_dependence_is_named():
+    df = pd.DataFrame({"record": "r", "axis": "all", "scale": [0.1, 1.0, 0.1, 1.0],
+                       "observer": ["a", "a", "b", "b"], "status": ["ok", "ok", "noGain", "ok"],
+                       "gap": [2.0, 2.0, np.nan, 3.0]})
+    assert noise_grid.scale_dependent(df, "r") == ["b"]
+
+
+def test_ranks_and_win_table_by_hand():
+    # two realisations: a < b < c in the first, b < a in the second (c fails there)
+    df = pd.DataFrame({
+        "scenario": "s", "realisation": [0, 0, 0, 1, 1, 1], "kind": "uniform",
+        "observer": ["a", "b", "c"] * 2, "status": ["ok"] * 5 + ["diverged"],
+        "violations": [0] * 6, "rms": [1.0, 2.0, 4.0, 3.0, 1.5, np.nan],
+        "gap": np.nan, "gap_steady": np.nan})
+    out = robustness.add_ranks(df)
+    assert out["rank"].tolist()[:5] == [1.0, 2.0, 3.0, 2.0, 1.0]
+    assert out["rel_rms"].tolist()[:5] == pytest.approx([1.0, 2.0, 4.0, 2.0, 1.0])
+    w = robustness.win_table(out, "s", ["a", "b", "c"])
+    assert w.loc["a", "b"] == 0.5 and w.loc["b", "a"] == 0.5
+    assert w.loc["a", "c"] == 1.0 and w.loc["c", "a"] == 0.0  # only realisation 0 counts
+    per = robustness.per_observer(out, "s").set_index("observer")
+    assert per.loc["c", "failed"] == 1 and per.loc["a", "rank_median"] == 1.5
+
+
+def test_tiny_robustness_run_and_report(tmp_path):
+    names = ("FRad-A", "CZN-A", "MHE")
+    df = robustness.run_study(1, scenarios=("alamo2d-sim",), count=3, names=names)
+    assert len(df) == 9 and set(df["kind"]) == {"uniform", "gaussian", "vertex"}
+    assert (df["violations"].fillna(0) == 0).all()
+    ok = df[df["status"] == "ok"]
+    assert (ok["gap"] >= 1 - 1e-6).all() and (ok["rel_rms"] >= 1 - 1e-12).all()
+    text = robustness.report(df, None, tmp_path / "robustness.md", tmp_path, 1.0)
+    assert "containment violations of the true state: 0" in text
+    assert "## alamo2d-sim" in text and "How often the row is tighter" in text
