@@ -79,9 +79,11 @@ scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.
 
 noise-grid: $(STAMP)  ## noise-level grid, gap and relative RMS against the scale of W, V, X0 on the 6-tank and the 6-D vehicle -> reports/noise_grid.md (JOBS workers)
 	$(PY) -m benchmarks.studies.noise_grid --jobs $(JOBS) --out reports/noise_grid.md --results $(RESULTS)/noise_grid
+	$(PY) -m benchmarks stale --record reports/noise_grid.md
 
 robustness: $(STAMP)  ## rankings over the audit's realisations (20 per scenario, every guaranteed observer) -> reports/robustness.md (JOBS workers)
 	$(PY) -m benchmarks.studies.robustness --jobs $(JOBS) --out reports/robustness.md --results $(RESULTS)
+	$(PY) -m benchmarks stale --record reports/robustness.md
 
 frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)
 	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier

@@ -71,3 +71,14 @@ def test_tiny_robustness_run_and_report(tmp_path):
     text = robustness.report(df, None, tmp_path / "robustness.md", tmp_path, 1.0)
     assert "containment violations of the true state: 0" in text
     assert "## alamo2d-sim" in text and "How often the row is tighter" in text
+
+
+def test_the_studies_fingerprints_cover_every_guaranteed_observer():
+    # the noise grid and the robustness study run every guaranteed observer: their report's
+    # fingerprint (setobs-bench stale) must cover each one's module
+    import observers
+    from benchmarks.store.stale import STUDIES
+
+    guaranteed = {i.name for i in observers.available() if i.guaranteed}
+    for study in ("noise_grid", "robustness"):
+        assert set(STUDIES[study][1]) == guaranteed, study

@@ -8,10 +8,11 @@
   memory and compared byte for byte: out of date if the renderer or the store changed since.
 - **The soundness audit** is a store of its own (:mod:`benchmarks.gate.audit_store`, checked
   by :func:`benchmarks.gate.policy.stale`, which adds its lines to these).
-- **Studies** (``reports/datadriven.md``): one fingerprint per report, over the closure of the
-  study's module and of the observers it runs, recorded in ``results/reports.json`` by
-  ``setobs-bench stale --record REPORT`` right after the report is regenerated
-  (``make datadriven`` does it).
+- **Studies** (``reports/datadriven.md``, ``noise_grid.md``, ``robustness.md``): one
+  fingerprint per report, over the closure of the study's module and of the observers it runs,
+  recorded in ``results/reports.json`` by ``setobs-bench stale --record REPORT`` right after
+  the report is regenerated (``make datadriven``, ``make noise-grid``, ``make robustness`` do
+  it).
 - **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
   not the code: they carry their commit and machine and are never stale here; ``make speed``,
   ``make scaling`` and ``make frontier`` measure again.
@@ -39,8 +40,20 @@ MEASUREMENTS = ("speed", "scaling", "frontier")
 #: study reports: the module that writes each and the observers it runs (by name, through the
 #: registry, so not among its imports); the soundness audit is a store of its own
 #: (:mod:`benchmarks.gate.audit_store`)
+#: the observers the studies over every guaranteed observer run (and the exact reference of
+#: their floors)
+_GUARANTEED = ("Exact", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRad-C-I",
+               "PRad-C-II", "PRad-D", "CZN-A", "CZN-B", "CZN-MV", "ESO-A", "ESO-B", "FRad-C",
+               "PRad-E", "Nom-G", "ESO-C", "ESO-D", "Hinf-G", "CZN-DC", "CZN-FO", "CZN-PR",
+               "DD-CZ-A1", "DD-CZ-A2", "DD-Z-A1", "DD-Z-A2", "ESMF", "INT-CP", "MHE", "ROPO",
+               "ZB-A", "VolMin-A")
 STUDIES = {"datadriven": ("benchmarks.studies.alanwar2022",
-                          ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2", "KF-N4SID"))}
+                          ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2", "KF-N4SID")),
+           "noise_grid": ("benchmarks.studies.noise_grid", _GUARANTEED),
+           "robustness": ("benchmarks.studies.robustness", _GUARANTEED)}
+#: the make target that regenerates (and records) each study report
+STUDY_TARGETS = {"datadriven": "datadriven", "noise_grid": "noise-grid",
+                 "robustness": "robustness"}
 #: where the fingerprints of the study reports are recorded
 STUDY_RECORD = Path("results") / "reports.json"
 
@@ -146,7 +159,8 @@ def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
                              fingerprinter.graph.modules else m for m in changed[:3])
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             why = f"code changed: {what}{more}" if changed else "data changed"
-            out.append(Line("report", name, f"reports/{name}.md: {why} (`make datadriven`)"))
+            out.append(Line("report", name,
+                            f"reports/{name}.md: {why} (`make {STUDY_TARGETS[name]}`)"))
     return out
 
 
