@@ -272,7 +272,12 @@ def test_formerly_chaotic_rows_are_the_same_under_every_kernel_this_cpu_runs():
     assert len(first) == len(FORMERLY_CHAOTIC)
     for kernel in found[1:]:
         for a, b in zip(first, runs[kernel], strict=True):
-            assert a[:3] == b[:3] and a[2] == "ok", (kernel, a[:3], b[:3])
+            # DD-CZ-A1 with its default options explodes (its hull passes 1e8 times X0's
+            # radius) and is diverged under every kernel (observers.base.GROWTH_BOUND)
+            want = "diverged" if (a[0], a[1]) == ("DD-CZ-A1", "tank6-linear") else "ok"
+            assert a[:3] == b[:3] and a[2] == want, (kernel, a[:3], b[:3])
+            if want != "ok":
+                continue
             np.testing.assert_allclose(np.array(b[3:], float), np.array(a[3:], float),
                                        rtol=1e-6, err_msg=f"{a[0]} on {a[1]} with {kernel}")
 

@@ -105,6 +105,12 @@ def _importers_of(target: str) -> set[str]:
     return reach
 
 
+def _all_observer_studies() -> set[str]:
+    """The committed study reports that run every guaranteed observer."""
+    return {name for name in ("noise_grid", "robustness")
+            if (ROOT / "reports" / f"{name}.md").is_file()}
+
+
 def _base(name: str) -> str:
     return name.split("[")[0]  # a labelled variant runs its observer
 
@@ -143,6 +149,10 @@ def test_an_edit_of_the_ellipsoidal_numerics_stales_their_observers_only(tmp_pat
     expected = {i.name for i in observers.available() if i.cls.__module__ in reach}
     assert {"ESO-A", "ESO-B", "ESO-C", "ESO-D", "ESMF"} <= expected
     assert "FRad-A" not in expected and "CZN-A" not in expected
+    # the study reports over every guaranteed observer go stale with them
+    reports = [line for line in lines if line.startswith("STALE REPORT")]
+    assert {line.split()[2].rstrip(":") for line in reports} == _all_observer_studies()
+    lines = [line for line in lines if not line.startswith("STALE REPORT")]
     named = [ROW.match(line) for line in lines]
     assert all(named), [line for line, m in zip(lines, named, strict=True) if not m]
     assert {_base(m.group(2)) for m in named} <= expected
@@ -161,7 +171,10 @@ def test_an_edit_of_the_zonotope_stales_every_row_that_uses_zonotopes(tmp_path, 
     # the data-driven study's one fingerprint covers its observers' zonotopes too
     assert set(lines) - set(rows) == {
         "STALE REPORT datadriven: reports/datadriven.md: code changed: "
-        "observers/sets/zonotope.py (`make datadriven`)"}
+        "observers/sets/zonotope.py (`make datadriven`)",
+        *(f"STALE REPORT {study}: reports/{study}.md: code changed: "
+          f"observers/sets/zonotope.py (`make {study.replace('_', '-')}`)"
+          for study in _all_observer_studies())}
     named = [ROW.match(line) for line in rows]
     assert all(named)
     lines = rows
