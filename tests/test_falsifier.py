@@ -279,12 +279,42 @@ def test_bad_arguments_are_one_clear_error():
         falsify(sc.system, sc, steps=[10])
     for kwargs, match in (({"floor": "smoothed"}, "floor must be one of"),
                           ({"starts": 0}, "starts must be an integer >= 1"),
-                          ({"window": 0}, "window must be")):
+                          ({"window": 0}, "window must be"),
+                          ({"max_simplex_iterations": 0}, "max_simplex_iterations must be"),
+                          ({"max_simplex_iterations": 1.5}, "max_simplex_iterations must be")):
         with pytest.raises(ModelError, match=match):
             falsify(sc.system, sc, steps=[3], options=SearchOptions(**kwargs))
     with pytest.raises(ModelError, match="record must have u and y"):
         falsify(sc.system, sc.y, steps=[3])
     assert spread_steps(100, 3, first=20).tolist() == [20, 60, 99]
+
+
+def test_a_spent_budget_leaves_the_later_steps_out_and_keeps_the_searched_ones():
+    sc = systems.scenario("tank6-nonlinear", steps=40)
+    steps = [10, 25, 39]
+    full = falsify(sc.system, sc, steps=steps, options=SearchOptions(keep_trajectories=False))
+    used = full.stats["simplex_iterations"]
+    assert full.stats["steps_searched"] == 3 and not full.stats["budget_spent"]
+
+    def budgeted(budget):
+        return falsify(sc.system, sc, steps=steps, options=SearchOptions(
+            keep_trajectories=False, max_simplex_iterations=budget))
+
+    # a budget above what the search needs changes nothing
+    more = budgeted(used + 1)
+    assert not more.stats["budget_spent"]
+    np.testing.assert_array_equal(more.inner_lo, full.inner_lo)
+    # one iteration: the first run spends it, no step is complete, nothing is claimed
+    none = budgeted(1)
+    assert none.stats["budget_spent"] and none.stats["steps_searched"] == 0
+    assert np.isnan(none.inner_lo).all() and np.isnan(none.inner_hi).all()
+    # half the work: the steps searched are exactly those of the full search, the others NaN
+    half = budgeted(used // 2)
+    done = half.stats["steps_searched"]
+    assert half.stats["budget_spent"] and 0 < done < 3
+    np.testing.assert_array_equal(half.inner_lo[:done], full.inner_lo[:done])
+    np.testing.assert_array_equal(half.inner_hi[:done], full.inner_hi[:done])
+    assert np.isnan(half.inner_lo[done:]).all()
 
 
 class _OutputFunction:

@@ -63,14 +63,52 @@ def test_ranks_and_win_table_by_hand():
 
 def test_tiny_robustness_run_and_report(tmp_path):
     names = ("FRad-A", "CZN-A", "MHE")
-    df = robustness.run_study(1, scenarios=("alamo2d-sim",), count=3, names=names)
+    df = robustness.run_study(1, scenarios=("alamo2d-sim",), count=3, names=names,
+                              scaling=False)
     assert len(df) == 9 and set(df["kind"]) == {"uniform", "gaussian", "vertex"}
     assert (df["violations"].fillna(0) == 0).all()
     ok = df[df["status"] == "ok"]
     assert (ok["gap"] >= 1 - 1e-6).all() and (ok["rel_rms"] >= 1 - 1e-12).all()
     text = robustness.report(df, None, tmp_path / "robustness.md", tmp_path, 1.0)
-    assert "containment violations of the true state: 0" in text
+    assert "containment violations: 0**" in text
+    assert "Floor: the exact consistent set of each of the 3 realisations." in text
     assert "## alamo2d-sim" in text and "How often the row is tighter" in text
+
+
+def test_scaling_records_run_the_observers_their_published_column_compares():
+    # ARCH 2021 Table 5, 18 tanks: PRad-A has no gain there (no value), VolMin-B no entry;
+    # the published PRad-C stands for our two PRad-C variants; Table 6: the three FRad
+    t5 = robustness.scaling_observers("tank18-linear", "linear")
+    assert "PRad-A" not in t5 and "VolMin-B" not in t5
+    assert {"FRad-A", "PRad-C-I", "PRad-C-II", "ESO-B", "Hinf-G"} <= set(t5)
+    assert "PRad-A" in robustness.scaling_observers("tank12-linear", "linear")  # published inf
+    assert set(robustness.scaling_observers("tank30-nonlinear", "nonlinear")) == {
+        "FRad-A", "FRad-B", "FRad-C"}
+    tasks = robustness.study_tasks(2, names=("FRad-A",), scenarios=("tank6-linear",))
+    with_floor = [t for t in tasks if t[3]]
+    assert [t[:2] for t in with_floor] == [("tank6-linear", 0), ("tank6-linear", 1)]
+    assert {t[0] for t in tasks if not t[3]} == {
+        f"tank{n}-linear" for n in (12, 18, 24, 30)} | {
+        f"tank{n}-nonlinear" for n in (12, 18, 24, 30)}
+
+
+def test_the_holds_sentence_counts_the_pairs_of_every_record(tmp_path):
+    # the store ranks a < b < c on both records; realisations keep a < b, swap b and c on r2
+    store = tmp_path / "t"
+    store.mkdir()
+    pd.DataFrame({"scenario": ["r1"] * 3 + ["r2"] * 3, "observer": ["a", "b", "c"] * 2,
+                  "variant": np.nan, "status": "ok", "contained": "yes",
+                  "rms_radius": [1.0, 2.0, 3.0] * 2}).to_csv(store / "summary.csv")
+    rows = []
+    for sc, order in (("r1", {"a": 1.0, "b": 2.0, "c": 3.0}),
+                      ("r2", {"a": 1.0, "b": 3.0, "c": 2.0})):
+        for i in range(3):
+            rows += [{"scenario": sc, "realisation": i, "observer": o, "status": "ok",
+                      "violations": 0, "rms": v} for o, v in order.items()]
+    text = robustness.holds_sentence("t", ("r1", "r2"), pd.DataFrame(rows), tmp_path)
+    # pairs: r1 (a,b) (a,c) (b,c) kept; r2 (a,b) (a,c) kept, (b,c) not: 5 of 6 (0.83)
+    assert "holds in the main" in text and "5 of 6 pairs" in text
+    assert "a on r1 in 100 %" in text and "a on r2 in 100 %" in text
 
 
 def test_the_studies_fingerprints_cover_every_guaranteed_observer():

@@ -122,9 +122,12 @@ class RecordFloor:
         return lo, hi
 
 
-def compute_floor(sc: Scenario, enabled: bool = True) -> RecordFloor:
+def compute_floor(sc: Scenario, enabled: bool = True,
+                  budget: int | None = None) -> RecordFloor:
     """The floor of ``sc``'s record (see the module docstring); never raises for a record it
-    cannot handle (``kind = "none"`` with the reason)."""
+    cannot handle (``kind = "none"`` with the reason).  ``budget``: the falsifier's budget of
+    simplex iterations on a nonlinear record (``SearchOptions.max_simplex_iterations``;
+    None: none); the steps it leaves unsearched have no floor, and ``message`` says so."""
     if not enabled:
         return RecordFloor("none", message="not computed (exact: false in the configuration)")
     t0 = time.perf_counter()
@@ -135,9 +138,16 @@ def compute_floor(sc: Scenario, enabled: bool = True) -> RecordFloor:
         from .falsifier import SearchOptions, falsify, spread_steps
 
         steps = spread_steps(sc.N, FALSIFIER_STEPS, first=int(FALSIFIER_FIRST * sc.N))
-        res = falsify(system, sc, steps, options=SearchOptions(keep_trajectories=False))
+        res = falsify(system, sc, steps, options=SearchOptions(
+            keep_trajectories=False, max_simplex_iterations=budget))
+        done = res.stats["steps_searched"]
+        note = (f"falsifier budget of {budget} simplex iterations spent: {done} of "
+                f"{len(res.steps)} steps searched" if res.stats["budget_spent"] else "")
+        if done == 0:
+            return RecordFloor("none", message=f"no floor: {note}",
+                               seconds=time.perf_counter() - t0)
         return RecordFloor(INNER, {"filtered": res.inner_lo}, {"filtered": res.inner_hi},
-                           steps=res.steps, seconds=time.perf_counter() - t0)
+                           steps=res.steps, message=note, seconds=time.perf_counter() - t0)
     except SetError as exc:  # EmptySet: no state fits the record
         return RecordFloor("empty", message=str(exc), seconds=time.perf_counter() - t0)
     except (Unsupported, ModelError, ObserverError) as exc:

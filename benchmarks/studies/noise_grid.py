@@ -35,6 +35,7 @@ import pandas as pd
 import observers
 
 from ..io import atomic_write_csv, atomic_write_text, environment
+from ..metrics import rms_radius
 from ..report import figures
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
@@ -125,7 +126,7 @@ def run_point(task: tuple[str, str, float, tuple[str, ...]]) -> list[dict]:
                                  sc.tolerance)
             row.update(gap=float(np.mean(cols["gap"])),
                        gap_steady=float(np.mean(cols["gap_steady"])),
-                       rms=float(np.mean(np.sqrt(np.mean(res.radius ** 2, axis=0)))),
+                       rms=float(np.mean(rms_radius(res.radius))),
                        covers_exact=cols["covers_exact"])
             d = res.doubles[np.isfinite(res.doubles)] if res.doubles is not None else []
             row["memory"] = float(np.median(d)) if len(d) else np.nan

@@ -86,7 +86,9 @@ class FalsifierResult:
         of the inner box at the chosen steps).
     stats : dict
         Work and time: ``seconds``, ``lps``, ``simplex_iterations``, ``runs``,
-        ``slp_iterations``, ``unconverged`` (runs that hit the iteration limit), ``verified``.
+        ``slp_iterations``, ``unconverged`` (runs that hit the iteration limit), ``verified``,
+        ``steps_searched`` and ``budget_spent`` (the search stopped by its budget of simplex
+        iterations, :class:`SearchOptions`).
     """
 
     steps: np.ndarray
@@ -215,6 +217,11 @@ class SearchOptions:
         SLP iterations per run.
     keep_trajectories : bool
         Keep the verified extreme trajectories in the result.
+    max_simplex_iterations : int or None
+        A work budget for the whole search, in simplex iterations of its LPs (counted by
+        HiGHS, so the same on every machine, unlike a time limit): once spent, the step
+        being searched and the later ones are left out (NaN rows of the inner box; the
+        result's ``stats`` say how many steps were searched).  None: no budget.
     """
 
     starts: int = 1
@@ -223,6 +230,7 @@ class SearchOptions:
     window: int | str | None = "auto"
     max_iter: int = MAX_ITER
     keep_trajectories: bool = True
+    max_simplex_iterations: int | None = None
 
     def __post_init__(self):
         if self.floor not in FLOORS:
@@ -236,6 +244,11 @@ class SearchOptions:
                 and window >= 1)):
             raise ModelError(f"falsifier: window must be an integer >= 1, 'auto' or None, "
                              f"got {window!r}")
+        budget = self.max_simplex_iterations
+        if budget is not None and (isinstance(budget, bool) or not isinstance(
+                budget, (int, np.integer)) or budget < 1):
+            raise ModelError(f"falsifier: max_simplex_iterations must be an integer >= 1 or "
+                             f"None, got {budget!r}")
 
 
 def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
@@ -278,8 +291,13 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     lo, hi = np.full((S, n), np.nan), np.full((S, n), np.nan)
     lo_tr: list = [[None] * n for _ in range(S)]
     hi_tr: list = [[None] * n for _ in range(S)]
+    searched = 0
     for s, k in enumerate(steps.tolist()):
-        search = _search_step(M, k, anchor, opts, (stats, rng))
+        try:
+            search = _search_step(M, k, anchor, opts, (stats, rng))
+        except _BudgetSpent:  # this step and the later ones stay NaN
+            break
+        searched += 1
         verified = np.isfinite(search.lo)
         lo[s, verified], hi[s, verified] = search.lo[verified], search.hi[verified]
         if opts.keep_trajectories:
@@ -289,7 +307,8 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
         lo_trajectories=lo_tr if opts.keep_trajectories else [],
         hi_trajectories=hi_tr if opts.keep_trajectories else [],
         floor=opts.floor, anchor=anchor.z,
-        stats={"seconds": time.perf_counter() - t0, **vars(stats)})
+        stats={"seconds": time.perf_counter() - t0, **vars(stats),
+               "steps_searched": searched, "budget_spent": searched < S})
     if hulls:
         result.add_hulls(hulls, hull_tol)
     return result
@@ -303,6 +322,17 @@ def _steps(steps: int | Sequence[int], N: int) -> np.ndarray:
     if steps.size == 0 or steps.min() < 0 or steps.max() >= N:
         raise ModelError(f"falsifier: steps must lie in 0 .. {N - 1}, got {steps.tolist()}")
     return steps
+
+
+class _BudgetSpent(Exception):
+    """The search's budget of simplex iterations is spent (see :class:`SearchOptions`)."""
+
+
+def _spend(stats: Stats, opts: SearchOptions) -> None:
+    """Raise :class:`_BudgetSpent` once the search has used its budget."""
+    budget = opts.max_simplex_iterations
+    if budget is not None and stats.simplex_iterations >= budget:
+        raise _BudgetSpent
 
 
 def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
@@ -328,10 +358,12 @@ def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
     for i, sgn in objectives:
         c = np.zeros(n)
         c[i] = sgn / scale[i]
+        _spend(stats, opts)
         finals[i, sgn] = search.run(start, c)
     if opts.starts > 1:
         for _ in range(opts.starts - 1):
             d = rng.standard_normal(n)
+            _spend(stats, opts)
             search.run(start, d / np.linalg.norm(d) / scale)
         for i, sgn in objectives:
             tried = {id(start), id(finals[i, sgn])}
@@ -339,5 +371,6 @@ def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
             c = np.zeros(n)
             c[i] = sgn / scale[i]
             for p in [p for p in ranked if id(p) not in tried][:opts.starts - 1]:
+                _spend(stats, opts)
                 search.run(p, c)
     return search
