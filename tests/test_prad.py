@@ -241,13 +241,54 @@ def test_true_state_inside_every_set_on_cora_vehicle6(name):
 
 
 @pytest.mark.parametrize("scenario", ["vehicle6d-cora", "vehicle4d-sim"])
-def test_prad_a_diverges_on_the_vehicle_and_is_reported(scenario):
-    # per-output designs give no guarantee for the strip-by-strip composition; on the 4- and
-    # 6-state vehicles the estimate explodes (1e121 with Clarabel gains on the
-    # 6-state record, as here); the run ends with status "diverged", not an exception
+def test_prad_a_has_no_gain_on_the_vehicle_and_its_sdp_point_diverges(scenario):
+    # the first output of the 4- and 6-state vehicles leaves a mode that decays more slowly
+    # than sqrt(beta): no P > 0 exists (no stabilising Riccati solution), the table's noGain.
+    # CORA's SDP returns a point within its tolerance there; with Clarabel's the estimate
+    # explodes (1e121 on the 6-state record): the run ends as "diverged", not an exception
     sc = systems.scenario(scenario)
-    res = observers.run(observers.create("PRad-A", sc.system, **sc.options), sc.u, sc.y)
+    with pytest.raises(DesignFailed, match="output 1.*no stabilising solution"):
+        observers.create("PRad-A", sc.system, **sc.options)
+    sdp = observers.create("PRad-A", sc.system, method="sdp", **sc.options)
+    res = observers.run(sdp, sc.u, sc.y)
     assert res.status == "diverged" and res.failed_step is not None
+
+
+def test_prad_a_on_the_tank_is_the_riccati_point_of_each_output():
+    # Independent computation: per output i, the stabilising solution Xp of the filter
+    # Riccati equation of (A / sqrt(beta), c_i) with unit weights (E = 1e-3 I and the scalar
+    # noise generator have projectors I and 1), and the Kalman update
+    # Lam_i = Xp c_i' / (c_i Xp c_i' + 1).  The first output is barely feasible (a mode at
+    # 0.996 against sqrt(beta) = 0.99609): X = P^-1 has condition number ~3e13, where the
+    # SDP's tau (~1e-16) is below any solver tolerance, yet the gain is well defined.
+    from scipy.linalg import solve_discrete_are
+
+    sc = systems.scenario("tank6-linear")
+    A, C = sc.system.A, sc.system.C
+    beta = cora_bisection_end()
+    obs = observers.create("PRad-A", sc.system, **sc.options)
+    for i in range(C.shape[0]):
+        c = C[i:i + 1]
+        Xp = solve_discrete_are(A.T / np.sqrt(beta), c.T, np.eye(6), np.eye(1))
+        Xp = 0.5 * (Xp + Xp.T)
+        lam = (Xp @ c.T / (c @ Xp @ c.T + 1.0))[:, 0]
+        np.testing.assert_allclose(obs.L[:, i], lam, rtol=1e-9, atol=1e-12)
+        closed = A @ (np.eye(6) - np.outer(lam, c)) / np.sqrt(beta)
+        assert np.abs(np.linalg.eigvals(closed)).max() < 1  # stabilising: a P > 0 exists
+    # the point does not move with rounding: data perturbed by 1e-14 give the same gain
+    plant = _arrays(sc.system)
+    eps = cora_epsilon(sc.system.W, np.abs(plant.F[:1]).sum(axis=1))
+    one = LinearDesignProblem(plant.A, plant.C[:1], plant.E, np.abs(plant.F[:1]).sum(
+        axis=1, keepdims=True))
+    nudged = LinearDesignProblem(plant.A * (1 + 1e-14), *one[1:])
+    ref = le_gain(one, eps, method="riccati").L
+    np.testing.assert_allclose(le_gain(nudged, eps, method="riccati").L, ref, rtol=1e-8,
+                               atol=1e-10 * np.abs(ref).max())
+    # 12 tanks: the first four outputs cannot correct the slow modes (ARCH Table 5: PRad-A
+    # diverged there with CORA's within-tolerance SDP point)
+    sc12 = systems.scenario("tank12-linear")
+    with pytest.raises(DesignFailed, match="output 1.*no stabilising solution"):
+        observers.create("PRad-A", sc12.system, **sc12.options)
 
 
 @pytest.mark.parametrize("name", ["PRad-C-I", "PRad-D"])
@@ -406,7 +447,10 @@ def test_le_riccati_of_a_hand_solved_scalar_system():
     # a^2 / beta = 1.5, unit weights: Xp = 1.5 X + 1, X = Xp / (Xp + 1) gives
     # Xp^2 - 1.5 Xp - 1 = 0, Xp = 2, X = 2/3, P = 1.5, Lam = Xp / (Xp + 1) = 2/3
     one = np.array([[1.0]])
-    P, Y = le_riccati(LinearDesignProblem(np.array([[np.sqrt(0.75)]]), one, one, one), 0.5)
+    point = le_riccati(LinearDesignProblem(np.array([[np.sqrt(0.75)]]), one, one, one), 0.5)
+    P, Y = point.P, point.Y
+    assert point.X[0, 0] == pytest.approx(2 / 3, rel=1e-12)
+    assert point.Lam[0, 0] == pytest.approx(2 / 3, rel=1e-12)
     assert P[0, 0] == pytest.approx(1.5, rel=1e-12)
     assert Y[0, 0] / P[0, 0] == pytest.approx(2 / 3, rel=1e-12)
     # the inequality holds with equality: no larger P is feasible
@@ -462,8 +506,11 @@ def test_le_method_auto_and_the_design_key(tmp_path, monkeypatch):
     assert le_method(RICCATI_ABOVE + 1, np.eye(2)) == "riccati"
     assert le_method(RICCATI_ABOVE + 1, np.ones((2, 1))) == "sdp"  # V not full-dimensional
     assert le_method(2, np.eye(2), riccati_above=0) == "riccati"  # PRad-B's threshold
-    small = observers.create("PRad-A", systems.scenario("vehicle2d-cora").system)
+    small = observers.create("PRad-A", systems.scenario("vehicle2d-cora").system,
+                             method="sdp")
     assert "method" not in small.design_params()  # an SDP design keeps its former key
+    assert observers.create("PRad-A", systems.scenario("vehicle2d-cora").system
+                            ).design_params()["method"] == "riccati"
     assert observers.create("PRad-B", systems.scenario("vehicle2d-cora").system,
                             method="sdp").design_params().get("method") is None
     assert observers.create("PRad-B", systems.scenario("vehicle2d-cora").system

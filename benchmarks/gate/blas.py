@@ -54,10 +54,6 @@ SPREAD_CAUSES = {
               "its tolerance, which moves with the kernel's rounding by about 1e-7 relative",
     "ESO-C": _HINF_CENTRE,
     "ESO-D": _HINF_CENTRE,
-    "PRad-A": "chaotic by nature: at CORA's rate no P > 0 exists for a single output of the "
-              "6-tank (the Riccati equation of output 1 has a singular least solution), so "
-              "the SDP returns a point within its feasibility tolerance, a different one "
-              "under every kernel; the strip-by-strip composition then amplifies it",
 }
 
 

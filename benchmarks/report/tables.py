@@ -263,10 +263,14 @@ def scenario_table_caption(df: pd.DataFrame, meta: dict) -> str:
     if any(o.split("[")[0] in CHAOTIC_BY_NATURE for o in df["observer"].unique()):
         parts.append("In brackets: how far a value moves across OpenBLAS kernels, for an "
                      "observer whose published design is undetermined (results/baseline/"
-                     "SENSITIVITY.md). With the deterministic PCA basis every other value is "
-                     "the same on every kernel to about 1e-6; CORA's basis (reduction: "
-                     "pca-cora) depends on the kernel where singular values repeat (up to "
-                     "0.4 % measured on this table's 6-tank rows).")
+                     "SENSITIVITY.md).")
+    if paper:
+        parts.append("With the deterministic PCA basis every value is the same on every "
+                     "OpenBLAS kernel to about 1e-6 (1e-4 for the SDP designs; results/"
+                     "baseline/SENSITIVITY.md); CORA's basis (reduction: pca-cora, where a "
+                     "table's configuration names it) depends on the kernel where singular "
+                     "values repeat (up to 0.4 % measured on the 6-tank rows of ARCH 2021 "
+                     "Table 3).")
     par = timed_in_parallel(df)
     parts.append("Times: median per step on this machine" + (
         ", measured while jobs ran in parallel (indicative only)." if par else "."))

@@ -15,19 +15,23 @@ Relation to CORA and to the papers
   the vector ``max(|inf W|, |sup W|)``, ``phi``: the strip half-widths), at the ``beta`` where
   CORA's bisection ends (0.9921875; the SDP is feasible for every ``beta``, so CORA's loop,
   which moves up after each feasible solve, always ends there).  Clarabel reproduces CORA's
-  stored SDPT3 gain of the 2-D vehicle to ~2e-7.  PRad-B's design is the SDP's largest
-  optimal ``P`` from a Riccati equation at every size (option ``method``, default ``auto``;
-  :func:`~observers.numerics.prad.le_riccati`, milliseconds instead of minutes), PRad-A's
-  above 12 states: the optimum of the SDP pins only the smallest eigenvalue of P, so where
-  it is not a single point (the 6-tank) the SDP's answer is wherever the solver stops, and it
-  moved by 2.4e-2 in the radii between OpenBLAS kernels; the largest optimal ``P`` is one
-  point, and equals the SDP's where the optimum is unique (the 2-D vehicle).  Above 12 states
-  the SDP's weights ``E'E = 1e-6 I`` of the tank systems make Clarabel's feasibility tolerance a
-  relative violation of order 1e-4 of the inequality (tank12: ``||P^1/2 N W^-1/2|| =
-  1.0003`` instead of at most 1), which the Riccati solution meets exactly.  It also decides
-  PRad-A's ``noGain`` from 18 tanks on: a single output of the tank chain leaves modes that
-  decay more slowly than ``sqrt(beta)`` uncorrected, so no ``P > 0`` exists (the SDP returned
-  a gain only within its tolerance, and PRad-A then diverged).
+  stored SDPT3 gain of the 2-D vehicle to ~2e-7.  PRad-B's and PRad-A's designs are the
+  SDP's largest optimal ``P`` from a Riccati equation at every size (option ``method``,
+  default ``auto``; :func:`~observers.numerics.prad.le_riccati`, milliseconds instead of
+  minutes): the optimum of the SDP pins only the smallest eigenvalue of P, so where it is not
+  a single point (the 6-tank) the SDP's answer is wherever the solver stops, and it moved by
+  2.4e-2 (PRad-B) and 394 % (PRad-A) in the radii between OpenBLAS kernels; the largest
+  optimal ``P`` is one point, and equals the SDP's where the optimum is unique (the 2-D
+  vehicle).  Above 12 states the SDP's weights ``E'E = 1e-6 I`` of the tank systems make
+  Clarabel's feasibility tolerance a relative violation of order 1e-4 of the inequality
+  (tank12: ``||P^1/2 N W^-1/2|| = 1.0003`` instead of at most 1), which the Riccati solution
+  meets exactly.  It also decides PRad-A's ``noGain``: where a single output leaves a mode
+  that decays more slowly than ``sqrt(beta)`` uncorrected (the first four outputs of the
+  12-tank chain and every larger one; the first output of the 4- and 6-state vehicles) the
+  Riccati equation has no stabilising solution, so no ``P > 0`` exists; CORA's SDP returns a
+  point within its tolerance there (the published rows), with which our estimates diverged
+  (ARCH Table 5 publishes PRad-A as diverged at 12 tanks, noGain above; the vehicle rows of
+  Automatica Table 3 were not reproduced).
 * **PRad-C** and **PRad-D** are ill-posed as CORA implements them: CORA's PRad-C
   SDP maximises ``tr P`` under constraints homogeneous in ``(P, Y, G, O)`` (unbounded: any
   feasible point can be scaled up), and its PRad-D constraint ``[[I, gamma P], [gamma P, P]]
@@ -81,11 +85,14 @@ Known behaviour
   at another (variant ``PRad-B[sdp]``), which moves with the BLAS kernel.  PRad-B takes the
   largest optimal ``P``, unique: its 6-tank radii are 0.92x-1.04x the table's (average of
   ``v`` 1.489 against 1.507).  On the 2-D vehicle the optimum is unique.
-* PRad-A's single-output designs have, on the 6-tank, no ``P > 0`` at CORA's rate (the
-  Riccati equation of output 1 has a singular least solution): the SDP returns a point
-  within its feasibility tolerance, so the gain, and the radii, are whatever the solver's
-  last iterate is (a spread of 394 % between OpenBLAS kernels).  The row is kept because the
-  table publishes it; the regression gate and the reports mark it as chaotic by nature.
+* PRad-A's first single-output design of the 6-tank is barely feasible: the mode of the
+  unmeasured tanks decays at 0.996 per step, just faster than ``sqrt(beta) = 0.99609``, so
+  the least ``X = P^-1`` is huge along it (condition number 3e13) and the SDP's objective
+  ``tau`` at the optimum is of order 1e-16, below any solver's tolerance: the SDP returned
+  whatever point it stopped at (a spread of 394 % in the radii between OpenBLAS kernels).
+  The Riccati route returns the largest optimal ``P`` and its gain as a Kalman update,
+  without inverting ``X`` (the same to 1e-10 under every kernel); its 6-tank radii are
+  0.65x-1.0x the published ones (ARCH 2021 Table 3 publishes SDPT3's stopping point).
 * **Default design of PRad-C-I/C-II/D (``design: centre``)**: the analytic centre of CORA's cone
   at its final rate 0.9921875 (:func:`~observers.numerics.prad.centre_gain`, a damped Newton
   method in numpy).  It reproduces the published rows: 6-tank average 1.331 over the paper's
@@ -109,7 +116,6 @@ from ..families import AllStripsObserver, PerStripObserver
 from ..kernels import StepKernel
 from ..numerics.lmi import LinearDesignProblem, cora_bisection_end
 from ..numerics.prad import (
-    RICCATI_ABOVE,
     centre_gain,
     le_gain,
     le_method,
@@ -148,8 +154,9 @@ class _LeMethod:
     """Option ``method`` of the Le et al. designs (PRad-A, PRad-B): SDP or Riccati equation."""
 
     OPTIONS: dict[str, Any] = {"method": Choice("auto", ("auto", "sdp", "riccati"))}
-    #: ``method="auto"`` takes the Riccati route above this many states
-    RICCATI_ABOVE = RICCATI_ABOVE
+    #: ``method="auto"`` takes the Riccati route above this many states: at every size (the
+    #: unique largest optimal ``P``; the SDP where the noise set is not full-dimensional)
+    RICCATI_ABOVE = 0
 
     def resolved_method(self) -> str:
         """The route of the design: ``method``, with ``"auto"`` resolved by
@@ -192,14 +199,16 @@ class PRadA(_LeMethod, _BetaTol, OfflineGain, PerStripObserver):
         How each single-output design is solved (:func:`~observers.numerics.prad.le_gain`):
         CORA's SDP, or its largest optimal ``P`` from a Riccati equation
         (:func:`~observers.numerics.prad.le_riccati`: milliseconds instead of about 35 s per
-        output at 30 tanks).  ``"auto"`` (default): the SDP up to 12 states, the Riccati
-        equation above (:data:`~observers.numerics.prad.RICCATI_ABOVE`).
+        output at 30 tanks).  ``"auto"`` (default): the Riccati equation (a unique point, the
+        same on every machine) whenever the noise set is full-dimensional, else the SDP.
     beta_tol : float
         Tolerance of CORA's bisection on ``beta``.
     """
 
     KERNEL = StepKernel.PER_STRIP
-    DESIGN_VERSION = "1"
+    #: 2: the Riccati route at every size (a unique point; the SDP left the 6-tank's first
+    #: output wherever it stopped)
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
         cols = []
@@ -290,8 +299,8 @@ class PRadB(_LeMethod, _BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"solver": Choice("clarabel", ("clarabel", "clarabel-1e-6", "scs"))}
-    DESIGN_VERSION = "1"
-    RICCATI_ABOVE = 0
+    #: 2: the Riccati gain returned as the Kalman update itself (not P^-1 Y)
+    DESIGN_VERSION = "2"
 
     def design_gain(self) -> np.ndarray:
         return le_gain(_plant(self), cora_epsilon(self.W, self.sigma),

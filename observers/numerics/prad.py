@@ -47,6 +47,7 @@ from .lmi import (
 #: boundary of the LMI, where the solver's feasibility tolerance (1e-8 on its scaled problem)
 #: shows up as eigenvalues of order -1e-7 relative to the largest entry of D
 VERIFY_TOL = 1e-6
+EPS = float(np.finfo(float).eps)
 
 
 class DecayWeights(NamedTuple):
@@ -235,8 +236,12 @@ def le_gain(plant: LinearDesignProblem, epsilon: float, beta_tol: float = 0.01,
     method = le_method(n, F, method)
     Ww, Wv = E.T @ E, F.T @ F
     if method == "riccati":
-        Pv, Yv = le_riccati(plant, beta, what)
-    elif method == "sdp":
+        point = le_riccati(plant, beta, what)
+        verify_riccati(point, plant, beta, what)
+        Pv = point.P
+        tau = float(np.linalg.eigvalsh((1 - beta) * Pv)[0] / epsilon)
+        return GainDesign(point.Lam, Pv, {"rate": beta, "tau": tau, "method": method})
+    if method == "sdp":
         import cvxpy as cp
 
         P, Y = _variables(n, m)
@@ -253,10 +258,38 @@ def le_gain(plant: LinearDesignProblem, epsilon: float, beta_tol: float = 0.01,
     return GainDesign(L, Pv, {"rate": beta, "tau": tau, "method": method})
 
 
-def le_riccati(plant: LinearDesignProblem, beta: float, what: str = "PRad-B"
-               ) -> tuple[np.ndarray, np.ndarray]:
+class RiccatiPoint(NamedTuple):
+    """The largest ``P`` of (*) (:func:`le_riccati`) as its inverse ``X = P^-1`` and its gain
+    ``Lam`` (a Kalman filter update: defined and computed without inverting ``X``)."""
+
+    X: np.ndarray
+    Lam: np.ndarray
+    #: the orthogonal projectors on the ranges of ``E`` and ``F`` (the weights of (*) in the
+    #: form ``X >= ...``)
+    QE: np.ndarray
+    QF: np.ndarray
+
+    @property
+    def P(self) -> np.ndarray:
+        """``P = X^-1``."""
+        return sym(np.linalg.inv(self.X))
+
+    @property
+    def Y(self) -> np.ndarray:
+        """``Y = P Lam``."""
+        return self.P @ self.Lam
+
+
+#: ``X = P^-1`` counts as positive definite when its smallest eigenvalue exceeds this many
+#: times ``n eps`` its largest: the error bound of the computed eigenvalues of a symmetric
+#: matrix (backward stable: within about ``n eps ||X||_2`` of the exact ones, Weyl), so the
+#: sign of the smallest one is resolved
+RESOLVED = 10.0
+
+
+def le_riccati(plant: LinearDesignProblem, beta: float, what: str = "PRad-B") -> RiccatiPoint:
     """The largest ``P`` (Loewner order) satisfying (*) for ``plant`` with ``Wx = beta P``,
-    ``Ww = E'E``, ``Wv = F'F``, and its ``Y``, from one discrete Riccati equation.
+    ``Ww = E'E``, ``Wv = F'F``, and its gain, from one discrete Riccati equation.
 
     With ``Y = P Lam`` the off-diagonal block of (*) is ``P N``, ``N = [(I - Lam C) A,
     (I - Lam C) E, Lam F]``, and the Schur complement of the weights (after replacing ``E``
@@ -272,17 +305,24 @@ def le_riccati(plant: LinearDesignProblem, beta: float, what: str = "PRad-B"
     (the iteration of the minimised right side from a feasible ``X`` decreases to ``X*``).
     Hence ``P* = X*^-1`` is the largest feasible ``P``: it maximises ``tau`` (the smallest
     eigenvalue of P) of :func:`le_gain`, as in the PRad-E case of
-    :func:`~observers.numerics.luenberger.prad_e_design`.  Needs a full-dimensional noise set
-    (``Q_F = I``); if the Riccati equation has no stabilising solution (a mode the outputs
-    cannot correct decays more slowly than ``sqrt(beta)``) there is no ``P > 0``: the design
-    fails (:class:`~observers.errors.DesignFailed`), which is the table's ``noGain``.
+    :func:`~observers.numerics.luenberger.prad_e_design`.  The gain is returned as ``Lam``
+    itself, not as ``P^-1 Y``: where a mode decays barely faster than ``sqrt(beta)`` (PRad-A's
+    first output of the 6-tank: closed loop 0.99991 against 1) ``X*`` is huge along it
+    (condition number 3e13), ``tau`` of order 1e-16, below any SDP solver's tolerance (the
+    SDP then stops wherever it does), while ``Lam`` is a well-conditioned function of the
+    moderate part of ``Xp`` (the same to 1e-10 under every OpenBLAS kernel).  Needs a
+    full-dimensional noise set (``Q_F = I``); if the Riccati equation has no stabilising
+    solution (a mode the outputs cannot correct decays more slowly than ``sqrt(beta)``), or
+    ``X*`` is not positive definite to its rounding (:data:`RESOLVED`), there is no ``P > 0``:
+    the design fails (:class:`~observers.errors.DesignFailed`), which is the table's
+    ``noGain``.
     """
     from scipy.linalg import solve_discrete_are
 
     from .lmi import range_basis
 
     A, C, E, F = _as_arrays(plant)
-    m = C.shape[0]
+    n, m = A.shape[0], C.shape[0]
     QE, QF = range_basis(E), range_basis(F)
     if QF.shape[1] < m:
         raise DesignFailed(f"{what}: the Riccati route needs a noise set V of full dimension "
@@ -297,11 +337,29 @@ def le_riccati(plant: LinearDesignProblem, beta: float, what: str = "PRad-B"
     Lam = Xp @ C.T @ np.linalg.inv(C @ Xp @ C.T + np.eye(m))
     X = sym(Xp - Lam @ C @ Xp)
     lam = np.linalg.eigvalsh(X)
-    if not np.all(np.isfinite(lam)) or lam[0] <= 1e-12 * max(1.0, lam[-1]):
+    if not np.all(np.isfinite(lam)) or lam[0] <= RESOLVED * n * EPS * max(lam[-1], 0.0):
         raise DesignFailed(f"{what}: no P > 0 satisfies the P-radius inequality at rate "
                            f"{beta} (the least solution X = P^-1 is singular)")
-    P = sym(np.linalg.inv(X))
-    return P, P @ Lam
+    return RiccatiPoint(X, Lam, QE @ QE.T, QF @ QF.T)
+
+
+def verify_riccati(point: RiccatiPoint, plant: LinearDesignProblem, beta: float,
+                   what: str) -> float:
+    """Check (*) at a Riccati point in its form ``X >= (I - Lam C) Xp (I - Lam C)' +
+    Lam Q_F Lam'`` (:func:`le_riccati`; it holds with equality there), to :data:`VERIFY_TOL`
+    of ``|X|``: the form that needs no inverse of an ill-conditioned ``X``.  Returns the
+    smallest eigenvalue of the difference."""
+    A, C, _, _ = _as_arrays(plant)
+    X, Lam = point.X, point.Lam
+    if not np.all(np.isfinite(Lam)):
+        raise DesignFailed(f"{what}: the gain is not finite")
+    K = np.eye(A.shape[0]) - Lam @ C
+    Xp = A @ X @ A.T / beta + point.QE
+    lam = min_eig(X - K @ Xp @ K.T - Lam @ point.QF @ Lam.T)
+    if not np.isfinite(lam) or lam < -VERIFY_TOL * max(1.0, float(np.abs(X).max())):
+        raise DesignFailed(f"{what}: P-radius inequality (X form): verification failed "
+                           f"(smallest eigenvalue {lam:.3g})")
+    return lam
 
 
 # -- PRad-C-I, PRad-C-II (Wang et al. 2018), PRad-D (Wang et al. 2019) -----------------------------
