@@ -10,6 +10,8 @@ A room of its own between the compiled kernels and the set types (``kernels`` <-
   hull and support values of constrained zonotopes, :class:`HullLP`; feasibility,
   :func:`box_feasible`), every bound evaluated from a dual point by weak duality
   (:func:`dual_bound`, :func:`dual_bounds`), hence sound whatever the solver returns;
+- :mod:`observers.lp.sifting`: the hull LPs with very many columns by sifting, working sets
+  of columns priced against all of them (:func:`observers.lp.sifting.solve`);
 - :mod:`observers.lp.dual_simplex` and :mod:`observers.lp.dual_simplex_jit`: the batched
   bounded dual simplex that solves the 2n hull LPs of one set together, numpy path and
   compiled twin side by side (same pivots).
@@ -25,6 +27,7 @@ from .hull import (
     box_feasible,
     dual_bound,
     dual_bounds,
+    sifting_is_cheaper,
 )
 
 __all__ = [
@@ -37,4 +40,5 @@ __all__ = [
     "dual_bound",
     "dual_bounds",
     "new_highs",
+    "sifting_is_cheaper",
 ]

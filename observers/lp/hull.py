@@ -28,7 +28,7 @@ except ImportError as exc:  # pragma: no cover - exercised only on broken instal
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
 from ..errors import EmptySet, SetError
-from . import dual_simplex
+from . import dual_simplex, sifting
 from .highs import new_highs
 
 _EPS = np.finfo(float).eps
@@ -137,11 +137,13 @@ class HullLPStats:
     iterations : int
         Simplex iterations, summed over the LPs.
     fallbacks : int
-        LPs that the batched dual simplex did not finish and handed to HiGHS.
+        LPs that the batched dual simplex or sifting did not finish and handed to HiGHS.
     seconds : dict
         Seconds by phase: those of the batched dual simplex (``setup``, ``pivots``,
-        ``refactor``, ``certify``; :class:`observers.lp.dual_simplex.Clock`), ``bounds``
-        (the weak-duality bounds of its dual points) and ``highs`` (LPs solved by HiGHS).
+        ``refactor``, ``certify``; :class:`observers.lp.dual_simplex.Clock`), those of
+        sifting (``start``, ``models``, ``restricted``, ``pricing``;
+        :class:`observers.lp.sifting.SiftResult`), ``bounds`` (the weak-duality bounds of
+        their dual points) and ``highs`` (LPs solved by HiGHS).
     """
 
     solves: int
@@ -181,12 +183,15 @@ class HullLP:
     :meth:`maximize_many` solves many directions at once: with ``solver="batched"`` by the
     batched dual simplex of :mod:`observers.lp.dual_simplex` (all 2n LPs of an interval
     hull in lock step), with HiGHS for the LPs it does not finish (and to report empty sets);
-    with ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`; ``"auto"``
-    (default) picks the cheaper by :func:`batched_is_cheaper`.  Either way each bound is the
-    weak-duality bound of a dual point.
+    with ``solver="sifting"`` by sifting over working sets of columns
+    (:mod:`observers.lp.sifting`), with HiGHS for the LPs it does not finish; with
+    ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`; ``"auto"`` (default)
+    picks the batched solver where :func:`batched_is_cheaper`, else sifting where
+    :func:`sifting_is_cheaper`, else HiGHS.  Either way each bound is the weak-duality bound
+    of a dual point on the full problem.
     """
 
-    SOLVERS = ("auto", "batched", "highs")
+    SOLVERS = ("auto", "batched", "highs", "sifting")
 
     def __init__(self, solver: str = "auto"):
         if solver not in self.SOLVERS:
@@ -245,9 +250,13 @@ class HullLP:
         """Sound upper bounds on ``max Gd[k]'xi  s.t.  A xi = b, -1 <= xi <= 1`` for every row
         ``k`` of ``Gd`` (raises :class:`SetError` if the feasible set is empty)."""
         Gd = np.atleast_2d(np.asarray(Gd, dtype=float))
-        K, p = Gd.shape[0], A.shape[0]
-        if p == 0 or self.solver == "highs" or (
-                self.solver == "auto" and not batched_is_cheaper(K, p)):
+        K, (p, r) = Gd.shape[0], A.shape
+        if p == 0 or self.solver == "highs":
+            return np.array([self.maximize(g, A, b) for g in Gd])
+        if self.solver == "sifting" or (self.solver == "auto" and not batched_is_cheaper(K, p)
+                                        and sifting_is_cheaper(K, p, r)):
+            return self._sift(Gd, A, b)
+        if self.solver == "auto" and not batched_is_cheaper(K, p):
             return np.array([self.maximize(g, A, b) for g in Gd])
         res = dual_simplex.solve(A, b, Gd)
         t0 = perf_counter()
@@ -255,6 +264,32 @@ class HullLP:
         self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})
         self.solves += Gd.shape[0]
         self.iterations += res.problem_iterations
+        for k in np.nonzero(~res.converged)[0]:  # not finished: HiGHS (both bounds are valid)
+            self.fallbacks += 1
+            bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
+        return bounds
+
+    def _sift(self, Gd: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """:meth:`maximize_many` by sifting (:mod:`observers.lp.sifting`) over the columns in
+        some constraint; the bounds are those of the dual points on the full problem (the
+        columns in no constraint count ``|g_j|``), HiGHS for the LPs sifting did not finish.
+        """
+        cols = sifting.constrained_columns(A)
+        if cols.size == 0:  # no variable in any constraint: 0 = b
+            if np.any(np.abs(b) > _ROW_FEASIBILITY_TOL):
+                raise EmptySet(_EMPTY)
+            return dual_bounds(Gd, A, b, np.zeros((Gd.shape[0], A.shape[0])))
+        reduced = cols.size < A.shape[1]
+        try:
+            res = sifting.solve(A[:, cols] if reduced else A, b,
+                                Gd[:, cols] if reduced else Gd)
+        except sifting.NoStart:  # HiGHS gave no start vertex: every LP by HiGHS
+            return np.array([self.maximize(g, A, b) for g in Gd])
+        t0 = perf_counter()
+        bounds = dual_bounds(Gd, A, b, res.mu)
+        self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})
+        self.solves += Gd.shape[0]
+        self.iterations += res.iterations
         for k in np.nonzero(~res.converged)[0]:  # not finished: HiGHS (both bounds are valid)
             self.fallbacks += 1
             bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
@@ -284,6 +319,26 @@ def batched_is_cheaper(K: int, p: int) -> bool:
     first 40 steps took 14.8 against 12.8 s, so it stays with HiGHS.
     """
     return p <= BATCHED_MAX_ROWS and 2 * p * (70 + 8 * K) < K * (90 + 36 * p)
+
+
+#: fewest columns, and fewest columns per constraint row, for which the hull LPs are sifted
+#: (measured, see :func:`sifting_is_cheaper`)
+SIFTING_MIN_COLUMNS = 4000
+SIFTING_MIN_RATIO = 20
+
+
+def sifting_is_cheaper(K: int, p: int, r: int) -> bool:
+    """Whether sifting (:mod:`observers.lp.sifting`) is expected to beat K warm HiGHS runs on
+    LPs with ``p`` rows and ``r`` columns: for many columns, and many per row.  Each HiGHS
+    iteration prices all ``r`` columns; sifting prices them once per round for a chunk of
+    problems (one matrix product) and iterates over a working set of about a thousand.
+    Measured on the steady CZN-A hulls of the tank benchmarks (same process, interleaved):
+    100 tanks (p = 160, r = 10240) 13 against 16 ms per LP, 200 tanks (p = 326, r = 20489)
+    19 against 73 ms per LP.  Below :data:`SIFTING_MIN_COLUMNS` columns the start (one cold
+    HiGHS solve of the full LP) and the per-problem models do not pay off on the few
+    directions of a hull.
+    """
+    return K >= 2 and r >= SIFTING_MIN_COLUMNS and r >= SIFTING_MIN_RATIO * p
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:

@@ -1,0 +1,123 @@
+"""Sifting for the hull LPs with many columns (observers.lp.sifting, HullLP(solver="sifting")):
+on random constrained zonotopes with many columns and few rows (with zero, parallel and
+duplicate columns, degenerate costs) its bounds equal the plain HiGHS hull's to 1e-9 of the
+radius and are never below the true maximum (scipy's linprog on the same LP); working sets
+too small to finish still give sound bounds; empty sets raise EmptySet; HullLP("auto") routes
+many-column LPs through it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from observers.errors import EmptySet
+from observers.lp import sifting
+from observers.lp.hull import SIFTING_MIN_COLUMNS, HullLP, dual_bounds, sifting_is_cheaper
+
+
+def _instance(kind: str, seed: int, r: int = 600, nc: int = 8, n: int = 4):
+    """``(A, b, Gd)``: constraints with a feasible point inside the box and 2n cost rows."""
+    g = np.random.default_rng(seed)
+    A = g.normal(size=(nc, r)) * np.exp(g.uniform(-6, 0, r))  # column sizes over 2.6 decades
+    G = g.normal(size=(n, r)) * np.exp(g.uniform(-6, 0, r))
+    xi0 = g.uniform(-0.8, 0.8, r)
+    if kind == "zero-columns":  # generators in no constraint (closed form)
+        A[:, : r // 3] = 0.0
+    elif kind == "parallel":  # duplicate and parallel columns, costs in A's row space
+        A[:, 10:110] = A[:, 110:210]
+        G[:, 10:110] = G[:, 110:210]
+        A[:, 210:260] = -2.0 * A[:, 260:310]
+        G[:, 210:260] = -2.0 * G[:, 260:310]
+        G[0] = A[0] - 0.5 * A[3]
+    elif kind == "boundary":  # the feasible set touches the box
+        xi0[: r // 2] = np.sign(g.normal(size=r // 2))
+    elif kind == "unit-columns":  # measurement-like rows with their own noise generators
+        A[:, r - nc:] = 0.05 * np.eye(nc)
+        G[:, r - nc:] = 0.0
+    return A, A @ xi0, np.vstack([G, -G])
+
+
+def _true_max(g: np.ndarray, A: np.ndarray, b: np.ndarray) -> float:
+    res = linprog(-g, A_eq=A, b_eq=b, bounds=(-1, 1), method="highs")
+    assert res.status == 0
+    return -res.fun
+
+
+KINDS = ["generic", "zero-columns", "parallel", "boundary", "unit-columns"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("seed", range(3))
+def test_sifting_hull_equals_plain_hull_and_is_sound(kind, seed, monkeypatch):
+    # small first working sets and additions: several rounds of sifting per LP
+    monkeypatch.setattr(sifting, "FIRST", 1)
+    monkeypatch.setattr(sifting, "ADD", 4)
+    monkeypatch.setattr(sifting, "MAX_ROUNDS", 200)
+    A, b, Gd = _instance(kind, seed)
+    sift = HullLP("sifting")
+    ub = sift.maximize_many(Gd, A, b)
+    plain = HullLP("highs").maximize_many(Gd, A, b)
+    radius = np.abs(Gd).sum(axis=1)
+    assert sift.stats.fallbacks == 0
+    assert "pricing" in sift.stats.seconds  # the sifting path ran
+    np.testing.assert_array_less(np.abs(ub - plain), 1e-9 * radius)
+    for k in range(Gd.shape[0]):
+        assert ub[k] >= _true_max(Gd[k], A, b) - 1e-9 * radius[k]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_unfinished_working_sets_still_give_sound_bounds(seed):
+    A, b, Gd = _instance("generic", seed)
+    res = sifting.solve(A, b, Gd, max_rounds=1)
+    ub = dual_bounds(Gd, A, b, res.mu)
+    for k in range(Gd.shape[0]):
+        assert ub[k] >= _true_max(Gd[k], A, b)  # any dual point bounds the maximum
+
+
+def test_unconverged_problems_are_solved_by_highs(monkeypatch):
+    monkeypatch.setattr(sifting, "FIRST", 1)
+    monkeypatch.setattr(sifting, "ADD", 1)
+    monkeypatch.setattr(sifting, "MAX_ROUNDS", 1)
+    A, b, Gd = _instance("generic", 7)
+    lp = HullLP("sifting")
+    ub = lp.maximize_many(Gd, A, b)
+    assert lp.stats.fallbacks > 0
+    plain = HullLP("highs").maximize_many(Gd, A, b)
+    np.testing.assert_array_less(np.abs(ub - plain), 1e-9 * np.abs(Gd).sum(axis=1))
+
+
+def test_sifting_reports_empty_sets():
+    g = np.random.default_rng(3)
+    A = g.normal(size=(4, 300))
+    b = A @ g.uniform(-1, 1, 300)
+    A[3] = A[2]
+    b[3] = b[2] + 1.0  # contradicting copies of a row
+    with pytest.raises(EmptySet):
+        HullLP("sifting").maximize_many(g.normal(size=(6, 300)), A, b)
+    with pytest.raises(EmptySet):  # no variable in any constraint: 0 = b
+        HullLP("sifting").maximize_many(g.normal(size=(6, 300)), np.zeros((2, 300)),
+                                        np.ones(2))
+
+
+def test_columns_in_no_constraint_count_in_closed_form():
+    A, b, Gd = _instance("zero-columns", 11)
+    cols = sifting.constrained_columns(A)
+    assert cols.size == A.shape[1] - A.shape[1] // 3
+    ub = HullLP("sifting").maximize_many(Gd, A, b)
+    free = np.abs(Gd[:, : A.shape[1] // 3]).sum(axis=1)
+    rest = HullLP("highs").maximize_many(Gd[:, cols], A[:, cols], b)
+    np.testing.assert_array_less(np.abs(ub - (rest + free)), 1e-9 * np.abs(Gd).sum(axis=1))
+
+
+def test_auto_routes_many_columns_to_sifting():
+    assert sifting_is_cheaper(200, 160, 10240) and sifting_is_cheaper(400, 326, 20489)
+    assert not sifting_is_cheaper(12, 8, 300)  # the vehicle: the batched dual simplex
+    assert not sifting_is_cheaper(200, 400, 5000)  # too few columns per row
+    A, b, Gd = _instance("generic", 5, r=SIFTING_MIN_COLUMNS, nc=6, n=2)
+    lp = HullLP("auto")
+    ub = lp.maximize_many(Gd, A, b)
+    assert "pricing" in lp.stats.seconds
+    plain = HullLP("highs").maximize_many(Gd, A, b)
+    np.testing.assert_array_less(np.abs(ub - plain), 1e-9 * np.abs(Gd).sum(axis=1))
+
