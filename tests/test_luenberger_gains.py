@@ -199,3 +199,29 @@ def test_nom_g_above_the_newton_limit_is_the_verified_kalman_start(monkeypatch):
     assert d.info["solver"] == "start" and d.info["rho"] < 1
     P0, Y0 = luenberger.nom_g_start(s.A, s.C, 1.0)
     np.testing.assert_allclose(d.L, np.linalg.solve(P0, Y0), rtol=1e-10)
+
+
+def test_h_infinity_gains_do_not_depend_on_the_units_of_the_noise():
+    # Congruence with diag(I, I/s, I/s, I): the Hinf-G LMI of (s E, s F, g) is that of
+    # (E, F, g / s^2) with the same P and Y, so the gain is the same and gamma scales by s;
+    # likewise the H-infinity LMI of ESO-C/D (step 1, Q = I).  The solvers see the noise at
+    # unit scale (lmi.unit_noise), so the computed points agree to the solver's tolerance
+    # (measured: 1e-5 in the gain), where before its absolute tolerances moved Hinf-G's radii
+    # by 0.26 % at s = 0.1 (the noise-level grid).
+    from observers.numerics.ellipsoidal import first_gain, hinf_gain
+    from observers.numerics.lmi import LinearDesignProblem
+
+    s = systems.scenario("vehicle6d-cora").system
+    A, C, E, F = s.A, s.C, s.W.G, s.V.G
+    base = lg.hinf_g_design(A, C, E, F, 0.1, "sdp")
+    for k in (0.1, 8.0):
+        other = lg.hinf_g_design(A, C, k * E, k * F, 0.1, "sdp")
+        np.testing.assert_allclose(other.L, base.L, rtol=1e-4, atol=1e-6 * np.abs(base.L).max())
+        assert other.info["gamma"] == pytest.approx(k * base.info["gamma"], rel=1e-6)
+    plant = LinearDesignProblem(A, C, E, F)
+    scaled = LinearDesignProblem(A, C, 0.1 * E, 0.1 * F)
+    L1 = first_gain(plant)
+    np.testing.assert_allclose(first_gain(scaled), L1, rtol=1e-4, atol=1e-6 * np.abs(L1).max())
+    g = hinf_gain(plant, np.eye(A.shape[0]), "test")[2]
+    assert hinf_gain(scaled, np.eye(A.shape[0]), "test")[2] == pytest.approx(0.01 * g,
+                                                                            rel=1e-6)

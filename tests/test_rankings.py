@@ -41,7 +41,14 @@ def test_scale_dependence_is_named():
     df = pd.DataFrame({"record": "r", "axis": "all", "scale": [0.1, 1.0, 0.1, 1.0],
                        "observer": ["a", "a", "b", "b"], "status": ["ok", "ok", "noGain", "ok"],
                        "gap": [2.0, 2.0, np.nan, 3.0]})
-    assert noise_grid.scale_dependent(df, "r") == ["b"]
+    assert noise_grid.scale_dependent(df, "r") == {"b": float("inf")}
+    moved = pd.DataFrame({"record": "r", "axis": "all", "scale": [0.1, 1.0, 10.0],
+                          "observer": "ESO-A", "status": "ok", "gap": [2.2, 2.0, 2.0]})
+    assert noise_grid.scale_dependent(moved, "r") == pytest.approx({"ESO-A": 0.1})
+    text = noise_grid.scale_sentence({"ESO-A": 0.1, "x": 2e-5, "y": float("inf")})
+    assert "ESO-A (gap moves by 0.1: the level" in text
+    assert "x (gap moves by 2.0e-05: the SDP solver's tolerance)" in text
+    assert "y (a status changes: cause not known)" in text
 
 
 def test_ranks_and_win_table_by_hand():

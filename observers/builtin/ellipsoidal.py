@@ -155,6 +155,11 @@ class ESOA(EllipsoidalStripObserver):
 
     and the weight :math:`\lambda = \min(\alpha, \nu)`.  The first set is
     :math:`\mathcal{X}_0` updated with :math:`y_0`.
+
+    The estimate is not invariant under a change of units: the level :math:`\sigma^2`
+    starts at 1 and the selective update compares it with the squared innovation (as the
+    reference implementation does; measured by the noise-level grid: its gap moves by a
+    factor of 4 when W, V and X0 are scaled together from 0.1x to 10x).
     """
 
     OPTIONS = {"alpha": Number(1e-4, low=0, high=1, low_open=True, high_open=True)}
@@ -243,8 +248,9 @@ class InvariantSetObserver(Observer):
     REGRESSION_RTOL = 1e-4
 
     #: "2": the H-infinity gains are the central-path point of :func:`~observers.numerics.
-    #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at
-    DESIGN_VERSION = "2"
+    #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at;
+    #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`)
+    DESIGN_VERSION = "3"
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         """``E``, ``F`` with ``w = E wbar``, ``v = F vbar``, ``|wbar|, |vbar| <= 1``: the

@@ -162,6 +162,8 @@ class HinfG(OfflineGain, IntervalObserver):
         Use this gain instead of designing one.
     """
 
+    #: "2": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`)
+    DESIGN_VERSION = "2"
     OPTIONS = {"gamma_slack": Number(0.1, low=0, low_open=True),
                "method": Choice("auto", ("auto", "sdp", "riccati"))}
 

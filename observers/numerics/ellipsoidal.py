@@ -64,6 +64,7 @@ from .lmi import (
     solve,
     spectral_radius,
     sym,
+    unit_noise,
 )
 
 #: CORA's cap of the Gollamudi weight (``alpha`` in ``@ellipsoid/intersectStrip.m``)
@@ -399,13 +400,17 @@ def hinf_central(plant: LinearDesignProblem, Q, what: str, gap: float = HINF_CEN
 
 def hinf_gain(plant: LinearDesignProblem, Q, what: str) -> tuple[np.ndarray, np.ndarray, float]:
     """:func:`hinf_central` up to :data:`HINF_RICCATI_ABOVE` states (or without a
-    full-dimensional noise set), :func:`hinf_riccati` above (for ``plant`` and ``Q``)."""
+    full-dimensional noise set), :func:`hinf_riccati` above (for ``plant`` and ``Q``), both
+    given the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`: the same gain,
+    ``gamma^2`` scaled back), so that the point does not depend on the units of the data."""
     F = np.atleast_2d(np.asarray(plant.F, dtype=float))
-    plant = LinearDesignProblem(plant.A, plant.C, plant.E, F)
+    plant, s2 = unit_noise(LinearDesignProblem(plant.A, plant.C, plant.E, F))
     full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
     if plant.A.shape[0] > HINF_RICCATI_ABOVE and full:
-        return hinf_riccati(plant, Q, what)
-    return hinf_central(plant, Q, what)
+        P, L, g = hinf_riccati(plant, Q, what)
+    else:
+        P, L, g = hinf_central(plant, Q, what)
+    return P, L, g * s2
 
 
 def hinf_riccati(

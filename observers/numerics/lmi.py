@@ -228,6 +228,24 @@ def range_factor(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
     return U[:, :r] * s[:r]
 
 
+def unit_noise(plant: LinearDesignProblem) -> tuple[LinearDesignProblem, float]:
+    """``plant`` with ``E`` and ``F`` divided by their common scale ``s`` (the larger of their
+    largest singular values; 1 if both are zero), and ``s^2``.
+
+    In the H-infinity LMIs (Hinf-G, ESO-C/D) ``E`` and ``F`` enter beside ``gamma^2 I``: the
+    congruence ``diag(I, I/s, I)`` maps the LMI of ``(s E, s F, g)`` onto that of ``(E, F,
+    g / s^2)``, with the same ``P`` and ``Y``.  The solver is therefore given the noise at unit
+    scale and ``gamma^2`` is scaled back by ``s^2``: a problem stated in other units (the
+    noise-level grid scales ``W`` and ``V`` together) gives the solver the same numbers, so
+    its absolute tolerances and strictness margins act alike and the gain is the same."""
+    A, C, E, F = plant
+    E, F = np.atleast_2d(np.asarray(E, dtype=float)), np.atleast_2d(np.asarray(F, dtype=float))
+    s = max((float(np.linalg.norm(G, 2)) for G in (E, F) if G.size), default=0.0)
+    if not s > 0 or not np.isfinite(s):
+        return plant, 1.0
+    return LinearDesignProblem(A, C, E / s, F / s), s * s
+
+
 def range_basis(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
     """Orthonormal basis of the range of ``G`` (n x rank)."""
     F = range_factor(G, rtol)

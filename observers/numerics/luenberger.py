@@ -330,8 +330,11 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
        :func:`hinf_g_lmi`).  This point is unique in practice and reproducible.
 
     ``E`` and ``F`` are replaced by full-rank factors with the same ``E E'`` and ``F F'``
-    (an orthogonal congruence of the LMI).  Strict inequalities are imposed with a margin
-    ``STRICT_EPS`` and verified in numpy (LMI negative definite, ``rho(A - L C) < 1``).
+    (an orthogonal congruence of the LMI), divided by their common scale
+    (:func:`~observers.numerics.lmi.unit_noise`: the same ``P``, ``Y``, and ``gamma^2`` scaled
+    back, so that the gain does not depend on the units of the data).  Strict inequalities
+    are imposed with a margin ``STRICT_EPS`` and verified in numpy (LMI negative definite,
+    ``rho(A - L C) < 1``).
     """
     import cvxpy as cp
 
@@ -339,13 +342,13 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
     if not gamma_slack > 0:
         raise DesignFailed(f"{what}: gamma_slack must be positive, got {gamma_slack}")
     A, C = np.asarray(A, float), np.asarray(C, float)
-    E, F = range_factor(E), range_factor(F)
     n, m = C.shape[1], C.shape[0]
+    plant, s2 = lmi.unit_noise(LinearDesignProblem(A, C, range_factor(E), range_factor(F)))
+    E, F = plant.E, plant.F
     if method == "auto":
         method = "riccati" if n > HINF_G_RICCATI_ABOVE and F.shape[1] == m else "sdp"
-    plant = LinearDesignProblem(A, C, E, F)
     if method == "riccati":
-        return _hinf_g_riccati(plant, gamma_slack, what)
+        return _in_units(_hinf_g_riccati(plant, gamma_slack, what), s2)
     if method != "sdp":
         raise DesignFailed(f"{what}: unknown method {method!r} (use 'auto', 'sdp' or 'riccati')")
     P = cp.Variable((n, n), symmetric=True)
@@ -363,8 +366,17 @@ def hinf_g_design(A, C, E, F, gamma_slack: float = 0.1, method: str = "auto") ->
                          [strict(hinf_g_lmi(A, C, E, F, g_max, P, Y))]),
               f"{what} (min trace P)")
     P, Y = lmi.sym(P.value), Y.value
-    return _verified_hinf_g(plant, (gain_from(P, Y, what), P, Y), (g_star, g_max), "sdp",
-                            what)
+    return _in_units(_verified_hinf_g(plant, (gain_from(P, Y, what), P, Y), (g_star, g_max),
+                                      "sdp", what), s2)
+
+
+def _in_units(design: GainDesign, s2: float) -> GainDesign:
+    """A Hinf-G design of the plant with unit noise (:func:`~observers.numerics.lmi.unit_noise`)
+    in the units of the data: the same gain and ``P``, ``gamma`` times ``sqrt(s2)``."""
+    info = dict(design.info)
+    for key in ("gamma_min", "gamma"):
+        info[key] = info[key] * float(np.sqrt(s2))
+    return GainDesign(design.L, design.P, info)
 
 
 def _verified_hinf_g(plant: LinearDesignProblem, point: tuple, gammas: tuple[float, float],
