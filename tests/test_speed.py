@@ -120,10 +120,11 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
                              exact_cases=(ExactCase("alamo2d", 1e9),),
                              hull_cases=(HullCase("vehicle6d-cora", "CZN-A", repeat=1),))
     text = out.read_text()
-    # the hull profile: both strategies on the steady set, the batched bounds never looser
-    # than HiGHS's by more than 1e-9 of the radius, phase shares that add up to at most 1
+    # the hull profile: every strategy on the steady set, the batched and sifted bounds never
+    # looser than HiGHS's by more than 1e-9 of the radius, phase shares that add up to at
+    # most 1
     prof = [ln.split("|") for ln in text.splitlines() if ln.startswith("| CZN-A, vehicle6d")]
-    assert [r[6].strip() for r in prof] == ["batched", "highs"]
+    assert [r[6].strip() for r in prof] == ["batched", "highs", "sifting"]
     n = systems.scenario("vehicle6d-cora").system.n
     for r in json.loads(js.read_text())["hulls"]:
         assert r["status"] == "ok" and r["lps"] == 2 * n and r["looser"] <= 1e-9

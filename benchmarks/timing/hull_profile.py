@@ -4,13 +4,14 @@
 The hull of a constrained zonotope ``{c + G xi : A xi = b, |xi| <= 1}`` is 2n LPs with one
 feasible set (:class:`observers.sets.HullLP`).  For each case of :data:`HULL_CASES` the
 observer is stepped to its steady state without hulls (:func:`.steps.to_steady_state`), and
-the hull of that set is solved ``repeat`` times by each solver strategy (the batched dual
-simplex and warm HiGHS); the fastest repetition is reported with its work counters (LPs,
-simplex iterations per LP, HiGHS fallbacks) and the share of its time in each phase
-(:attr:`observers.sets.HullLPStats.seconds`: set-up of the batch, pivots, refactorisations,
-certification, the weak-duality bounds, HiGHS).  Both solvers' bounds are sound; the table
-gives how much looser and how much tighter the batched bounds are than HiGHS's at most,
-relative to the set's radius (HiGHS's dual points are accurate to its tolerances, ~1e-7).
+the hull of that set is solved ``repeat`` times by each solver strategy of the case (the
+batched dual simplex, warm HiGHS, sifting); the fastest repetition is reported with its work
+counters (LPs, simplex iterations per LP, HiGHS fallbacks) and the share of its time in each
+phase (:attr:`observers.sets.HullLPStats.seconds`: set-up of the batch, pivots,
+refactorisations, certification; the start vertex, restricted LPs and pricing of sifting;
+the weak-duality bounds, HiGHS).  Every solver's bounds are sound; the table gives how much
+looser and how much tighter each strategy's bounds are than warm HiGHS's at most, relative
+to the set's radius (HiGHS's dual points are accurate to its tolerances, ~1e-7).
 """
 
 from __future__ import annotations
@@ -31,27 +32,34 @@ from ..run.progress import announced
 from ..run.runner import design_observer
 from .steps import to_steady_state
 
+#: the solver strategies compared (:attr:`observers.sets.HullLP.SOLVERS`); HiGHS is the
+#: reference of the *looser* / *tighter* columns
+SOLVERS = ("batched", "highs", "sifting")
+
 
 @dataclass(frozen=True)
 class HullCase:
     """One profiled hull: ``observer`` at its steady state on ``scenario``; ``repeat`` timed
-    solves per solver strategy (the fastest is reported)."""
+    solves per solver strategy of ``solvers`` (the fastest is reported; ``"highs"`` always
+    runs, as the reference)."""
 
     scenario: str
     observer: str
     repeat: int = 5
+    solvers: tuple[str, ...] = SOLVERS
 
 
 #: the profiled hulls: the 30-tank set of ARCH 2021 Table 5 (the cold bench's costliest hulls)
-#: and the 100-tank set of the speed table
+#: and the 100- and 200-tank sets of the speed table (at 200 tanks without the batched dual
+#: simplex, whose dense pivots over 326 rows would take minutes)
 HULL_CASES: tuple[HullCase, ...] = (
     HullCase("tank30-linear", "CZN-A"),
     HullCase("tank100-linear", "CZN-A", repeat=1),
+    HullCase("tank200-linear", "CZN-A", repeat=1, solvers=("highs", "sifting")),
 )
-#: the solver strategies compared (:attr:`observers.sets.HullLP.SOLVERS`)
-SOLVERS = ("batched", "highs")
 #: the phases of :attr:`observers.sets.HullLPStats.seconds`, in the order of the table
-PHASES = ("setup", "pivots", "refactor", "certify", "bounds", "highs")
+PHASES = ("setup", "pivots", "refactor", "certify", "start", "models", "restricted", "pricing",
+          "bounds", "highs")
 
 
 def steady_hull_problem(case: HullCase) -> tuple[dict[str, Any], tuple[np.ndarray, ...]]:
@@ -80,13 +88,15 @@ def profile_hull(case: HullCase) -> list[dict[str, Any]]:
     docstring)."""
     facts, problem = steady_hull_problem(case)
     base = {"scenario": case.scenario, "observer": case.observer, **facts}
+    solvers = tuple(dict.fromkeys(("highs", *case.solvers)))
+    solvers = tuple(s for s in SOLVERS if s in solvers)
     if facts["status"] != "ok":
-        return [dict(base, solver=s) for s in SOLVERS]
+        return [dict(base, solver=s) for s in solvers]
     G, A, b = problem
     Gd = np.vstack([G, -G])
     radius = np.abs(G).sum(axis=1)
     rows, bounds = [], {}
-    for solver in SOLVERS:
+    for solver in solvers:
         best = None
         for _ in range(case.repeat):
             lp = HullLP(solver)
@@ -100,9 +110,9 @@ def profile_hull(case: HullCase) -> list[dict[str, Any]]:
                          iterations=stats.iterations_per_solve, fallbacks=stats.fallbacks,
                          shares={ph: stats.seconds.get(ph, 0.0) / seconds for ph in PHASES}))
     n = G.shape[0]
-    # positive where the batched bound is the looser one (both are sound upper bounds)
-    diff = (bounds[SOLVERS[0]] - bounds[SOLVERS[1]]) / np.concatenate([radius, radius])
     for row in rows:
+        # positive where the strategy's bound is the looser one (all are sound upper bounds)
+        diff = (bounds[row["solver"]] - bounds["highs"]) / np.concatenate([radius, radius])
         row["looser"] = float(diff.max()) if n else math.nan
         row["tighter"] = float(-diff.min()) if n else math.nan
     return rows
@@ -125,23 +135,30 @@ def render_hulls(rows: list[dict[str, Any]]) -> list[str]:
         "(2n LPs over its r generators and p constraints) solved by each strategy of "
         "`HullLP`: *batched*, the batched dual simplex (compiled; every problem pivots in "
         "lock step, the pivot rows of all of them one matrix product); *highs*, one warm "
-        "HiGHS run per direction. Fastest of the repetitions; *phases*: share of its time in "
-        "the set-up of the batch (crash basis, reduced costs), the pivots, the "
-        "refactorisations, the certification of the optimum, the weak-duality bounds and "
-        "HiGHS (LPs the batch did not finish, or every LP with *highs*). *batched looser / "
-        "tighter*: the largest amount by which the batched bounds exceed / undercut HiGHS's, "
-        "over the set's radius (both are sound bounds of dual points; HiGHS's are accurate "
-        "to its tolerances).",
+        "HiGHS run per direction; *sifting*, working sets of columns "
+        "(`observers/lp/sifting.py`: restricted LPs of about a thousand columns by HiGHS, "
+        "all columns priced by one matrix product per round and chunk of directions). "
+        "Fastest of the repetitions; *phases*: share of its time in the set-up of the batch "
+        "(crash basis, reduced costs), the pivots, the refactorisations, the certification "
+        "of the optimum; sifting's start vertex (one cold HiGHS solve), the HiGHS models of "
+        "the first working sets, the restricted LPs (with the columns added to them), the "
+        "pricing; the weak-duality bounds and HiGHS (LPs a strategy did not finish, or every "
+        "LP with *highs*); *iterations per LP* are HiGHS's or the batch's simplex iterations "
+        "(sifting: those of its restricted LPs and start). *looser / tighter than HiGHS*: the "
+        "largest amount by which the strategy's bounds exceed / undercut warm HiGHS's, over "
+        "the set's radius (all are sound bounds of dual points; HiGHS's are accurate to its "
+        "tolerances).",
         "",
         "| set | step | n | p | r | solver | ms per hull | ms per LP | iterations per LP "
-        "| HiGHS fallbacks | setup | pivots | refactor | certify | bounds | HiGHS "
-        "| batched looser | batched tighter |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| HiGHS fallbacks | setup | pivots | refactor | certify | start | models | restricted "
+        "| pricing | bounds | HiGHS | looser than HiGHS | tighter than HiGHS |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "---|",
     ]
     for r in rows:
         head = f"| {r['observer']}, {r['scenario']} "
         if r["status"] != "ok":
-            lines.append(head + f"| {r['status']}: {r['message']} |" + " |" * 16)
+            lines.append(head + f"| {r['status']}: {r['message']} |" + " |" * 20)
             continue
         shares = " | ".join(f"{100 * r['shares'][ph]:.0f} %" for ph in PHASES)
         lines.append(
