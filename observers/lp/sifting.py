@@ -185,6 +185,7 @@ class _Problem:
         self.scale = float(np.abs(g).max(initial=0.0)) or 1.0
         self.xi = st.xi.copy()
         self.W = W
+        self.sign = np.ones(W.size)  # model column = sign * column of A (see grow)
         self.rhs = b - Axi + A[:, W] @ self.xi[W]
         self.mu = np.zeros(A.shape[0])
         self.h = _highs()
@@ -201,7 +202,8 @@ class _Problem:
         self.iterations += int(h.getInfo().simplex_iteration_count)
         if h.getModelStatus() != _OPTIMAL:
             h = self.h = _highs(RETRY_TOL)
-            load(h, A[:, self.W], self.rhs, -self.g[self.W] / self.scale)
+            load(h, A[:, self.W] * self.sign, self.rhs,
+                 -self.sign * self.g[self.W] / self.scale)
             h.run()
             self.iterations += int(h.getInfo().simplex_iteration_count)
             if h.getModelStatus() != _OPTIMAL:
@@ -213,20 +215,24 @@ class _Problem:
         if not np.all(np.isfinite(mu)):
             return False
         self.mu = mu
-        self.xi[self.W] = np.clip(np.asarray(sol.col_value, dtype=float), -1.0, 1.0)
+        self.xi[self.W] = self.sign * np.clip(np.asarray(sol.col_value, dtype=float), -1, 1)
         return True
 
     def grow(self, A: np.ndarray, new: np.ndarray) -> None:
-        """Free the fixed columns ``new``: add them to the model (HiGHS makes them nonbasic)
-        and move their contribution out of the right-hand side."""
+        """Free the fixed columns ``new``: add them to the model and move their contribution
+        out of the right-hand side.  HiGHS makes an added column nonbasic at its lower bound,
+        so a column fixed at ``+1`` enters negated (``-a_j``, cost ``-g_j``): it starts where
+        it was, the basis stays primal feasible and the solve continues from it."""
         p, m = A.shape[0], new.size
         self.rhs = self.rhs + A[:, new] @ self.xi[new]
         self.h.changeRowsBounds(p, np.arange(p, dtype=np.int32), self.rhs, self.rhs)
-        values = np.ascontiguousarray(A[:, new].T).ravel()
-        self.h.addCols(m, -self.g[new] / self.scale, -np.ones(m), np.ones(m), p * m,
+        sign = np.where(self.xi[new] > 0.0, -1.0, 1.0)
+        values = np.ascontiguousarray((A[:, new] * sign).T).ravel()
+        self.h.addCols(m, -sign * self.g[new] / self.scale, -np.ones(m), np.ones(m), p * m,
                        np.arange(0, p * m, p, dtype=np.int32),
                        np.tile(np.arange(p, dtype=np.int32), m), values)
         self.W = np.concatenate([self.W, new])
+        self.sign = np.concatenate([self.sign, sign])
 
     def close(self) -> None:
         """Free the HiGHS model."""
