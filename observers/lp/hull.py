@@ -10,8 +10,9 @@ solver tolerance is never used as a bound.
 
 Interval hulls and support values of constrained zonotopes solve many such LPs with one
 feasible set; :class:`HullLP` solves them together with a batched dual simplex
-(:mod:`observers.lp.dual_simplex`) and falls back to HiGHS for any LP that the batched
-solver does not finish.
+(:mod:`observers.lp.dual_simplex`) where the rows are few, by sifting over working sets of
+columns (:mod:`observers.lp.sifting`) where the columns are very many per row, and falls
+back to HiGHS for any LP that either does not finish.
 """
 
 from __future__ import annotations
@@ -332,10 +333,14 @@ def sifting_is_cheaper(K: int, p: int, r: int) -> bool:
     LPs with ``p`` rows and ``r`` columns: for many columns, and many per row.  Each HiGHS
     iteration prices all ``r`` columns; sifting prices them once per round for a chunk of
     problems (one matrix product) and iterates over a working set of about a thousand.
-    Measured on the steady CZN-A hulls of the tank benchmarks (same process, interleaved):
-    100 tanks (p = 160, r = 10240) 13 against 16 ms per LP, 200 tanks (p = 326, r = 20489)
-    19 against 73 ms per LP.  Below :data:`SIFTING_MIN_COLUMNS` columns the start (one cold
-    HiGHS solve of the full LP) and the per-problem models do not pay off on the few
+    Measured on the steady CZN-A / CZN-B hulls of the tank benchmarks (the same sets solved
+    both ways, interleaved in one process, medians; warm HiGHS against sifting, per hull):
+    60 tanks (p = 92, r = 6138) 2.2 against 1.5-2.0 s; 100 tanks (p = 160, r = 10240) 3.7 /
+    3.1 against 2.6 / 2.3 s (1.4x; ~90 against ~75 simplex iterations per LP, but each on
+    the dense basis costs about as much as HiGHS's on the full LP); 200 tanks (p = 326,
+    r = 20489) 19.9 / 17.1 against 9.7 / 7.4 s (2.0x / 2.3x; ~190 against ~95 iterations per
+    LP).  Below :data:`SIFTING_MIN_COLUMNS` columns the start (one cold HiGHS solve of the
+    full LP) and the per-problem models do not pay off on the few
     directions of a hull.
     """
     return K >= 2 and r >= SIFTING_MIN_COLUMNS and r >= SIFTING_MIN_RATIO * p
