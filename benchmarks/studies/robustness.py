@@ -82,8 +82,9 @@ SCALING_TABLES = (
 SCALING_KEY = "arch2021_table5_6_tank_scaling"
 #: the falsifier's work budget per nonlinear realisation, in simplex iterations (a count, so
 #: the same floor on every machine): a uniform-noise tank6-nonlinear record takes about
-#: 18,000, a vertex-noise one 40,000; one vertex realisation (7) of it needs several hundred
-#: thousand on degenerate LPs, and its later steps are left out (the report names them)
+#: 18,000, a vertex-noise one 40,000-120,000 (degenerate LPs; each LP is also capped, at
+#: ``search.LP_ITERATION_LIMIT``); vertex realisation 7 needed 1.9 million without the caps,
+#: and its last step is left out (the report names it)
 FALSIFIER_BUDGET = 150_000
 COLUMNS = ["scenario", "realisation", "kind", "observer", "status", "violations", "rms",
            "rel_rms", "rank", "gap", "gap_steady", "floor", "floor_steps"]

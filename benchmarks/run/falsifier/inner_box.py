@@ -16,7 +16,15 @@ import numpy as np
 
 from systems.errors import ModelError
 
-from .search import FACTOR_MARGIN, MAX_ITER, NOISE_MARGIN, Search, Stats, find_anchor
+from .search import (
+    FACTOR_MARGIN,
+    MAX_ITER,
+    NOISE_MARGIN,
+    BudgetSpent,
+    Search,
+    Stats,
+    find_anchor,
+)
 from .verification import Model, Trajectory
 
 __all__ = ["REL_TOL", "FalsifierResult", "SearchOptions", "Violation", "falsify", "spread_steps"]
@@ -286,6 +294,8 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     n = M.n
     stats = Stats()
     anchor = find_anchor(M, x_true, stats, 5 * opts.max_iter)
+    if opts.max_simplex_iterations is not None:  # the budget of the searches after it
+        stats.budget = stats.simplex_iterations + opts.max_simplex_iterations
     rng = np.random.default_rng(opts.seed)
     S = steps.size
     lo, hi = np.full((S, n), np.nan), np.full((S, n), np.nan)
@@ -295,7 +305,7 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     for s, k in enumerate(steps.tolist()):
         try:
             search = _search_step(M, k, anchor, opts, (stats, rng))
-        except _BudgetSpent:  # this step and the later ones stay NaN
+        except BudgetSpent:  # this step and the later ones stay NaN
             break
         searched += 1
         verified = np.isfinite(search.lo)
@@ -324,17 +334,6 @@ def _steps(steps: int | Sequence[int], N: int) -> np.ndarray:
     return steps
 
 
-class _BudgetSpent(Exception):
-    """The search's budget of simplex iterations is spent (see :class:`SearchOptions`)."""
-
-
-def _spend(stats: Stats, opts: SearchOptions) -> None:
-    """Raise :class:`_BudgetSpent` once the search has used its budget."""
-    budget = opts.max_simplex_iterations
-    if budget is not None and stats.simplex_iterations >= budget:
-        raise _BudgetSpent
-
-
 def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
                  shared: tuple[Stats, np.random.Generator]) -> Search:
     """The search of step ``k`` from the ``anchor`` point, run in both directions of every
@@ -358,12 +357,12 @@ def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
     for i, sgn in objectives:
         c = np.zeros(n)
         c[i] = sgn / scale[i]
-        _spend(stats, opts)
+        stats.spend()
         finals[i, sgn] = search.run(start, c)
     if opts.starts > 1:
         for _ in range(opts.starts - 1):
             d = rng.standard_normal(n)
-            _spend(stats, opts)
+            stats.spend()
             search.run(start, d / np.linalg.norm(d) / scale)
         for i, sgn in objectives:
             tried = {id(start), id(finals[i, sgn])}
@@ -371,6 +370,6 @@ def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
             c = np.zeros(n)
             c[i] = sgn / scale[i]
             for p in [p for p in ranked if id(p) not in tried][:opts.starts - 1]:
-                _spend(stats, opts)
+                stats.spend()
                 search.run(p, c)
     return search

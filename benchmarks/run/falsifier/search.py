@@ -89,11 +89,21 @@ PRED_TOL = 1e-9
 STOP_RTOL = 1e-3
 #: initial trust-region radius on the factors (2 = the whole box)
 DELTA0 = 2.0
+#: simplex iterations of one LP at most (HiGHS's ``simplex_iteration_limit``): a typical LP
+#: takes tens to a few thousand; on degenerate records (vertex noise held at the bounds) a
+#: single LP was measured running for minutes; one that stops at the limit counts as failed
+LP_ITERATION_LIMIT = 50_000
 
 
 # -- the SLP ------------------------------------------------------------------------------
+class BudgetSpent(Exception):
+    """The search's budget of simplex iterations (:attr:`Stats.budget`) is spent."""
+
+
 @dataclass
 class Stats:
+    """Work counters of a search, and its budget of simplex iterations (None: none)."""
+
     lps: int = 0
     simplex_iterations: int = 0
     loads: int = 0
@@ -101,6 +111,19 @@ class Stats:
     runs: int = 0
     unconverged: int = 0
     verified: int = 0
+    budget: int | None = None
+
+    def spend(self) -> None:
+        """Raise :class:`BudgetSpent` once :attr:`budget` iterations are used."""
+        if self.budget is not None and self.simplex_iterations >= self.budget:
+            raise BudgetSpent
+
+    def iteration_limit(self) -> int:
+        """The simplex iterations the next LP may take: :data:`LP_ITERATION_LIMIT`, or what
+        is left of the budget if less."""
+        if self.budget is None:
+            return LP_ITERATION_LIMIT
+        return max(1, min(LP_ITERATION_LIMIT, self.budget - self.simplex_iterations))
 
 
 @dataclass
@@ -268,9 +291,11 @@ class StepLP:
         """Column values of ``min cost'col`` (None if HiGHS found no optimum)."""
         h = self._h
         h.changeColsCost(self.ncol, self._all_cols, cost)
+        h.setOptionValue("simplex_iteration_limit", self.stats.iteration_limit())
         h.run()
         self.stats.lps += 1
         self.stats.simplex_iterations += int(h.getInfo().simplex_iteration_count)
+        self.stats.spend()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self._basis = None
             return None
