@@ -42,6 +42,8 @@ def test_scale_dependence_is_named():
                        "observer": ["a", "a", "b", "b"], "status": ["ok", "ok", "noGain", "ok"],
                        "gap": [2.0, 2.0, np.nan, 3.0]})
     assert noise_grid.scale_dependent(df, "r") == {"b": float("inf")}
+    same = df.assign(status="noGain", gap=np.nan)  # no gain at every scale: not a move
+    assert noise_grid.scale_dependent(same, "r") == {}
     moved = pd.DataFrame({"record": "r", "axis": "all", "scale": [0.1, 1.0, 10.0],
                           "observer": "ESO-A", "status": "ok", "gap": [2.2, 2.0, 2.0]})
     assert noise_grid.scale_dependent(moved, "r") == pytest.approx({"ESO-A": 0.1})
