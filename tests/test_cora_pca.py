@@ -79,14 +79,17 @@ def test_arch2021_table3_rows_with_coras_basis(name, rtol):
     np.testing.assert_allclose(rms_radius(res.radius), expected, rtol=rtol)
 
 
-def test_paper_table_configs_use_coras_basis_and_the_gate_does_not():
+def test_no_paper_table_rests_on_coras_basis_its_variants_show_it():
+    # issue 37: CORA's basis is LAPACK's rounding where singular values repeat (the 6-tank
+    # cells moved by up to 4.4e-3 between kernels), so every configuration runs the
+    # deterministic basis; the rows it moves most are labelled variants [pca-cora], whose
+    # measured kernel spread the reports print beside each value
     configs = shipped_configs()
-
-    def reduction(name):
-        return (yaml.safe_load(configs[name].read_text()).get("options") or {}).get("reduction")
-
-    for name in ("arch2021_table3", "arch2021_table4", "arch2021_table6"):
-        assert reduction(name) == "pca-cora", name
-    # measured closer with the deterministic basis (the file says by how much)
-    assert reduction("arch2021_table6_12tanks") is None
-    assert reduction("regression") is None  # the scenarios' deterministic "pca"
+    for name, path in configs.items():
+        cfg = yaml.safe_load(path.read_text())
+        assert (cfg.get("options") or {}).get("reduction") != "pca-cora", name
+        for label, spec in (cfg.get("variants") or {}).items():
+            if (spec.get("options") or {}).get("reduction") == "pca-cora":
+                assert label.endswith("[pca-cora]"), (name, label)
+    variants = yaml.safe_load(configs["arch2021_table3"].read_text())["variants"]
+    assert {"VolMin-B[pca-cora]", "FRad-C[pca-cora]"} <= set(variants)

@@ -367,11 +367,13 @@ def test_spread_note_prints_a_measured_spread_only_for_observers_chaotic_by_natu
 
     pd.DataFrame({"observer": ["PRad-A"] * 2 + ["FRad-A"] * 2, "state": [0, 1, 0, 1],
                   "kernel_spread": [3.93, 5e-5, 0.2, 0.2]}).to_csv(tmp_path / "s.csv")
-    assert spread.spread_note("PRad-A", "s", 0, tmp_path) == "±393 % across BLAS kernels"
-    assert spread.spread_note("PRad-A[x]", "s", 0, tmp_path) == "±393 % across BLAS kernels"
-    assert spread.spread_note("PRad-A", "s", 1, tmp_path) is None  # below 1e-4: same number
-    assert spread.spread_note("FRad-A", "s", 0, tmp_path) is None  # not chaotic by nature
-    assert spread.spread_note("PRad-A", "other", 0, tmp_path) == (
+    note = "±393 % across BLAS kernels"
+    assert spread.spread_note("PRad-A", "s", 0, baseline=tmp_path) == note
+    assert spread.spread_note("PRad-A[x]", "s", 0, baseline=tmp_path) == note
+    # below 1e-4: the same number
+    assert spread.spread_note("PRad-A", "s", 1, baseline=tmp_path) is None
+    assert spread.spread_note("FRad-A", "s", 0, baseline=tmp_path) is None  # not chaotic by nature
+    assert spread.spread_note("PRad-A", "other", 0, baseline=tmp_path) == (
         "kernel spread not measured; design undetermined")
     from benchmarks.report.numbers import Num, format_columns
     assert format_columns([[Num(8.184, 6.314, caveat="±393 % across BLAS kernels")]]) == [

@@ -42,10 +42,13 @@ def test_frad_c_final_hull_matches_cora_to_1e_2():
 @pytest.mark.parametrize("name", ["FRad-A", "FRad-B", "FRad-C"])
 def test_cora_remainder_zonotope_reproduces_cora(name):
     # CORA's own choice of remainder enclosure: agreement up to our outward-rounding margins
+    # and to the generators our reductions drop as zero (1-norm at most 1e-13 of the largest,
+    # ZERO_COLUMN_RTOL, which CORA keeps; 0.6.0): measured 1.0e-8 to 3.2e-8 on hulls of 14 to
+    # 20 (about 2e-9 relative), 4e-10 before that rule
     lo, hi = _final_hull(name, remainder="zonotope")
     ref = CORA_NL[name]["short"]
-    np.testing.assert_allclose(lo, ref["lower"], atol=1e-8, rtol=0)
-    np.testing.assert_allclose(hi, ref["upper"], atol=1e-8, rtol=0)
+    np.testing.assert_allclose(lo, ref["lower"], atol=5e-8, rtol=0)
+    np.testing.assert_allclose(hi, ref["upper"], atol=5e-8, rtol=0)
 
 
 def test_conformance_record_is_the_cora_unit_test_record():

@@ -239,7 +239,7 @@ def test_generator_axes_hand_example():
 
 def test_near_ties_keep_the_first_candidate():
     # a relative difference of 1e-12 is a tie (TIE_RTOL = 1e-9): the first index wins
-    from observers.numerics.ropo import first_best
+    from observers.numerics.linalg import first_best
     assert first_best(np.array([1.0 + 1e-12, 1.0, 2.0])) == 0
     assert first_best(np.array([1.0 + 1e-6, 1.0, 2.0])) == 1
     # the corner triangle above with a strip 1e-13 narrower: still the box (a near-tie)

@@ -1,6 +1,11 @@
-"""The measured BLAS-kernel spread printed beside the cells of observers whose design is
-undetermined (issue 37: a table never shows a bare number that another machine would not
-reproduce).
+"""The measured BLAS-kernel spread printed beside a table cell that another machine would not
+reproduce (issue 37: a table never shows such a number bare).
+
+Two measurements feed it.  The paper tables' own: ``python -m benchmarks.studies.kernels``
+(``make kernels``) re-runs each published configuration under every other OpenBLAS kernel of
+the CPU and writes the spread of every accuracy cell to ``results/kernels/kernel_spread.csv``
+(:data:`KERNEL_SPREAD`); a cell above :data:`SHOWN_ABOVE` carries it
+(:func:`measured_cell_spread`).  And the regression gate's, for the observers below.
 
 Every built-in observer gives the same numbers under every OpenBLAS kernel to 1e-4 or better
 (``results/baseline/SENSITIVITY.md``).  An observer listed in :data:`CHAOTIC_BY_NATURE` would
@@ -28,6 +33,14 @@ CHAOTIC_BY_NATURE: tuple[str, ...] = ()
 SHOWN_ABOVE = 1e-4
 #: the golden files of the regression gate (their ``kernel_spread`` column)
 BASELINE = ROOT / "results" / "baseline"
+#: the configurations of the published tables, whose cells the kernel study measures
+PAPER_CONFIGS = ("arch2021_table3", "arch2021_table4", "arch2021_table5", "arch2021_table6",
+                 "arch2021_table6_12tanks", "automatica2021_table3", "alanwar2022")
+#: the kernel study's table, relative to the checkout (``python -m benchmarks.studies.kernels``;
+#: committed, and ``setobs-bench stale`` checks its fingerprints)
+KERNEL_TABLE = Path("results") / "kernels" / "kernel_spread.csv"
+#: the paper tables' per-cell spread in this checkout
+KERNEL_SPREAD = ROOT / KERNEL_TABLE
 
 
 @functools.lru_cache(maxsize=32)
@@ -52,11 +65,36 @@ def measured_spread(observer: str, scenario: str, baseline: Path = BASELINE
     return [float(x) for x in pd.to_numeric(rows["kernel_spread"], errors="coerce")]
 
 
-def spread_note(observer: str, scenario: str, state: int, baseline: Path = BASELINE
-                ) -> str | None:
-    """The text printed beside a cell of ``observer`` (a labelled variant ``NAME[tag]``
-    counts as ``NAME``) on ``scenario``: ``None`` for an observer not chaotic by nature or a
-    spread up to :data:`SHOWN_ABOVE`, else the measured spread, or that none was measured."""
+def measured_cell_spread(observer: str, scenario: str, state: int, config: str | None = None,
+                         table: Path = KERNEL_SPREAD) -> float | None:
+    """The kernel spread of one accuracy cell of the configuration ``config`` (``observer``
+    as labelled in its table, a variant ``NAME[tag]`` included) measured by the kernel study;
+    ``None`` where it has no such cell (another configuration's cells are never borrowed) and
+    ``inf`` where the status differs between kernels."""
+    frame = _golden(Path(table))
+    if frame is None or "spread" not in frame.columns or config is None:
+        return None
+    rows = frame[(frame["config"] == config) & (frame["observer"] == observer)
+                 & (frame["scenario"] == scenario) & (frame["state"] == state)]
+    if rows.empty:
+        return None
+    if rows["status_other"].fillna("").astype(str).str.len().gt(0).any():
+        return math.inf
+    return float(pd.to_numeric(rows["spread"], errors="coerce").max())
+
+
+def spread_note(observer: str, scenario: str, state: int, config: str | None = None,
+                baseline: Path = BASELINE, table: Path = KERNEL_SPREAD) -> str | None:
+    """The text printed beside a cell of ``observer`` on ``scenario`` in the table of the
+    configuration ``config``: the spread the kernel study measured for this very cell where
+    it exceeds :data:`SHOWN_ABOVE`; else, for an
+    observer chaotic by nature (a labelled variant ``NAME[tag]`` counts as ``NAME``), the
+    regression gate's measured spread or that none was measured; else ``None``."""
+    cell = measured_cell_spread(observer, scenario, state, config, table)
+    if cell is not None and cell > SHOWN_ABOVE:
+        if math.isinf(cell):
+            return "status differs across BLAS kernels"
+        return f"±{fmt(100 * cell, 3)} % across BLAS kernels"
     name = observer.split("[")[0]
     if name not in CHAOTIC_BY_NATURE:
         return None

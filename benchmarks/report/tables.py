@@ -30,7 +30,7 @@ from ..metrics import PHASE_COLUMNS, timed_in_parallel
 from ..verdicts import NA, NO, contained_column, reference_rows, violating
 from .numbers import Num, fmt, format_columns, markdown_table, text_table
 from .paper import PaperRow, paper_rows, paper_status, paper_title
-from .spread import CHAOTIC_BY_NATURE, spread_note
+from .spread import spread_note
 
 #: the paragraph that opens the Markdown and the HTML report
 INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state: the RMS "
@@ -260,21 +260,34 @@ def scenario_table_caption(df: pd.DataFrame, meta: dict) -> str:
                                                    if times else "."))
     else:
         parts.append("No published table for this scenario.")
-    if any(o.split("[")[0] in CHAOTIC_BY_NATURE for o in df["observer"].unique()):
-        parts.append("In brackets: how far a value moves across OpenBLAS kernels, for an "
-                     "observer whose published design is undetermined (results/baseline/"
-                     "SENSITIVITY.md).")
+    if _any_spread(df, meta):
+        parts.append("In brackets: how far a value moves across the OpenBLAS kernels of one "
+                     "machine, where more than 1e-4 (reports/kernels.md; results/baseline/"
+                     "SENSITIVITY.md for an observer whose published design is undetermined).")
     if paper:
-        parts.append("With the deterministic PCA basis every value is the same on every "
-                     "OpenBLAS kernel to about 1e-6 (1e-4 for the SDP designs; results/"
-                     "baseline/SENSITIVITY.md); CORA's basis (reduction: pca-cora, where a "
-                     "table's configuration names it) depends on the kernel where singular "
-                     "values repeat (up to 0.4 % measured on the 6-tank rows of ARCH 2021 "
-                     "Table 3).")
+        parts.append("Every other value is the same on every OpenBLAS kernel to 1e-4 "
+                     "(reports/kernels.md). A row labelled [pca-cora] runs CORA's PCA basis "
+                     "(LAPACK's singular vectors, whatever its rounding makes them where "
+                     "singular values repeat) for comparison with the published row; the "
+                     "others run the deterministic basis.")
     par = timed_in_parallel(df)
     parts.append("Times: median per step on this machine" + (
         ", measured while jobs ran in parallel (indicative only)." if par else "."))
     return " ".join(parts)
+
+
+def _config(meta: dict) -> str | None:
+    """The name of the configuration of a result store's ``meta``."""
+    cfg = meta.get("config")
+    return cfg.get("name") if isinstance(cfg, dict) else None
+
+
+def _any_spread(df: pd.DataFrame, meta: dict) -> bool:
+    """Whether a cell of the scenario table ``df`` carries a measured kernel spread."""
+    sc = df["scenario"].iloc[0]
+    ok = df[df["status"] == "ok"]
+    return any(spread_note(o, sc, int(i), _config(meta)) is not None
+               for o, i in zip(ok["observer"], ok["state"], strict=True))
 
 
 def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]]:
@@ -312,7 +325,7 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         ok = g["status"].iloc[0] == "ok"
         for i in show:
             cells.append(Num(r[i], p.v[i] if p and p.v else None,
-                             caveat=spread_note(obs, sc, i) if ok else None))
+                             caveat=spread_note(obs, sc, i, _config(meta)) if ok else None))
         avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
         if paper and p is None and not pstat:  # not part of the published comparison
@@ -361,7 +374,7 @@ def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         r = g["rms_radius"].to_numpy(float)
         ok = g["status"].iloc[0] == "ok"
         rows.append([obs] + [Num(r[i], p.absolute[i] if p and p.absolute else None,
-                                 caveat=spread_note(obs, sc, i) if ok else None)
+                                 caveat=spread_note(obs, sc, i, _config(meta)) if ok else None)
                              for i in range(n)])
     return head, format_columns(rows)
 

@@ -13,6 +13,10 @@
   recorded in ``results/reports.json`` by ``setobs-bench stale --record REPORT`` right after
   the report is regenerated (``make datadriven``, ``make noise-grid``, ``make robustness`` do
   it).
+- **The kernel study** (``reports/kernels.md``, :mod:`benchmarks.studies.kernels`) measures
+  the committed rows of the paper tables themselves: each of its cells keeps the fingerprint
+  of the stored row it measured, and the study is stale for every row whose stored fingerprint
+  moved since (``make kernels`` measures again).
 - **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
   not the code: they carry their commit and machine and are never stale here; ``make speed``,
   ``make scaling`` and ``make frontier`` measure again.
@@ -164,6 +168,46 @@ def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
     return out
 
 
+def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
+    """The paper-table rows whose stored fingerprint differs from the one the kernel study
+    measured (:mod:`benchmarks.studies.kernels`), and the paper tables it never measured."""
+    import pandas as pd
+
+    from ..report.spread import KERNEL_TABLE as TABLE
+    from ..report.spread import PAPER_CONFIGS as CONFIGS
+
+    reports = reports if reports is not None else root / REPORTS
+    if not (reports / "kernels.md").is_file():
+        return []
+    path = root / TABLE
+    if not path.is_file():
+        return [Line("report", "kernels", f"reports/kernels.md has no table {TABLE} "
+                                          "(`make kernels`)")]
+    measured = pd.read_csv(path, dtype={"fingerprint": str})
+    out = []
+    for config in CONFIGS:
+        summary = root / RESULTS / config / "summary.csv"
+        if not summary.is_file():
+            continue
+        here = pd.read_csv(summary, dtype={"fingerprint": str})
+        m = measured[measured["config"] == config]
+        if m.empty:
+            out.append(Line("report", "kernels", f"{config} not measured under the other "
+                                                 "OpenBLAS kernels (`make kernels`)"))
+            continue
+        now = dict(zip(zip(here["scenario"], here["observer"], strict=True),
+                       here["fingerprint"], strict=True))
+        then = dict(zip(zip(m["scenario"], m["observer"], strict=True), m["fingerprint"],
+                        strict=True))
+        moved = sorted(k for k in now if then.get(k) != now[k])
+        if moved:
+            shown = ", ".join(f"{o} on {s}" for s, o in moved[:3])
+            more = f" and {len(moved) - 3} more" if len(moved) > 3 else ""
+            out.append(Line("report", "kernels", f"{config}: {shown}{more} changed since "
+                                                 "measured (`make kernels`)"))
+    return out
+
+
 def find_stale(names: list[str] | None = None, root: Path = ROOT, reports: Path | None = None,
                fingerprinter: Fingerprinter | None = None) -> list[Line]:
     """Every stale row, store and report of the shipped configurations ``names`` (default
@@ -187,4 +231,5 @@ def find_stale(names: list[str] | None = None, root: Path = ROOT, reports: Path 
         out += stale_config(name, path, fingerprinter, root, reports)
     if not names:
         out += stale_studies(fingerprinter, root, reports)
+        out += stale_kernels(root, reports)
     return out

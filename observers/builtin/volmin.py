@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import DesignFailed
 from ..families import Linearised, PerStripObserver, StripBasedObserver
 from ..kernels import StepKernel
+from ..numerics.linalg import first_best
 from ..numerics.volmin import (
     ZERO_PROJECTION,
     bravo_scores_gram,
@@ -139,7 +140,7 @@ class VolMinB(Linearised, StripBasedObserver):
         :func:`gram_update`)."""
         M = G @ G.T
         for i, row in enumerate(self.C):
-            j = int(np.argmin(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i])))
+            j = first_best(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i]))
             M = gram_update(M, G, row, self.sigma[i], j)
             c, G = bravo_update(c, G, row, y[i], self.sigma[i], j)
         return c, G

@@ -4,6 +4,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.step import TIE_RTOL
+
+
+def first_best(values: np.ndarray) -> int:
+    """Index of the least of ``values``, values within ``TIE_RTOL`` (1e-9, relative) of the
+    least counting as equal and going by index (the first, as ``min`` in exact arithmetic).
+
+    Candidates that tie in exact arithmetic differ in the last bits by the BLAS kernel; ranked
+    by those bits a choice (and every later step) depends on the kernel (VolMin-B's best two
+    candidates on the 2-state vehicle differ by 4e-16 relative; issue 37).  The compiled
+    kernels apply the same rule (:func:`observers.kernels.step._least`).
+    """
+    values = np.asarray(values, dtype=float)
+    low = float(values.min())
+    return int(np.flatnonzero(values <= low + TIE_RTOL * abs(low))[0])
+
 
 def psd_solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``S^{-1} B`` for a symmetric positive semidefinite ``S``; the minimum-norm ``S^+ B``

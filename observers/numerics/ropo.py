@@ -63,6 +63,8 @@ import numpy as np
 from observers.sets import EmptySet
 from observers.sets.reduction import principal_axes
 
+from .linalg import first_best
+
 #: candidate bases of the time update; "min-volume" tries them all and keeps the smallest
 BASES = ("generators", "propagated", "pca", "box")
 BASIS_CHOICES = ("min-volume", *BASES)
@@ -154,12 +156,6 @@ def strip_cut(
     T_new = T * half - np.outer(tj, coef)
     T_new[:, j] = tj * (delta / qj)
     return c + T @ centre, T_new
-
-
-def first_best(values: np.ndarray) -> int:
-    """Index of the first entry within :data:`TIE_RTOL` (relative) of the smallest."""
-    low = values.min()
-    return int(np.flatnonzero(values <= low + TIE_RTOL * abs(low))[0])
 
 
 def measurement_update(

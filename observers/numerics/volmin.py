@@ -48,6 +48,8 @@ import scipy.sparse as sp
 
 from observers.lp import new_highs
 
+from .linalg import first_best
+
 #: CORA's threshold below which ``c g_j`` counts as zero (candidate j = unchanged zonotope;
 #: VolMin-B passes it to its compiled step too)
 ZERO_PROJECTION = 1e10 * np.finfo(float).eps
@@ -201,8 +203,9 @@ def gram_update(
 def bravo_choice(
     G: np.ndarray, c_row: np.ndarray, sigma: float, basis: np.ndarray | None = None
 ) -> int:
-    """Index of Bravo's best candidate (0 = unchanged; ties: the first index, as CORA)."""
-    return int(np.argmin(bravo_scores(G, c_row, sigma, basis)))
+    """Index of Bravo's best candidate (0 = unchanged; near-ties: the first index,
+    :func:`~observers.numerics.linalg.first_best`)."""
+    return first_best(bravo_scores(G, c_row, sigma, basis))
 
 
 def bravo_update(

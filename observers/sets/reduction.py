@@ -8,13 +8,16 @@ looked up by name with :func:`get_reduction`, so observers receive them as plain
 Both built-in methods follow the definition used by CORA (``@zonotope/reduce.m``, methods ``girard``
 and ``pca``):
 
-1. all-zero generator columns are dropped;
+1. all-zero generator columns are dropped (a column whose 1-norm is at most
+   ``ZERO_COLUMN_RTOL`` = 1e-13 of the largest counts as zero: the rounding noise of a column
+   that is zero in exact arithmetic, zero on one BLAS kernel and 1e-19 on another);
 2. nothing else happens if the zonotope has at most ``n * order`` generators;
 3. otherwise ``floor(n * (order - 1))`` generators are kept unchanged (in their original order)
    and the remaining ones, those with the smallest ``||g||_1 - ||g||_inf`` (ties broken by the
    original column index, i.e. a stable sort; values within ``TIE_RTOL`` = 1e-9, relative, of
-   the threshold count as ties, so that rounding cannot order generators that tie in exact
-   arithmetic), are replaced by a box of ``n`` generators;
+   the threshold, or within ``ZERO_COLUMN_RTOL`` of the largest 1-norm of a generator, count as
+   ties, so that rounding cannot order generators that tie in exact arithmetic), are replaced
+   by a box of ``n`` generators;
 4. the result is ``[G_unreduced, G_box]``.
 
 ``girard`` encloses the reduced generators by an axis-aligned box (Girard, HSCC 2005);
@@ -70,6 +73,7 @@ from ..kernels.step import (
     LIFTED_CLUSTER_RTOL,
     PIVOT_RTOL,
     TIE_RTOL,
+    ZERO_COLUMN_RTOL,
 )
 
 #: the cluster tolerance of the data-driven observers' lifted reductions (defined with the
@@ -112,7 +116,10 @@ def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndar
     """
     absG = np.abs(G)
     norm1 = absG.sum(axis=0)
-    nonzero = norm1 != 0.0
+    top = float(norm1.max()) if norm1.size else 0.0
+    # columns at the rounding noise of a zero count as zero (ZERO_COLUMN_RTOL); a non-finite
+    # column is kept, for the caller to see
+    nonzero = ~(norm1 <= (ZERO_COLUMN_RTOL * top if math.isfinite(top) else 0.0))
     if not nonzero.all():
         G, absG, norm1 = G[:, nonzero], absG[:, nonzero], norm1[nonzero]
     n, r = G.shape
@@ -120,23 +127,31 @@ def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndar
         return G, G[:, :0], None
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced)
+    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced, float(norm1.max()))
     return G[:, kept], G[:, picked], absG[:, picked]
 
 
-def _smallest(h: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+def _smallest(h: np.ndarray, k: int, scale: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the ``k`` smallest entries of ``h`` in the order of a stable sort, and the
     other indices in increasing order, where values within ``TIE_RTOL`` (relative) of the
-    ``k``-th smallest count as equal and go by index (ties of exact arithmetic that the last
-    bits of the BLAS kernel would otherwise order); found with a partition and a sort of the
-    ``k`` picked entries only (``k`` is usually small)."""
+    ``k``-th smallest, or within ``ZERO_COLUMN_RTOL`` of ``scale``, count as equal and go by
+    index (ties of exact arithmetic that the last bits of the BLAS kernel would otherwise
+    order); found with a partition and a sort of the ``k`` picked entries only (``k`` is
+    usually small).
+
+    ``scale`` (the largest 1-norm of the generators) floors the band at the rounding noise of
+    the largest generator: the metric of a generator along a coordinate axis is zero in exact
+    arithmetic and, where its other entries are the rounding noise of a zero, 1e-18 or 0 by
+    the BLAS kernel; relative to a threshold of zero the band was empty, and that noise picked
+    the generators (VolMin-B on the 2-state vehicle at order 4 moved by 1.6 % between
+    kernels, issue 37)."""
     if k >= h.size:
         return np.argsort(h, kind="stable"), np.arange(0)
     thr = np.partition(h, k - 1)[k - 1]  # the k-th smallest value
     if thr != thr:  # NaN among the k smallest: the plain stable sort decides
         ranked = np.argsort(h, kind="stable")
         return ranked[:k], np.sort(ranked[k:])
-    band = TIE_RTOL * abs(thr)
+    band = max(TIE_RTOL * abs(thr), ZERO_COLUMN_RTOL * scale)
     sel = h < thr - band
     ties = np.flatnonzero(np.abs(h - thr) <= band)  # equal values go by index
     sel[ties[: k - np.count_nonzero(sel)]] = True
