@@ -56,6 +56,10 @@ def test_spread_beside_a_cell_of_its_own_table_only(tmp_path):
     assert spread.spread_note("FRad-C", "tank", 0, "T3", table=table) is None
     assert spread.spread_note("CZN-A", "tank", 0, "T3",
                               table=table) == "status differs across BLAS kernels"
+    # a wide table shows only the average: it carries the largest spread of the row's states
+    assert spread.row_spread_note("FRad-C[pca-cora]", "tank", 3, "T3",
+                                  table=table) == "up to ±0.44 % across BLAS kernels"
+    assert spread.row_spread_note("FRad-C", "tank", 3, "T3", table=table) is None
     # another configuration on the same scenario never borrows the measurement
     assert spread.spread_note("FRad-C[pca-cora]", "tank", 0, "other", table=table) is None
     assert spread.spread_note("FRad-C[pca-cora]", "tank", 0, None, table=table) is None

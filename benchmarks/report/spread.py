@@ -83,6 +83,23 @@ def measured_cell_spread(observer: str, scenario: str, state: int, config: str |
     return float(pd.to_numeric(rows["spread"], errors="coerce").max())
 
 
+def row_spread_note(observer: str, scenario: str, states: int, config: str | None = None,
+                    table: Path = KERNEL_SPREAD) -> str | None:
+    """The text printed beside a value over the ``states`` states of a row (its average):
+    the largest per-state spread the kernel study measured where it exceeds
+    :data:`SHOWN_ABOVE` (a bound: the relative spread of a sum of positive radii is at most
+    the largest relative spread of its terms), else ``None``.  A table too wide to show its
+    states (more than 8) prints this beside the average, so a kernel-dependent row is never
+    shown bare."""
+    cells = [measured_cell_spread(observer, scenario, i, config, table) for i in range(states)]
+    worst = max((c for c in cells if c is not None), default=None)
+    if worst is None or worst <= SHOWN_ABOVE:
+        return None
+    if math.isinf(worst):
+        return "status differs across BLAS kernels"
+    return f"up to ±{fmt(100 * worst, 3)} % across BLAS kernels"
+
+
 def spread_note(observer: str, scenario: str, state: int, config: str | None = None,
                 baseline: Path = BASELINE, table: Path = KERNEL_SPREAD) -> str | None:
     """The text printed beside a cell of ``observer`` on ``scenario`` in the table of the

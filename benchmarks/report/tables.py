@@ -30,7 +30,7 @@ from ..metrics import PHASE_COLUMNS, timed_in_parallel
 from ..verdicts import NA, NO, contained_column, reference_rows, violating
 from .numbers import Num, fmt, format_columns, markdown_table, text_table
 from .paper import PaperRow, paper_rows, paper_status, paper_title
-from .spread import spread_note
+from .spread import row_spread_note, spread_note
 
 #: the paragraph that opens the Markdown and the HTML report
 INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per state: the RMS "
@@ -328,11 +328,14 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
                              caveat=spread_note(obs, sc, i, _config(meta)) if ok else None))
         avg = float(np.mean(r)) if g["status"].iloc[0] == "ok" else float("nan")
         pstat = paper_status(key, n, obs, variant)
+        # the states of a wide table are not shown: its average carries their spread
+        row_note = row_spread_note(obs, sc, n, _config(meta)) if ok and not show else None
         if paper and p is None and not pstat:  # not part of the published comparison
-            cells += [Num(avg, note=NA), _gap_cell(g), _gap_cell(g, "gap_steady"),
-                      Num(g["step_ms"].iloc[0], note=NA)]
+            cells += [Num(avg, note=NA, caveat=row_note), _gap_cell(g),
+                      _gap_cell(g, "gap_steady"), Num(g["step_ms"].iloc[0], note=NA)]
         else:
-            cells.append(Num(avg, p.avg if p else None) if not pstat else Num(avg, note=pstat))
+            cells.append(Num(avg, p.avg if p else None, caveat=row_note) if not pstat
+                         else Num(avg, note=pstat, caveat=row_note))
             cells += [_gap_cell(g), _gap_cell(g, "gap_steady")]
             cells.append(Num(g["step_ms"].iloc[0], p.t_ms if p else None))
         cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _memory_cell(g),
