@@ -159,13 +159,13 @@ def test_a_miss_of_a_loose_exact_floor_is_rechecked_from_scratch():
     for v in widened.values():
         v[[4, 7]] += 1e-3  # a floor loose at two steps
     loose = dataclasses.replace(floor, hi=widened)
-    count, first = audit._recheck_exact_misses("filtered", loose, lo, hi, sc)
+    count, first = audit.recheck_exact_misses("filtered", loose, lo, hi, sc)
     assert (count, first) == (0, -1)  # it misses the loose floor only
     short = hi.copy()
     short[5] -= 1e-2
-    count, first = audit._recheck_exact_misses("filtered", loose, lo, short, sc)
+    count, first = audit.recheck_exact_misses("filtered", loose, lo, short, sc)
     assert (count, first) == (1, 5)
     # beyond FLOOR_RECHECKS re-solved steps a miss counts as it is (bounded cost)
     everywhere = dataclasses.replace(floor, hi={k: v + 1e-3 for k, v in floor.hi.items()})
-    count, first = audit._recheck_exact_misses("filtered", everywhere, lo, hi, sc)
+    count, first = audit.recheck_exact_misses("filtered", everywhere, lo, hi, sc)
     assert (count, first) == (12 - audit.FLOOR_RECHECKS, audit.FLOOR_RECHECKS)

@@ -310,7 +310,7 @@ def _hold_to_floor(row: dict, floor: RecordFloor, observer: str, res, sc: Scenar
     row["floor_steps"] += checked
     missed = cols["uncovered_steps"] or 0
     if missed and floor.kind == EXACT:
-        missed, first = _recheck_exact_misses(observer_floor(observer), floor, lo, hi, sc)
+        missed, first = recheck_exact_misses(observer_floor(observer), floor, lo, hi, sc)
         cols = {**cols, "first_uncovered_step": first}
     if missed:
         row["uncovered"] += missed
@@ -347,7 +347,7 @@ def _reference_hull(sc: Scenario, k: int, which: str) -> tuple[np.ndarray, np.nd
     return out[0], out[1]
 
 
-def _recheck_exact_misses(which: str, floor: RecordFloor, lo: np.ndarray, hi: np.ndarray,
+def recheck_exact_misses(which: str, floor: RecordFloor, lo: np.ndarray, hi: np.ndarray,
                           sc: Scenario) -> tuple[int, int]:
     """The steps where the hulls ``lo``/``hi`` miss the exact floor (``which``: predicted or
     filtered) and also miss the reference hull solved from scratch at that step
