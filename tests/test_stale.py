@@ -56,6 +56,8 @@ def _tree(dst: Path) -> Path:
     shutil.copy2(ROOT / "results" / "reports.json", dst / "results" / "reports.json")
     # the golden files: the measured kernel spreads printed in the cells of PRad-A
     shutil.copytree(ROOT / "results" / "baseline", dst / "results" / "baseline")
+    # the kernel study: the spreads printed beside the cells of the paper tables
+    shutil.copytree(ROOT / "results" / "kernels", dst / "results" / "kernels")
     for meta in (ROOT / "results").glob("*/meta.json"):
         if not (meta.parent / "summary.csv").is_file():
             continue  # the golden files of the gate, not a store

@@ -78,7 +78,8 @@ def measured_cell_spread(observer: str, scenario: str, state: int, config: str |
                  & (frame["scenario"] == scenario) & (frame["state"] == state)]
     if rows.empty:
         return None
-    if rows["status_other"].fillna("").astype(str).str.len().gt(0).any():
+    other = rows["status_other"].dropna().astype(str)
+    if other.str.len().gt(0).any():
         return math.inf
     return float(pd.to_numeric(rows["spread"], errors="coerce").max())
 
