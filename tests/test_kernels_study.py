@@ -117,3 +117,20 @@ def test_every_committed_cell_above_the_threshold_carries_its_spread():
                   if ln.startswith(f"| {observer} |") and "across BLAS kernels" in ln]
         # its relative and its absolute row (where the table has one) on each such scenario
         assert len(marked) >= g["scenario"].nunique(), (config, observer)
+
+
+@pytest.mark.parametrize("fingerprint", ["0123456789012345", "164025082e335566"])
+def test_a_fingerprint_that_reads_as_a_number_stays_its_text(tmp_path, fingerprint):
+    """Bug: the study read the committed store with plain ``pd.read_csv``, so a fingerprint of
+    digits (or digits around one ``e``) became a number, and ``stale`` would have called the
+    measured row changed. Every result table is read with its identifiers kept as text."""
+    from benchmarks.store.tables import read_table
+
+    path = tmp_path / "summary.csv"
+    _summary([1.0, 1.0], fingerprint=fingerprint).assign(run_id="164025082e33").to_csv(
+        path, index=False)
+    back = read_table(path)
+    assert back["fingerprint"].tolist() == [fingerprint] * 2
+    assert back["run_id"].tolist() == ["164025082e33"] * 2
+    out = kernels.compare(read_table(path), {"H": read_table(path)}, "cfg")
+    assert out["fingerprint"].tolist() == [fingerprint] * 2

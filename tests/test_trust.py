@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from benchmarks.cli import main
+from benchmarks.store.tables import read_table
 from benchmarks.verdicts import EXIT_CRASH
 from observers import registry
 
@@ -300,7 +301,7 @@ def _rehash(folder):
 @pytest.mark.parametrize("edit", ["drop summary column", "text in summary", "text in runs"])
 def test_edited_result_tables_are_refused_in_one_line(results, edit, capsys):
     name = "runs.csv" if "runs" in edit else "summary.csv"
-    df = pd.read_csv(results / name)
+    df = read_table(results / name)  # bug: pd.read_csv read a run id 164025082e33 as a float
     if edit.startswith("drop"):
         df = df.drop(columns="rel_rms")
     else:

@@ -38,6 +38,7 @@ from .bench import REPORTS, RESULTS, plan, render
 from .fingerprint import Fingerprinter, canonical, short
 from .graph import ROOT, ModuleGraph
 from .store import load_store
+from .tables import read_table
 
 #: reports that measure a machine: never stale for the code
 MEASUREMENTS = ("speed", "scaling", "frontier")
@@ -171,7 +172,6 @@ def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
 def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
     """The paper-table rows whose stored fingerprint differs from the one the kernel study
     measured (:mod:`benchmarks.studies.kernels`), and the paper tables it never measured."""
-    import pandas as pd
 
     from ..report.spread import KERNEL_TABLE as TABLE
     from ..report.spread import PAPER_CONFIGS as CONFIGS
@@ -183,13 +183,13 @@ def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
     if not path.is_file():
         return [Line("report", "kernels", f"reports/kernels.md has no table {TABLE} "
                                           "(`make kernels`)")]
-    measured = pd.read_csv(path, dtype={"fingerprint": str})
+    measured = read_table(path)
     out = []
     for config in CONFIGS:
         summary = root / RESULTS / config / "summary.csv"
         if not summary.is_file():
             continue
-        here = pd.read_csv(summary, dtype={"fingerprint": str})
+        here = read_table(summary)
         m = measured[measured["config"] == config]
         if m.empty:
             out.append(Line("report", "kernels", f"{config} not measured under the other "

@@ -44,6 +44,7 @@ from ..io import csv_text, json_text, new_run_id, remove_stale_generations, swap
 from ..metrics import add_relative_rms
 from ..report.freshness import commit, machine
 from .fingerprint import Fingerprint, canonical, changes, row_key, short
+from .tables import read_table
 
 FORMAT = "setobs-bench store 1"
 #: columns the store adds to a run's summary
@@ -160,7 +161,7 @@ def load_store(folder: str | Path, layout: Layout = CONFIG) -> Store | None:
             "changed since it was written (hand-edited or corrupted?)"
         raise ConfigError(f"store {folder}: {SUMMARY} is {how}: it does not match {META}; {fix}")
     try:
-        summary = pd.read_csv(io.BytesIO(data), dtype={"run_id": str, "fingerprint": str})
+        summary = read_table(io.BytesIO(data))
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise ConfigError(f"store {folder}: {SUMMARY} is not readable CSV: "
                           f"{str(exc).splitlines()[0]}; {fix}") from None

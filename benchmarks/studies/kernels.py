@@ -40,6 +40,7 @@ from ..io import atomic_write_csv, atomic_write_text, blas_corename, environment
 from ..report.citation import citation_lines
 from ..report.numbers import fmt, markdown_table
 from ..report.spread import KERNEL_TABLE, PAPER_CONFIGS, SHOWN_ABOVE
+from ..store.tables import read_table
 
 #: the configurations of the published tables (``make bench``'s paper tables)
 CONFIGS = PAPER_CONFIGS
@@ -65,7 +66,7 @@ def run_under(config: str, kernel: str, out: Path, jobs: int) -> pd.DataFrame:
     if proc.returncode != 0 or not summary.is_file():
         last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
         raise RuntimeError(f"{config} under OPENBLAS_CORETYPE={kernel} failed: {last}")
-    return pd.read_csv(summary)
+    return read_table(summary)
 
 
 def compare(here: pd.DataFrame, others: dict[str, pd.DataFrame], config: str) -> pd.DataFrame:
@@ -114,7 +115,7 @@ def run_study(configs=CONFIGS, kernels: list[str] | None = None, jobs: int = 2,
                 t0 = time.perf_counter()
                 others[k] = run_under(config, k, Path(tmp) / config / k, jobs)
                 log(f"{config} under {k}: {time.perf_counter() - t0:.0f} s")
-            frames.append(compare(pd.read_csv(committed), others, config))
+            frames.append(compare(read_table(committed), others, config))
     df = pd.concat(frames, ignore_index=True)
     df.attrs["here"] = here
     return df
@@ -190,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         if not table.is_file():
             print(f"error: no table {table} to render (run the study first)", file=sys.stderr)
             return 2
-        df = pd.read_csv(table, dtype={"fingerprint": str, "status_other": str})
+        df = read_table(table, dtype={"status_other": str})
         df["status_other"] = df["status_other"].fillna("")
         here, elapsed = blas_corename(), float("nan")
     else:
