@@ -24,7 +24,6 @@ spread.  The regression subset has its own, faster measurement in ``baseline --u
 
 from __future__ import annotations
 
-import argparse
 import os
 import subprocess
 import sys
@@ -35,12 +34,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..errors import ConfigError
 from ..gate.blas import available_coretypes
-from ..io import atomic_write_csv, atomic_write_text, blas_corename, environment
+from ..io import atomic_write_text, blas_corename, environment
 from ..report.citation import citation_lines
 from ..report.numbers import fmt, markdown_table
 from ..report.spread import KERNEL_TABLE, PAPER_CONFIGS, SHOWN_ABOVE
 from ..store.tables import read_table
+from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: the configurations of the published tables (``make bench``'s paper tables)
 CONFIGS = PAPER_CONFIGS
@@ -167,47 +168,35 @@ def report(df: pd.DataFrame, here: str, elapsed: float) -> str:
     return "\n".join(parts)
 
 
+def _committed(table: Path) -> pd.DataFrame:
+    df = read_table(table, dtype={"status_other": str})
+    df["status_other"] = df["status_other"].fillna("")
+    df.attrs["here"] = blas_corename()
+    return df
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line of the study."""
-    p = argparse.ArgumentParser(prog="python -m benchmarks.studies.kernels",
-                                description=__doc__.splitlines()[0])
-    p.add_argument("--jobs", type=int, default=2, help="worker processes per run (default 2)")
+    p = study_parser("benchmarks.studies.kernels", __doc__, out="reports/kernels.md",
+                     results="results", results_help="folder of the result stores",
+                     render_help="no run: the report from results/kernels/kernel_spread.csv",
+                     jobs_help="worker processes per run (default 2)")
     p.add_argument("--config", action="append", default=None,
                    help="a configuration to compare (repeatable; default the paper tables)")
     p.add_argument("--kernel", action="append", default=None,
                    help="an OpenBLAS core type to compare with (repeatable; default every "
                         "other one this CPU runs)")
-    p.add_argument("--out", default="reports/kernels.md", help="Markdown report")
-    p.add_argument("--results", default="results", help="folder of the result stores")
-    p.add_argument("--render", action="store_true",
-                   help="no run: the report from results/kernels/kernel_spread.csv")
     args = p.parse_args(argv)
-    if args.jobs < 1:
-        print("error: --jobs must be >= 1", file=sys.stderr)
-        return 2
     out, table = Path(args.out), Path(args.results) / TABLE.relative_to("results")
-    t0 = time.perf_counter()
-    if args.render:
-        if not table.is_file():
-            print(f"error: no table {table} to render (run the study first)", file=sys.stderr)
-            return 2
-        df = read_table(table, dtype={"status_other": str})
-        df["status_other"] = df["status_other"].fillna("")
-        here, elapsed = blas_corename(), float("nan")
-    else:
-        configs = tuple(args.config or CONFIGS)
-        try:
-            df = run_study(configs, args.kernel, args.jobs, Path(args.results),
-                           log=lambda m: print(m, file=sys.stderr))
-        except RuntimeError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        here = df.attrs["here"]
-        atomic_write_csv(table, df)
-        elapsed = time.perf_counter() - t0
-    atomic_write_text(out, report(df, here, elapsed))
-    print(f"wrote {out} and {table}", file=sys.stderr)
-    return 0
+    configs = tuple(args.config or CONFIGS)
+    try:
+        require_positive(jobs=args.jobs)
+        df, elapsed = table_of(table, args.render, lambda: run_study(
+            configs, args.kernel, args.jobs, Path(args.results), log=log), read=_committed)
+    except (ConfigError, RuntimeError) as exc:
+        return refuse(exc)
+    atomic_write_text(out, report(df, df.attrs["here"], elapsed))
+    return wrote(out, table)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -23,10 +23,8 @@ scales.  Every record's floor and runs are independent tasks run in ``--jobs`` p
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +32,8 @@ import pandas as pd
 
 import observers
 
-from ..io import atomic_write_csv, atomic_write_text, environment
+from ..errors import ConfigError
+from ..io import atomic_write_text, environment
 from ..metrics import rms_radius
 from ..report import figures
 from ..report.citation import citation_lines
@@ -43,6 +42,7 @@ from ..run.config import merge_options
 from ..run.executors import run_tasks
 from ..run.floor import compute_floor, floor_columns, observer_floor
 from ..run.runner import run_observer
+from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: the records of the grid (the simulated versions of the papers' 6-tank and 6-D vehicle)
 RECORDS = ("tank6-linear", "vehicle6d-sim")
@@ -305,32 +305,18 @@ def render(df: pd.DataFrame, out: Path, elapsed: float) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line of the study."""
-    p = argparse.ArgumentParser(prog="python -m benchmarks.studies.noise_grid",
-                                description=__doc__.splitlines()[0])
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    p.add_argument("--out", default="reports/noise_grid.md", help="Markdown report")
-    p.add_argument("--results", default="results/noise_grid", help="folder of the table")
-    p.add_argument("--render", action="store_true",
-                   help="no run: the report and figures from the table in --results")
+    p = study_parser("benchmarks.studies.noise_grid", __doc__, out="reports/noise_grid.md",
+                     results="results/noise_grid", results_help="folder of the table",
+                     render_help="no run: the report and figures from the table in --results")
     args = p.parse_args(argv)
-    if args.jobs < 1:
-        print("error: --jobs must be >= 1", file=sys.stderr)
-        return 2
     out, table = Path(args.out), Path(args.results) / "noise_grid.csv"
-    t0 = time.perf_counter()
-    if args.render:
-        if not table.is_file():
-            print(f"error: no table {table} to render (run the study first)", file=sys.stderr)
-            return 2
-        df = pd.read_csv(table)
-        elapsed = float("nan")
-    else:
-        df = run_study(args.jobs, log=lambda m: print(m, file=sys.stderr))
-        atomic_write_csv(table, df)
-        elapsed = time.perf_counter() - t0
+    try:
+        require_positive(jobs=args.jobs)
+        df, elapsed = table_of(table, args.render, lambda: run_study(args.jobs, log=log))
+    except ConfigError as exc:
+        return refuse(exc)
     render(df, out, elapsed)
-    print(f"wrote {out} and {table}", file=sys.stderr)
-    return 0
+    return wrote(out, table)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -33,9 +33,7 @@ processes; the exact floors are cached on disk, so those the audit computed are 
 
 from __future__ import annotations
 
-import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +41,9 @@ import pandas as pd
 
 import observers
 
+from ..errors import ConfigError
 from ..gate import audit
-from ..io import atomic_write_csv, atomic_write_text, environment
+from ..io import atomic_write_text, environment
 from ..metrics import rms_radius
 from ..report import figures
 from ..report.citation import citation_lines
@@ -54,6 +53,8 @@ from ..run.config import merge_options
 from ..run.executors import run_tasks
 from ..run.floor import FALSIFIER_STEPS, compute_floor, floor_columns, observer_floor
 from ..run.runner import run_observer
+from ..store.tables import read_table
+from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: realisations per scenario (the audit's first ones)
 REALISATIONS = 20
@@ -225,7 +226,7 @@ def win_table(df: pd.DataFrame, scenario: str, names: list[str]) -> pd.DataFrame
 def single_record_order(store: Path, scenario: str) -> pd.Series:
     """The mean relative RMS per observer of ``scenario`` in a committed result store (its
     ``summary.csv``; sound rows only): the single-record ranking of a paper table."""
-    s = pd.read_csv(store / "summary.csv")
+    s = read_table(store / "summary.csv")
     col = "contained" if "contained" in s.columns else s.columns[s.columns.str.startswith(
         "contained")][0]
     s = s[(s["scenario"] == scenario) & (s["status"] == "ok")
@@ -371,36 +372,23 @@ def render(df: pd.DataFrame, out: Path, results: Path, elapsed: float) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line of the study."""
-    p = argparse.ArgumentParser(prog="python -m benchmarks.studies.robustness",
-                                description=__doc__.splitlines()[0])
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p = study_parser("benchmarks.studies.robustness", __doc__, out="reports/robustness.md",
+                     results="results", results_help="folder of the stores (the paper "
+                     "tables' single records) and of robustness/robustness.csv",
+                     render_help="no run: the report and figure from the table in --results")
     p.add_argument("--realisations", type=int, default=REALISATIONS,
                    help=f"per scenario (default {REALISATIONS})")
-    p.add_argument("--out", default="reports/robustness.md", help="Markdown report")
-    p.add_argument("--results", default="results", help="folder of the stores (the paper "
-                   "tables' single records) and of robustness/robustness.csv")
-    p.add_argument("--render", action="store_true",
-                   help="no run: the report and figure from the table in --results")
     args = p.parse_args(argv)
-    if args.jobs < 1 or args.realisations < 1:
-        print("error: --jobs and --realisations must be >= 1", file=sys.stderr)
-        return 2
     results, out = Path(args.results), Path(args.out)
     table = results / "robustness" / "robustness.csv"
-    t0 = time.perf_counter()
-    if args.render:
-        if not table.is_file():
-            print(f"error: no table {table} to render (run the study first)", file=sys.stderr)
-            return 2
-        df, elapsed = pd.read_csv(table), float("nan")
-    else:
-        df = run_study(args.jobs, count=args.realisations,
-                       log=lambda m: print(m, file=sys.stderr))
-        atomic_write_csv(table, df)
-        elapsed = time.perf_counter() - t0
+    try:
+        require_positive(jobs=args.jobs, realisations=args.realisations)
+        df, elapsed = table_of(table, args.render, lambda: run_study(
+            args.jobs, count=args.realisations, log=log))
+    except ConfigError as exc:
+        return refuse(exc)
     render(df, out, results, elapsed)
-    print(f"wrote {out} and {table}", file=sys.stderr)
-    return 0
+    return wrote(out, table)
 
 
 if __name__ == "__main__":  # pragma: no cover
