@@ -1,6 +1,6 @@
 """The Markdown report of a results folder (``DIR/report.md``): the papers' tables with
-the published values beside ours (cells from :mod:`.tables`), links to the bounds figures
-(:func:`.figures.observer_bounds`) and, last, what to cite (:mod:`.citation`)."""
+the published values beside ours (cells from :mod:`benchmarks.report.tables`), links to the
+bounds figures (:func:`.figures.observer_bounds`) and, last, what to cite (:mod:`.citation`)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The command line the table-producing studies share (:mod:`.robustness`, :mod:`.noise_grid`,
-:mod:`.kernels`): run the study and write its table, or with ``--render`` render the committed
-table again without running anything; bad input is one line and exit code 2.
+:mod:`benchmarks.studies.kernels`): run the study and write its table, or with ``--render``
+render the committed table again without running anything; bad input is one line and exit
+code 2.
 """
 
 from __future__ import annotations
