@@ -199,3 +199,27 @@ def test_docs_nonlinear_example_runs(capsys):
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 3
     assert all(" ok contained: True" in line for line in out)
+
+
+def test_order_one_box_of_the_remainder_does_not_depend_on_rounding_in_a_repeated_cluster():
+    """Bug: the deviation set of the Lagrange remainder was boxed in the eigenvectors of
+    ``G G'`` as LAPACK returned them; where eigenvalues repeat (an initial box of equal radii,
+    near-repeated ones on 18-30 tanks) any rotation inside the cluster is an eigenbasis, and
+    the one returned depended on the BLAS kernel (ARCH Table 6 rows moved by up to 6 %
+    between kernels).  The box is now taken in the deterministic principal axes of
+    :class:`PCA`, a function of the cluster's subspace: a perturbation at rounding level
+    moves it by rounding only, and it encloses every generator."""
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((4, 4)))
+    G = Q @ np.diag([2.0, 1.0, 1.0, 1.0])  # a rotated box: one value, three repeated
+    lin = ConservativeLinearisation(tank(6, linear=False), PCA())
+    B = lin._order_one(G)
+    np.testing.assert_allclose(B, PCA().box(G), rtol=0, atol=0)
+    for _ in range(5):
+        noisy = G + 1e-15 * rng.standard_normal(G.shape)
+        np.testing.assert_allclose(lin._order_one(noisy), B, rtol=0, atol=1e-12)
+    # the box encloses the parallelotope: every vertex of G lies in B's box (coordinates of
+    # the vertex in B's axes at most 1 in absolute value)
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * 4)).reshape(4, -1)
+    coords = np.linalg.solve(B, G @ signs)
+    assert np.abs(coords).max() <= 1 + 1e-12
