@@ -68,12 +68,11 @@ from ..errors import ConfigError
 from ..run.config import merge_options
 from ..run.executors import run_tasks
 from ..run.floor import (
-    COVER_MAG_RTOL,
-    COVER_RTOL,
     EXACT,
     RecordFloor,
     compute_floor,
     floor_columns,
+    misses_floor,
     observer_floor,
 )
 from ..run.membership import MembershipTester
@@ -356,19 +355,13 @@ def recheck_exact_misses(which: str, floor: RecordFloor, lo: np.ndarray, hi: np.
     the first such step (-1 if none)."""
     N, n = lo.shape
     flo, fhi = floor.bounds(which, N, n)
-
-    def misses(f_lo, f_hi, h_lo, h_hi):
-        mag = np.maximum(1.0, np.maximum(np.abs(f_lo), np.abs(f_hi)))
-        slack = COVER_RTOL * 0.5 * (f_hi - f_lo) + COVER_MAG_RTOL * mag + sc.tolerance
-        with np.errstate(invalid="ignore"):
-            return ((h_lo > f_lo + slack) | (h_hi < f_hi - slack)).any(axis=-1)
-
+    tol = sc.tolerance
     known = np.all(np.isfinite(flo) & np.isfinite(fhi) & np.isfinite(lo) & np.isfinite(hi),
                    axis=1)
     confirmed = []
-    for i, k in enumerate(np.flatnonzero(misses(flo, fhi, lo, hi) & known)):
+    for i, k in enumerate(np.flatnonzero(misses_floor(flo, fhi, lo, hi, tol) & known)):
         ref = _reference_hull(sc, int(k), which) if i < FLOOR_RECHECKS else None
-        if ref is None or misses(ref[0], ref[1], lo[k], hi[k]):
+        if ref is None or misses_floor(ref[0], ref[1], lo[k], hi[k], tol):
             confirmed.append(int(k))
     return len(confirmed), (confirmed[0] if confirmed else -1)
 

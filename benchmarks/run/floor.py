@@ -255,9 +255,7 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
     have = produced & known
     if not have.any():
         return out
-    mag = np.maximum(1.0, np.maximum(np.abs(flo), np.abs(fhi)))
-    slack = COVER_RTOL * 0.5 * (fhi - flo) + COVER_MAG_RTOL * mag + tol
-    missed = ((lo > flo + slack) | (hi < fhi - slack)).any(axis=1) & have
+    missed = misses_floor(flo, fhi, lo, hi, tol) & have
     count = int(missed.sum())
     exact = floor.kind == EXACT
     checked = produced.all() and np.array_equal(known, np.isin(np.arange(N), floor.unchecked,
@@ -271,6 +269,18 @@ def floor_columns(floor: RecordFloor, which: str, lo: np.ndarray, hi: np.ndarray
         out["gap_steady"] = _rms_ratio(lo, hi, flo, fhi, steady)
         out["gap_kind"] = GAP_EXACT if exact else GAP_UPPER
     return out
+
+
+def misses_floor(flo: np.ndarray, fhi: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 tol: float) -> np.ndarray:
+    """Per step (the last axis: the states), whether the hull ``[lo, hi]`` fails to cover the
+    floor ``[flo, fhi]`` beyond the coverage slack (:data:`COVER_RTOL` of the floor's radius,
+    :data:`COVER_MAG_RTOL` of the bound's magnitude, the scenario's tolerance ``tol``); a
+    NaN bound never misses."""
+    mag = np.maximum(1.0, np.maximum(np.abs(flo), np.abs(fhi)))
+    slack = COVER_RTOL * 0.5 * (fhi - flo) + COVER_MAG_RTOL * mag + tol
+    with np.errstate(invalid="ignore"):
+        return ((lo > flo + slack) | (hi < fhi - slack)).any(axis=-1)
 
 
 def _rms_ratio(lo, hi, flo, fhi, steps: np.ndarray) -> np.ndarray:

@@ -63,6 +63,7 @@ import numpy as np
 from observers.sets import EmptySet
 from observers.sets.reduction import principal_axes
 
+from ..kernels.step import TIE_RTOL
 from .linalg import first_best
 
 #: candidate bases of the time update; "min-volume" tries them all and keeps the smallest
@@ -85,11 +86,10 @@ CHUNK_ELEMENTS = 1 << 21
 #: pivots of the generator-axes search below this fraction of their column's largest entry
 #: are not tried (an ill-conditioned exchange)
 PIVOT_RTOL = 1e-6
-#: relative margin of every choice between candidates (strip to drop, axes, exchange): a
-#: later candidate must be better by more than this, so that near-ties (the identical tanks
-#: and box-shaped sets of the benchmarks give exact ones) are decided the same way whatever
-#: the rounding of the BLAS kernel
-TIE_RTOL = 1e-9
+# TIE_RTOL (the project's tie tolerance, observers.kernels.step) is the relative margin of
+# every choice between candidates here (strip to drop, axes, exchange): a later candidate must
+# be better by more than it, so that near-ties (the identical tanks and box-shaped sets of the
+# benchmarks give exact ones) are decided the same way whatever the rounding of the BLAS kernel
 #: relative slack below which a measurement that misses the estimate counts as touching it
 #: (rounding of the strip offsets), instead of as an empty intersection
 TOUCH_RTOL = 1e-12

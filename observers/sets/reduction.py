@@ -127,7 +127,7 @@ def _split(G: np.ndarray, order: float) -> tuple[np.ndarray, np.ndarray, np.ndar
         return G, G[:, :0], None
     n_unreduced = int(math.floor(n * (order - 1)))
     n_reduced = r - n_unreduced
-    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced, float(norm1.max()))
+    picked, kept = _smallest(norm1 - absG.max(axis=0), n_reduced, top)
     return G[:, kept], G[:, picked], absG[:, picked]
 
 
