@@ -89,6 +89,18 @@ def csv_text(df: pd.DataFrame) -> str:
     return df.to_csv(index=False, float_format="%.17g")
 
 
+#: columns of the result tables that hold hex identifiers, read as text: ``pd.read_csv`` would
+#: read the run id ``164025082e33`` as a float and ``0123456789012345`` without its zero
+ID_COLUMNS = {"run_id": str, "fingerprint": str}
+
+
+def read_table(source, **kwargs) -> pd.DataFrame:
+    """A result table (``summary.csv``, ``runs.csv``, a study's table) as ``pd.read_csv``
+    reads it, its :data:`ID_COLUMNS` kept as text (a ``dtype`` mapping in ``kwargs`` is merged
+    with them)."""
+    return pd.read_csv(source, dtype={**ID_COLUMNS, **kwargs.pop("dtype", {})}, **kwargs)
+
+
 def atomic_write_csv(path: str | Path, df: pd.DataFrame) -> None:
     """Write a data frame as CSV atomically (full float precision)."""
     atomic_write_text(path, csv_text(df))
@@ -412,7 +424,7 @@ def load_results(folder: str | Path) -> tuple[pd.DataFrame, dict]:
                               f"(run {meta['run_id']}); re-run `python -m benchmarks run`")
         if name == "summary.csv":
             try:
-                summary = pd.read_csv(io.BytesIO(data), dtype={"run_id": str})
+                summary = read_table(io.BytesIO(data))
             except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
                 raise ConfigError(f"{path} is not readable CSV: "
                                   f"{str(exc).splitlines()[0]}") from None
@@ -456,7 +468,7 @@ def load_runs(folder: str | Path) -> pd.DataFrame:
     with its columns checked (a missing column, text in a numeric one: one line)."""
     path = Path(folder) / "runs.csv"
     try:
-        runs = pd.read_csv(path, dtype={"run_id": str})
+        runs = read_table(path)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path} is not readable CSV: {str(exc).splitlines()[0]}") from None
     check_columns(runs, path, RUNS_REQUIRED, RUNS_NUMERIC)

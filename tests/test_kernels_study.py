@@ -124,7 +124,7 @@ def test_a_fingerprint_that_reads_as_a_number_stays_its_text(tmp_path, fingerpri
     """Bug: the study read the committed store with plain ``pd.read_csv``, so a fingerprint of
     digits (or digits around one ``e``) became a number, and ``stale`` would have called the
     measured row changed. Every result table is read with its identifiers kept as text."""
-    from benchmarks.store.tables import read_table
+    from benchmarks.io import read_table
 
     path = tmp_path / "summary.csv"
     _summary([1.0, 1.0], fingerprint=fingerprint).assign(run_id="164025082e33").to_csv(

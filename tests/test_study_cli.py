@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.store.tables import read_table
+from benchmarks.io import read_table
 from benchmarks.studies import kernels, noise_grid, robustness
 
 ROOT = Path(__file__).resolve().parents[1]

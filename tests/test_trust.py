@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from benchmarks.cli import main
-from benchmarks.store.tables import read_table
+from benchmarks.io import read_table
 from benchmarks.verdicts import EXIT_CRASH
 from observers import registry
 

@@ -31,14 +31,13 @@ from pathlib import Path
 import observers
 
 from ..errors import ConfigError
-from ..io import json_text, read_json_object
+from ..io import json_text, read_json_object, read_table
 from ..run.config import load_config
 from ..run.shipped import shipped_configs
 from .bench import REPORTS, RESULTS, plan, render
 from .fingerprint import Fingerprinter, canonical, short
 from .graph import ROOT, ModuleGraph
 from .store import load_store
-from .tables import read_table
 
 #: reports that measure a machine: never stale for the code
 MEASUREMENTS = ("speed", "scaling", "frontier")

@@ -40,11 +40,10 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import ConfigError
-from ..io import csv_text, json_text, new_run_id, remove_stale_generations, swap_in
+from ..io import csv_text, json_text, new_run_id, read_table, remove_stale_generations, swap_in
 from ..metrics import add_relative_rms
 from ..report.freshness import commit, machine
 from .fingerprint import Fingerprint, canonical, changes, row_key, short
-from .tables import read_table
 
 FORMAT = "setobs-bench store 1"
 #: columns the store adds to a run's summary

@@ -15,8 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import ConfigError
-from ..io import atomic_write_csv
-from ..store.tables import read_table
+from ..io import atomic_write_csv, read_table
 
 
 def study_parser(module: str, doc: str, *, out: str, results: str, results_help: str,

@@ -36,11 +36,10 @@ import pandas as pd
 
 from ..errors import ConfigError
 from ..gate.blas import available_coretypes
-from ..io import atomic_write_text, blas_corename, environment
+from ..io import atomic_write_text, blas_corename, environment, read_table
 from ..report.citation import citation_lines
 from ..report.numbers import fmt, markdown_table
 from ..report.spread import KERNEL_TABLE, PAPER_CONFIGS, SHOWN_ABOVE
-from ..store.tables import read_table
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: the configurations of the published tables (``make bench``'s paper tables)

@@ -43,7 +43,7 @@ import observers
 
 from ..errors import ConfigError
 from ..gate import audit
-from ..io import atomic_write_text, environment
+from ..io import atomic_write_text, environment, read_table
 from ..metrics import rms_radius
 from ..report import figures
 from ..report.citation import citation_lines
@@ -53,7 +53,6 @@ from ..run.config import merge_options
 from ..run.executors import run_tasks
 from ..run.floor import FALSIFIER_STEPS, compute_floor, floor_columns, observer_floor
 from ..run.runner import run_observer
-from ..store.tables import read_table
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: realisations per scenario (the audit's first ones)
