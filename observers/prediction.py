@@ -28,7 +28,6 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import Diverged
-from .sets import PCA
 
 
 class LinearPrediction:
@@ -113,15 +112,13 @@ class ConservativeLinearisation:
         return self.system.jacobian(c, self._u)[0]
 
     def _order_one(self, G: np.ndarray) -> np.ndarray:
-        """Order-1 enclosure of ``G`` (CORA's error order 1): with the PCA strategy all
-        generators go into the box aligned with the principal axes, in the strategy's
-        deterministic basis (:meth:`PCA.box`; the eigenvectors of ``G G'`` that LAPACK returns
-        for repeated or nearly repeated eigenvalues depend on the BLAS kernel, and moved the
-        18-30-tank rows of ARCH Table 6 by up to 6 % between kernels); other strategies use
-        their own reduction."""
-        if not isinstance(self.reduction, PCA):
-            return self.reduction.reduce(G, 1.0)
-        return self.reduction.box(G)
+        """Order-1 enclosure of ``G`` (CORA's error order 1): the observer's own reduction to
+        order one, so a deviation set of at most ``n`` generators is kept as it is (exact) and
+        a larger one goes whole into the strategy's box (with :class:`PCA`, the box in its
+        deterministic principal axes: LAPACK's eigenvectors of ``G G'``, used before 0.7.0,
+        depend on the BLAS kernel where eigenvalues repeat or nearly repeat, and moved the
+        18-30-tank rows of ARCH Table 6 by up to 6 % between kernels)."""
+        return self.reduction.reduce(G, 1.0)
 
     def __call__(self, c, G, u, k):
         self._u = u

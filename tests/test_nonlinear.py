@@ -206,20 +206,36 @@ def test_order_one_box_of_the_remainder_does_not_depend_on_rounding_in_a_repeate
     ``G G'`` as LAPACK returned them; where eigenvalues repeat (an initial box of equal radii,
     near-repeated ones on 18-30 tanks) any rotation inside the cluster is an eigenbasis, and
     the one returned depended on the BLAS kernel (ARCH Table 6 rows moved by up to 6 %
-    between kernels).  The box is now taken in the deterministic principal axes of
-    :class:`PCA`, a function of the cluster's subspace: a perturbation at rounding level
-    moves it by rounding only, and it encloses every generator."""
+    between kernels).  The box is now the PCA strategy's own order-one reduction, in its
+    deterministic principal axes (a function of the cluster's subspace): a perturbation at
+    rounding level moves it by rounding only, and it encloses every generator."""
     rng = np.random.default_rng(3)
     Q, _ = np.linalg.qr(rng.standard_normal((4, 4)))
-    G = Q @ np.diag([2.0, 1.0, 1.0, 1.0])  # a rotated box: one value, three repeated
+    D = np.diag([2.0, 1.0, 1.0, 1.0])
+    G = Q @ np.hstack([D, 0.5 * D])  # 8 generators; singular values 2.5 and a triple 1.25
     lin = ConservativeLinearisation(tank(6, linear=False), PCA())
     B = lin._order_one(G)
-    np.testing.assert_allclose(B, PCA().box(G), rtol=0, atol=0)
+    assert B.shape == (4, 4)
     for _ in range(5):
         noisy = G + 1e-15 * rng.standard_normal(G.shape)
         np.testing.assert_allclose(lin._order_one(noisy), B, rtol=0, atol=1e-12)
-    # the box encloses the parallelotope: every vertex of G lies in B's box (coordinates of
-    # the vertex in B's axes at most 1 in absolute value)
-    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * 4)).reshape(4, -1)
+    # the zonotope G is the parallelotope Q D scaled by 1.5 (hand derivation): along the
+    # distinct axis Q e1 its box has the half-width 1.5 * 2 = 3; inside the cluster no box is
+    # thinner than the cube's half-width 1.5
+    widths = np.sort(np.linalg.norm(B, axis=0))
+    assert widths[-1] == pytest.approx(3.0, rel=1e-12)
+    assert np.all(widths[:3] >= 1.5 * (1 - 1e-12))
+    # the box encloses the zonotope: every vertex of G has coordinates in B's axes of at
+    # most 1 in absolute value
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * 8)).reshape(8, -1)
     coords = np.linalg.solve(B, G @ signs)
     assert np.abs(coords).max() <= 1 + 1e-12
+
+
+def test_order_one_enclosure_keeps_a_deviation_set_of_at_most_n_generators_exact():
+    """A deviation set with at most ``n`` generators is already of order one: the remainder
+    takes it as it is (CORA's ``reduce`` to order 1 leaves it unchanged), no box around it."""
+    rng = np.random.default_rng(4)
+    G = rng.standard_normal((6, 5))
+    lin = ConservativeLinearisation(tank(6, linear=False), PCA())
+    np.testing.assert_array_equal(lin._order_one(G), G)

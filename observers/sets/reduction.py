@@ -264,14 +264,6 @@ class PCA:
         comment says why)."""
         return PCA(max(self.cluster_rtol, cluster_rtol))
 
-    def box(self, G: np.ndarray) -> np.ndarray:
-        """Every generator of ``G`` into its box in the principal axes (order one, as the
-        deviation set of a Lagrange remainder is enclosed): ``U diag(|U' G| 1)`` with ``U``
-        the deterministic axes of :func:`principal_axes`."""
-        if G.shape[1] == 0:
-            return G
-        return _box_in_basis(G[:, :0], G, principal_axes(G, self.cluster_rtol), BOX_ZERO_RTOL)
-
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
         out = _compiled(G, order, "pca", self.cluster_rtol)
         if out is not None:
