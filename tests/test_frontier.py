@@ -50,3 +50,17 @@ def test_budget_spent_marks_the_rest_not_run():
     settings = {"alamo2d-sim": [("MHE", "window", (1,))]}
     df = frontier.run_study({"alamo2d-sim": None}, budget=1e-9, settings=settings)
     assert df["status"].tolist() == ["not run"] and df["message"].tolist() == ["budget"]
+
+
+def test_a_nonlinear_record_gets_upper_bounds_of_the_gap(tmp_path):
+    """On a nonlinear record the floor is the falsifier's inner box: the gaps are upper
+    bounds, printed with ``<=``, and the cost is against the extended Kalman filter."""
+    settings = {"vanderpol-sim": [("MHE-PR", "window", (1, 3))]}
+    df = frontier.run_study({"vanderpol-sim": 40}, budget=300, settings=settings)
+    assert (df["status"] == "ok").all(), df["message"].tolist()
+    assert (df["gap_kind"] == "upper bound").all()
+    assert (df["gap"] >= 1 - 1e-6).all() and (df["cost_ratio"] > 0).all()
+    assert (df["violations"] == 0).all() and (df["covers_exact"] != "no").all()
+    fig = frontier.figures.frontier(df, tmp_path / "frontier")[0]
+    text = frontier.report(df, fig, tmp_path / "frontier.md", budget=300, elapsed=1.0)
+    assert "| MHE-PR | window=3 | <= " in text and "(gap <= " in text

@@ -115,6 +115,16 @@ def test_kalman_step_times_one_per_step():
     assert np.all(np.isfinite(t)) and np.all(t > 0)
 
 
+@pytest.mark.parametrize("name", ["tank6-nonlinear", "robot-range"])
+def test_a_nonlinear_system_gets_the_extended_kalman_filter(name):
+    """No ``A`` on a nonlinear system: the extended filter's steps (linear output on the
+    tank, range and bearing outputs ``h`` on the robot) are timed instead."""
+    sc = systems.scenario(name, steps=30)
+    t = kalman_step_times(sc.system, sc.u, sc.y)
+    assert t.shape == (sc.N,)
+    assert np.all(np.isfinite(t)) and np.all(t > 0)
+
+
 def test_hull_lp_stats_count_the_lps_of_an_interval_hull():
     lp = HullLP()
     assert (lp.stats.solves, lp.stats.iterations, lp.stats.fallbacks) == (0, 0, 0)

@@ -176,10 +176,16 @@ def kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
     ``Q = E E'/3`` and ``R = F F'/3`` for the generators ``E`` of ``W`` and ``F`` of ``V``.
     Only the step is timed (``perf_counter``), not the set-up of ``Q`` and ``R``.
 
+    A nonlinear system (``system.is_linear`` false) gets the extended Kalman filter, the
+    same equations with ``f(x, u)`` for ``A x + B u``, its Jacobian at the estimate for ``A``,
+    and, for an output ``h``, ``h(x)`` for ``C x`` with ``C`` its Jacobian at the prediction
+    (:func:`extended_kalman_step_times`).
+
     Parameters
     ----------
-    system : LinearSystem
-        A system with ``A``, ``B``, ``C`` and zonotopes ``W``, ``V``, ``X0``.
+    system : LinearSystem or NonlinearSystem
+        A system with ``A``, ``B``, ``C`` (or ``f``, ``jacobian`` and ``C`` or ``h``,
+        ``h_jacobian``) and zonotopes ``W``, ``V``, ``X0``.
     u : (N, nu) or (N - 1, nu) ndarray
         Inputs; ``u[k-1]`` enters step ``k``.
     y : (N, ny) ndarray
@@ -195,6 +201,8 @@ def kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
     numpy.linalg.LinAlgError
         If an innovation covariance ``S`` is singular.
     """
+    if not getattr(system, "is_linear", True):
+        return extended_kalman_step_times(system, u, y)
     A, B, C = (np.asarray(M, dtype=float) for M in (system.A, system.B, system.C))
     u, y = as_record(u, y, B.shape[1], C.shape[0])
     E, F, G0 = system.W.G, system.V.G, system.X0.G
@@ -214,6 +222,41 @@ def kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
         K = np.linalg.solve(S, PCt.T).T  # P C' S^-1 (S is symmetric)
         x = x + K @ (y[k] - C @ x - v_mean)
         P = (eye - K @ C) @ P
+        times[k] = perf_counter() - t0
+    return times
+
+
+def extended_kalman_step_times(system: Any, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Seconds of every step of the extended Kalman filter over one record of a nonlinear
+    system: as :func:`kalman_step_times` with ``x = f(x, u[k-1]) + W.c``,
+    ``P = J P J' + Q`` (``J = df/dx`` at the previous estimate) and, for an output ``h``, the
+    innovation ``y[k] - h(x) - V.c`` with ``C = dh/dx`` at the prediction."""
+    linear_output = getattr(system, "output_is_linear", True)
+    C = np.asarray(system.C, dtype=float) if linear_output else None
+    ny = C.shape[0] if C is not None else system.ny
+    u, y = as_record(u, y, system.nu, ny)
+    E, F, G0 = system.W.G, system.V.G, system.X0.G
+    Q, R = E @ E.T / 3.0, F @ F.T / 3.0
+    w_mean, v_mean = np.asarray(system.W.c, float), np.asarray(system.V.c, float)
+    x = np.array(system.X0.c, dtype=float)
+    P = G0 @ G0.T / 3.0
+    eye = np.eye(x.size)
+    times = np.empty(y.shape[0])
+    for k in range(y.shape[0]):
+        t0 = perf_counter()
+        if k > 0:
+            J = np.asarray(system.jacobian(x, u[k - 1])[0], dtype=float)
+            x = np.asarray(system.f(x, u[k - 1]), dtype=float) + w_mean
+            P = J @ P @ J.T + Q
+        if linear_output:
+            H, yhat = C, C @ x
+        else:
+            H, yhat = np.asarray(system.h_jacobian(x), dtype=float), system.h(x)
+        PHt = P @ H.T
+        S = H @ PHt + R
+        K = np.linalg.solve(S, PHt.T).T
+        x = x + K @ (y[k] - yhat - v_mean)
+        P = (eye - K @ H) @ P
         times[k] = perf_counter() - t0
     return times
 
