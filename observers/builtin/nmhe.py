@@ -23,11 +23,12 @@ from ..numerics import nmhe as nn
 from ..options import Choice, Integer, Number
 from ..registry import register
 from ..sets import EmptySet, HullLP, Interval
+from .mhe import CZN_MARGIN
 
 #: relative enlargement of the measurement noise against the rounding of the window's
-#: constraint data (as ``MHE``'s and the CZN observers' margin): with the noise on a vertex of
-#: its set the true state lies on the boundary of the window's set
-MARGIN = 1e-7
+#: constraint data: ``MHE``'s (with the noise on a vertex of its set the true state lies on
+#: the boundary of the window's set)
+MARGIN = CZN_MARGIN
 
 
 @register(
