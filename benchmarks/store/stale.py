@@ -50,7 +50,7 @@ _GUARANTEED = ("Exact", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRa
                "PRad-C-II", "PRad-D", "CZN-A", "CZN-B", "CZN-MV", "ESO-A", "ESO-B", "FRad-C",
                "PRad-E", "Nom-G", "ESO-C", "ESO-D", "Hinf-G", "CZN-DC", "CZN-FO", "CZN-PR",
                "DD-CZ-A1", "DD-CZ-A2", "DD-Z-A1", "DD-Z-A2", "ESMF", "INT-CP", "MHE", "ROPO",
-               "ZB-A", "VolMin-A")
+               "ZB-A", "VolMin-A", "MHE-PR")
 STUDIES = {"datadriven": ("benchmarks.studies.alanwar2022",
                           ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2", "KF-N4SID")),
            "noise_grid": ("benchmarks.studies.noise_grid", _GUARANTEED),
