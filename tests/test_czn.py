@@ -244,7 +244,19 @@ def test_registry_entries():
             "strip", "conzonotope", False)
 
 
-def test_implied_bounds_ignore_a_subnormal_coefficient():
+@pytest.fixture(params=["compiled", "numpy"])
+def propagation_path(request):
+    """Run a test with the compiled sweeps of implied_bounds and with the numpy ones."""
+    from observers.kernels import switch
+
+    if request.param == "compiled" and not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    old = switch.set_compiled(request.param == "compiled")
+    yield request.param
+    switch.set_compiled(old)
+
+
+def test_implied_bounds_ignore_a_subnormal_coefficient(propagation_path):
     """Bug: on the 200-tank record a constraint row held a subnormal coefficient; 1 / a
     overflowed, inf - inf made the candidate bounds NaN and the NaN spread through the
     propagation sweeps (numpy warned "overflow encountered in divide").  Such a coefficient
@@ -264,3 +276,99 @@ def test_implied_bounds_ignore_a_subnormal_coefficient():
     assert lo[0] <= 0.5 <= hi[0] and hi[0] - lo[0] < 1e-14
     np.testing.assert_array_equal(lo[1:], [-1.0, -1.0])
     np.testing.assert_array_equal(hi[1:], [1.0, 1.0])
+
+
+def _exact_first_sweep(A, b):
+    """One sweep of the propagation from the unit box in exact rational arithmetic (hand
+    derivation: with mid = 0 and rad = 1, row i bounds xi_j by
+    (b_i -+ sum_{k != j} |a_ik|) / a_ij, rounded nowhere)."""
+    from fractions import Fraction
+
+    p, r = A.shape
+    lo, hi = [Fraction(-1)] * r, [Fraction(1)] * r
+    for i in range(p):
+        row = [Fraction(float(a)) for a in A[i]]
+        total = sum(abs(a) for a in row)
+        for j in range(r):
+            if row[j] == 0:
+                continue
+            c, w = Fraction(float(b[i])) / row[j], (total - abs(row[j])) / abs(row[j])
+            lo[j], hi[j] = max(lo[j], c - w), min(hi[j], c + w)
+    return lo, hi
+
+
+def _long_rows(seed):
+    """Rows of 4000 terms, one dominant entry each and many small ones: the sums of the
+    propagation carry rounding errors of many ulps (about sqrt(r) eps of the sum)."""
+    rng = np.random.default_rng(seed)
+    p, r = 3, 4000
+    A = rng.uniform(-1.0, 1.0, (p, r)) * rng.uniform(0.0, 1e-4, (p, r))
+    A[np.arange(p), np.arange(p)] = 1.0 + rng.uniform(0.0, 0.1, p)
+    b = rng.uniform(-0.2, 0.2, p)
+    return A, b
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_implied_bounds_round_outward_on_long_rows(propagation_path, seed):
+    """Bug: the candidates were widened by 4 eps of their magnitudes, but a sum of r
+    products can be off by about r eps of its terms (Higham, Sec. 3.1): on rows of 4000
+    terms a bound came out tighter than the exact one (a shrunk box may cut off feasible
+    points).  Each bound is now compared with one sweep in exact rational arithmetic."""
+    from observers.sets.conzono_ops import implied_bounds
+
+    A, b = _long_rows(seed)
+    lo, hi = implied_bounds(A, b, sweeps=1)
+    elo, ehi = _exact_first_sweep(A, b)
+    assert all(float(lo[j]) <= elo[j] for j in range(A.shape[1]))
+    assert all(float(hi[j]) >= ehi[j] for j in range(A.shape[1]))
+    # and not loose: the dominant variables are bounded to within 1e-9 of the exact range
+    for j in range(A.shape[0]):
+        assert float(elo[j]) - lo[j] < 1e-9 and hi[j] - float(ehi[j]) < 1e-9
+
+
+def test_the_old_slack_fails_the_exact_comparison(monkeypatch):
+    """The check above can fail: with the former slack (4 eps, whatever the row's length)
+    some bound of these rows is tighter than the exact one."""
+    from observers.kernels import propagation
+    from observers.sets.conzono_ops import implied_bounds
+
+    monkeypatch.setattr(propagation, "slack_factor", lambda r: 4 * np.finfo(float).eps)
+    inward = 0
+    for seed in range(3):
+        A, b = _long_rows(seed)
+        lo, hi = implied_bounds(A, b, sweeps=1)
+        elo, ehi = _exact_first_sweep(A, b)
+        inward += sum(float(lo[j]) > elo[j] or float(hi[j]) < ehi[j] for j in range(3))
+    assert inward > 0
+
+
+def test_implied_bounds_compiled_and_numpy_agree_and_contain_the_projection():
+    """Both paths give the same bounds up to rounding, and on small random feasible sets
+    every bound contains the exact projection of the feasible set (min and max of each xi_j
+    by linprog)."""
+    from observers.kernels import switch
+    from observers.sets.conzono_ops import implied_bounds
+
+    if not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        p, r = int(rng.integers(1, 4)), int(rng.integers(3, 9))
+        A = rng.normal(size=(p, r))
+        b = A @ rng.uniform(-1, 1, r)  # feasible: a point of the box satisfies it
+        old = switch.set_compiled(True)
+        try:
+            lo1, hi1 = implied_bounds(A, b)
+            switch.set_compiled(False)
+            lo2, hi2 = implied_bounds(A, b)
+        finally:
+            switch.set_compiled(old)
+        np.testing.assert_allclose(lo1, lo2, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(hi1, hi2, rtol=0, atol=1e-13)
+        for j in range(r):
+            e = np.zeros(r)
+            e[j] = 1.0
+            for sign, bound in ((1.0, lo1[j]), (-1.0, -hi1[j])):
+                res = linprog(sign * e, A_eq=A, b_eq=b, bounds=[(-1, 1)] * r, method="highs")
+                assert res.status == 0
+                assert bound <= res.fun + 1e-9

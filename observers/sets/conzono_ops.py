@@ -39,6 +39,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..kernels import propagation, switch
 from .reduction import Reduction, lifted_reduction
 
 _EPS = np.finfo(float).eps
@@ -166,13 +167,25 @@ def implied_bounds(
     by interval constraint propagation (each row solved for each of its variables).
 
     The bounds are outward-rounded and never tighter than the true projection of the feasible
-    set, so they are safe to use as the new box (:func:`rescale`).  An empty feasible set can
-    show up as ``lo > hi`` somewhere; callers must check.
+    set, so they are safe to use as the new box (:func:`rescale`): each candidate is widened
+    by :func:`observers.kernels.propagation.slack_factor` (``(r + 8) eps``) times the
+    magnitudes in its row, a bound on the rounding of sums of ``r`` products in any order.
+    An empty feasible set can show up as ``lo > hi`` somewhere; callers must check.
+
+    With numba the sweeps run compiled (:mod:`observers.kernels.propagation`: loops, no
+    ``nc x r`` temporaries, sums in a fixed order); the numpy path below gives the same
+    bounds up to rounding.
     """
     nc, r = A.shape
-    lo = -np.ones(r) if lo is None else lo.copy()
-    hi = np.ones(r) if hi is None else hi.copy()
+    lo = -np.ones(r) if lo is None else np.array(lo, dtype=float)
+    hi = np.ones(r) if hi is None else np.array(hi, dtype=float)
     if nc == 0 or r == 0:
+        return lo, hi
+    gamma = propagation.slack_factor(r)
+    if switch.use_compiled():
+        propagation.implied_bounds_loop(np.ascontiguousarray(A, dtype=float),
+                                        np.asarray(b, dtype=float), lo, hi, int(sweeps),
+                                        _TINY, gamma)
         return lo, hi
     absA = np.abs(A)
     # a subnormal coefficient would overflow 1 / a (and inf - inf poison the bounds with
@@ -186,8 +199,8 @@ def implied_bounds(
         # for variable j of row i: a_ij xi_j = b_i - sum_{k != j} a_ik xi_k
         cen = (b - s_mid)[:, None] + A * mid          # b_i - sum_{k != j} a_ik mid_k
         wid = s_rad[:, None] - absA * rad             # sum_{k != j} |a_ik| rad_k
-        slack = 4 * _EPS * (np.abs(b)[:, None] + (absA @ np.abs(mid))[:, None] + s_rad[:, None]
-                            + absA * (np.abs(mid) + rad))
+        slack = gamma * (np.abs(b)[:, None] + (absA @ np.abs(mid))[:, None] + s_rad[:, None]
+                         + absA * (np.abs(mid) + rad))
         wid = wid + slack
         with np.errstate(over="ignore", invalid="ignore"):
             x_c = cen * inv
