@@ -118,8 +118,7 @@ class MHE(LinearModelObserver):
     def reset(self) -> None:
         super().reset()
         L = self.L
-        self._u: deque[np.ndarray] = deque(maxlen=L)
-        self._y: deque[np.ndarray] = deque(maxlen=L + 1)
+        self._record = nm.WindowRecord(L, self.B.shape[1])
         #: own hulls of steps k-L .. k-1 (at step k, before it is appended)
         self._own: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=L)
         #: inner hulls of steps k-L .. k (appended first thing at step k)
@@ -154,9 +153,7 @@ class MHE(LinearModelObserver):
         k = self.k
         u = None if k == 0 else self._input(u_prev)
         self._inner_step(u, y)
-        if u is not None:
-            self._u.append(u)
-        self._y.append(y)
+        self._record.append(u, y)
         if self._lp is not None:
             h = self._lp.first(y) if k == 0 else self._lp.advance(u, y, prior=self._prior())
             lo, hi = h.filt_lo, h.filt_hi
@@ -180,19 +177,9 @@ class MHE(LinearModelObserver):
                     raise EmptySet(f"step {k}: the hulls of step {k - self.L} of MHE and of "
                                    f"its inner observer do not meet in x{i + 1}: the record "
                                    "is inconsistent with the model")
-            start = self._box(lo, hi)
-        u = np.array(self._u, float).reshape(len(self._u), self.B.shape[1])
+            start = nm.box_factors(lo, hi)
         c, G, A, b = nm.window_conzonotope(
-            (self.A, self.B, self.C, start, self._sets[1], self._V_czn), u,
-            np.array(self._y, float))
+            (self.A, self.B, self.C, start, self._sets[1], self._V_czn),
+            self._record.inputs(), self._record.outputs())
         I = ConZonotope(c, G, A, b).with_solver(self._solver).interval()
         return np.asarray(I.lo, float), np.asarray(I.hi, float)
-
-    @staticmethod
-    def _box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """A box as ``(centre, diagonal generators)`` that contains ``[lo, hi]`` despite the
-        rounding of the centre and radius."""
-        c = 0.5 * (lo + hi)
-        r = 0.5 * (hi - lo)
-        r = r + 4 * np.finfo(float).eps * (np.abs(lo) + np.abs(hi)) + np.finfo(float).tiny
-        return c, np.diag(r)

@@ -13,6 +13,7 @@ the nonlinear comparison and the frontier study name it.
 from __future__ import annotations
 
 from collections import deque
+from functools import partial
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from ..base import Observer
 from ..errors import Unsupported
 from ..families import as_zonotope
 from ..numerics import nmhe as nn
+from ..numerics.mhe import WindowRecord
 from ..options import Choice, Integer, Number
 from ..registry import register
 from ..sets import EmptySet, HullLP, Interval
@@ -110,8 +112,7 @@ class MHEPR(Observer):
     def reset(self) -> None:
         super().reset()
         L = self.L
-        self._u: deque[np.ndarray] = deque(maxlen=L)
-        self._y: deque[np.ndarray] = deque(maxlen=L + 1)
+        self._record = WindowRecord(L, self.system.nu)
         #: sound boxes (lo, hi) of the states max(0, k-L) .. k-1 (smoothed by later windows)
         self._boxes: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=L)
         self._solver = HullLP()
@@ -119,9 +120,7 @@ class MHEPR(Observer):
     def step(self, u_prev, y) -> Interval:
         y = self._measurement(y)
         k = self.k
-        if k:
-            self._u.append(self._input(u_prev))
-        self._y.append(y)
+        self._record.append(self._input(u_prev) if k else None, y)
         lo, hi = self._window(k)
         self.k += 1
         return Interval(lo, hi)
@@ -133,42 +132,34 @@ class MHEPR(Observer):
             return self._X0
         return nn.box_factors(*self._boxes[0])
 
-    def _newest_box(self, k: int, boxes, u, y) -> tuple[np.ndarray, np.ndarray]:
-        """A sound box of ``x_k`` before ``y_k``: ``X0``'s at step 0, else the hull of the
-        window without its last measurement, carried one transition further (the
-        prediction's relaxation over the box of ``x_{k-1}``)."""
-        if k == 0:
-            return self._X0_box.lo, self._X0_box.hi
-        from ..numerics.relaxation import lifted_set, relax_checked
-
-        win = nn.build_window(self._f, self._h, self._start(k), boxes, u, y[:-1],
-                              self._W, self._V, self.options["tangents"], k)
-        j = len(y) - 2
-        G = np.zeros((win.G[j].shape[0], win.A.shape[1]))
-        G[:, : win.G[j].shape[1]] = win.G[j]
-        rel = relax_checked(self._f, win.c[j], G, boxes[j], u[j], k, self.options["tangents"])
-        coef, A, b = lifted_set(rel, win.A, win.b)
-        cW, GW = self._W
-        pred = nn.Window((rel.const + cW,), (np.hstack([coef, GW]),),
-                         np.hstack([A, np.zeros((A.shape[0], GW.shape[1]))]), b)
-        I = nn.window_hulls(pred, [0], self._solver)[0]
-        return I.lo, I.hi
-
     def _window(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The hull of the window ending at step ``k``; the boxes of its earlier states are
-        replaced by their smoothed ones."""
-        u = np.array(self._u, float).reshape(len(self._u), self.system.nu)
-        y = np.array(self._y, float)
+        replaced by their smoothed ones.
+
+        The newest state's box is read only by a nonlinear output's relaxation: it is then
+        ``X0``'s at step 0, else the hull of the window before ``y_k`` (built once, the
+        measurement added to it after its hull)."""
+        u, y = self._record.inputs(), self._record.outputs()
         T = len(y) - 1  # transitions in the window: min(k, L)
         boxes = list(self._boxes)  # steps k - T .. k - 1
+        opts = self.options
+        build = partial(nn.build_window, self._f, self._h, self._start(k), u=u, W=self._W,
+                        V=self._V, tangents=opts["tangents"], k=k)
         if isinstance(self._h, np.ndarray):  # a linear output: the newest box is not read
             boxes.append((np.full(self.system.n, -np.inf), np.full(self.system.n, np.inf)))
+            win = build(boxes, y=y)
+        elif k == 0:
+            boxes.append((self._X0_box.lo, self._X0_box.hi))
+            win = build(boxes, y=y)
         else:
-            boxes.append(self._newest_box(k, boxes, u, y))
-        opts = self.options
+            pred = build(boxes + [None], y=y[:-1])
+            I = nn.window_hulls(pred, [T], self._solver)[0]
+            boxes.append((I.lo, I.hi))
+            win = nn.measure_newest(pred, self._h, boxes[T], y[-1], self._V,
+                                    opts["tangents"], k)
         for sweep in range(opts["sweeps"] + 1):
-            win = nn.build_window(self._f, self._h, self._start(k), boxes, u, y, self._W,
-                                  self._V, opts["tangents"], k)
+            if sweep:
+                win = build(boxes, y=y)
             if sweep == opts["sweeps"]:  # the final hull: the newest state only
                 I = nn.window_hulls(win, [T], self._solver)[0]
                 boxes[T] = _meet(boxes[T], (I.lo, I.hi), k)

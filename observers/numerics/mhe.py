@@ -59,12 +59,48 @@ noise by a relative 1e-7 (:data:`observers.builtin.mhe.CZN_MARGIN`, as the CZN o
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from ..errors import EmptySet
 from .exact import MARGIN, ExactHullLP, StepHulls, _Layout
 
-__all__ = ["WindowHullLP", "window_conzonotope"]
+__all__ = ["WindowHullLP", "WindowRecord", "box_factors", "window_conzonotope"]
+
+
+class WindowRecord:
+    """The inputs and measurements of a moving window of ``window`` transitions: the last
+    ``window`` inputs ``u_{k-T} .. u_{k-1}`` and ``window + 1`` measurements
+    ``y_{k-T} .. y_k`` (``T = min(k, window)``)."""
+
+    def __init__(self, window: int, nu: int) -> None:
+        self.nu = int(nu)
+        self._u: deque[np.ndarray] = deque(maxlen=window)
+        self._y: deque[np.ndarray] = deque(maxlen=window + 1)
+
+    def append(self, u: np.ndarray | None, y: np.ndarray) -> None:
+        """Step ``k``'s data: the input ``u_{k-1}`` (None at step 0) and ``y_k``."""
+        if u is not None:
+            self._u.append(u)
+        self._y.append(y)
+
+    def inputs(self) -> np.ndarray:
+        """``T x nu`` inputs of the window's transitions."""
+        return np.array(self._u, float).reshape(len(self._u), self.nu)
+
+    def outputs(self) -> np.ndarray:
+        """``(T + 1) x m`` measurements of the window's states."""
+        return np.array(self._y, float)
+
+
+def box_factors(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A box as ``(centre, diagonal generators)`` containing ``[lo, hi]`` despite the rounding
+    of its centre and radius."""
+    c = 0.5 * (lo + hi)
+    r = 0.5 * (hi - lo)
+    r = r + 4 * np.finfo(float).eps * (np.abs(lo) + np.abs(hi)) + np.finfo(float).tiny
+    return c, np.diag(r)
 
 
 def window_conzonotope(model: tuple, u, y

@@ -42,9 +42,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sets import ConZonotope, HullLP, Interval
+from .mhe import box_factors
 from .relaxation import Factorable, lifted_set, relax_checked
 
-__all__ = ["Window", "build_window", "box_factors", "window_hulls"]
+__all__ = ["Window", "box_factors", "build_window", "measure_newest", "window_hulls"]
 
 
 @dataclass(frozen=True)
@@ -77,15 +78,6 @@ class Window:
                                    self.A, self.b)
 
 
-def box_factors(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A box as ``(centre, diagonal generators)`` containing ``[lo, hi]`` despite the rounding
-    of its centre and radius."""
-    c = 0.5 * (lo + hi)
-    r = 0.5 * (hi - lo)
-    r = r + 4 * np.finfo(float).eps * (np.abs(lo) + np.abs(hi)) + np.finfo(float).tiny
-    return c, np.diag(r)
-
-
 def build_window(f_graph: Factorable, output, start: tuple[np.ndarray, np.ndarray],
                  boxes: list[tuple[np.ndarray, np.ndarray]], u: np.ndarray, y: np.ndarray,
                  W: tuple[np.ndarray, np.ndarray], V: tuple[np.ndarray, np.ndarray],
@@ -101,12 +93,13 @@ def build_window(f_graph: Factorable, output, start: tuple[np.ndarray, np.ndarra
     start : tuple of ndarray
         ``(centre, generators)`` of the prior of the window's first state.
     boxes : list of (lo, hi)
-        A sound box of every state of the window (``len(y)`` of them; the last one is read
-        only for a nonlinear output).
+        A sound box of every state of the window (``T + 1`` of them; the last one is read
+        only for a nonlinear output and a measurement of the newest state).
     u : ndarray
-        ``T x nu`` inputs of the ``T = len(y) - 1`` transitions.
+        ``T x nu`` inputs of the ``T`` transitions.
     y : ndarray
-        ``(T + 1) x m`` measurements.
+        ``(T + 1) x m`` measurements, or ``T x m``: the newest state then has no measurement
+        yet (the prediction; :func:`measure_newest` adds it).
     W, V : tuple of ndarray
         ``(centre, generators)`` of the disturbance and the noise.
     tangents : {1, 3}
@@ -120,38 +113,56 @@ def build_window(f_graph: Factorable, output, start: tuple[np.ndarray, np.ndarra
         A box leaves the domain of ``f`` or ``h`` (``sqrt`` of a negative interval, ...).
     """
     cW, GW = W
-    cV, GV = V
     c, G = np.asarray(start[0], float), np.asarray(start[1], float)
     A, b = np.zeros((0, G.shape[1])), np.zeros(0)
     cs, Gs = [], []
-    linear_output = isinstance(output, np.ndarray)
-    T = len(y) - 1
+    T = len(u)
     for j in range(T + 1):
         cs.append(c)
         Gs.append(G)
-        r = G.shape[1]
-        if linear_output:  # C x_j + v_j = y_j
-            rows = np.hstack([output @ G, np.zeros((output.shape[0], A.shape[1] - r)), GV])
-            A = np.vstack([np.hstack([A, np.zeros((A.shape[0], GV.shape[1]))]), rows])
-            b = np.concatenate([b, y[j] - output @ c - cV])
-        else:  # h(x_j) + v_j = y_j over the lifted variables of h's relaxation on B_j
-            Gp = np.zeros((G.shape[0], A.shape[1]))
-            Gp[:, :r] = G
-            rel = relax_checked(output, c, Gp, boxes[j], np.zeros(0), k, tangents)
-            coef, A, b = lifted_set(rel, A, b)
-            A = np.block([[A, np.zeros((A.shape[0], GV.shape[1]))], [coef, GV]])
-            b = np.concatenate([b, y[j] - rel.const - cV])
+        if j < len(y):
+            A, b = _measure(output, c, G, A, b, boxes[j], y[j], V, tangents, k)
         if j == T:
             break
         # x_{j+1} = f(x_j, u_j) + w_j over the lifted variables of f's relaxation on B_j
-        Gp = np.zeros((G.shape[0], A.shape[1]))
-        Gp[:, :r] = G
-        rel = relax_checked(f_graph, c, Gp, boxes[j], u[j], k, tangents)
+        rel = relax_checked(f_graph, c, _padded(G, A.shape[1]), boxes[j], u[j], k, tangents)
         coef, A, b = lifted_set(rel, A, b)
         A = np.hstack([A, np.zeros((A.shape[0], GW.shape[1]))])
         c = rel.const + cW
         G = np.hstack([coef, GW])
     return Window(tuple(cs), tuple(Gs), A, b)
+
+
+def measure_newest(win: Window, output, box: tuple[np.ndarray, np.ndarray], y: np.ndarray,
+                   V: tuple[np.ndarray, np.ndarray], tangents: int = 1,
+                   k: int | None = None) -> Window:
+    """The window with the measurement ``y`` of its newest state added (a window built by
+    :func:`build_window` without it), ``h`` relaxed over ``box``."""
+    A, b = _measure(output, win.c[-1], win.G[-1], win.A, win.b, box, y, V, tangents, k)
+    return Window(win.c, win.G, A, b)
+
+
+def _padded(G: np.ndarray, R: int) -> np.ndarray:
+    """``G`` with zero columns up to ``R`` columns."""
+    Gp = np.zeros((G.shape[0], R))
+    Gp[:, : G.shape[1]] = G
+    return Gp
+
+
+def _measure(output, c, G, A, b, box, y, V, tangents, k) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, b)`` with the measurement ``y = h(x) + v`` of the state ``c + G xi`` appended
+    (the noise's factors appended as new columns)."""
+    cV, GV = V
+    if isinstance(output, np.ndarray):  # C x + v = y
+        rows = np.hstack([output @ G, np.zeros((output.shape[0], A.shape[1] - G.shape[1])),
+                          GV])
+        A = np.vstack([np.hstack([A, np.zeros((A.shape[0], GV.shape[1]))]), rows])
+        return A, np.concatenate([b, y - output @ c - cV])
+    # h(x) + v = y over the lifted variables of h's relaxation on the box
+    rel = relax_checked(output, c, _padded(G, A.shape[1]), box, np.zeros(0), k, tangents)
+    coef, A, b = lifted_set(rel, A, b)
+    A = np.block([[A, np.zeros((A.shape[0], GV.shape[1]))], [coef, GV]])
+    return A, np.concatenate([b, y - rel.const - cV])
 
 
 def window_hulls(win: Window, js, solver: HullLP | None = None) -> list[Interval]:
