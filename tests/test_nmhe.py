@@ -92,6 +92,28 @@ def test_the_window_carries_the_measurements_forward():
     assert float(I.hi[0] - I.lo[0]) <= (exact[1] - exact[0]) * 1.01
 
 
+def test_the_newest_box_is_the_hull_of_the_prediction():
+    """Window 2, no sweeps, y0 = y1 = 4.  Step 0 stores x0's box [1.625, 2.125] (the test
+    above).  At step 1 the window relaxes y0 over that box (the box shapes the relaxation, it
+    is no constraint): x0 >= 6.953125 / 3.75 = 89/48 (secant) and x0 <= 8.015625 / 3.75 =
+    171/80 (tangent at 1.875), so the prediction x1 = x0 + w has the hull
+    [89/48 - 1/10, 171/80 + 1/10] = [421/240, 179/80]: the box over which y1 is relaxed.
+    With a = 421/240, b = 179/80, m = (a + b)/2: x1 >= (7/2 + a b) / (a + b) (secant) and
+    x1 <= (9/2 + m^2) / (2 m) (tangent at m); the window's own x1 <= 179/80 is looser.  A
+    box taken from anywhere else (X0 carried forward, or the stored box plus w) gives other
+    numbers."""
+    from fractions import Fraction as F
+
+    obs = observers.create("MHE-PR", _quadratic_measurement(), window=2, sweeps=0)
+    obs.step(None, np.array([4.0]))
+    I = obs.step(np.zeros(0), np.array([4.0])).interval()
+    a, b = F(421, 240), F(179, 80)
+    m = (a + b) / 2
+    tol = 1e-6  # the noise's margin (1e-7, relative) and the relaxations' (1e-12)
+    assert float(I.lo[0]) == pytest.approx(float((F(7, 2) + a * b) / (a + b)), abs=tol)
+    assert float(I.hi[0]) == pytest.approx(float((F(9, 2) + m * m) / (2 * m)), abs=tol)
+
+
 @pytest.mark.parametrize("name", ["tank6-nonlinear", "rego2d-nonlinear", "robot-range",
                                   "vanderpol-sim"])
 def test_contains_the_true_state_on_every_nonlinear_record(name):

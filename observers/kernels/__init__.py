@@ -10,6 +10,8 @@ one way (``kernels`` <- :mod:`observers.lp` <- :mod:`observers.sets` <- the rest
   call, in one file because numba's on-disk cache and its inlining work per file; its doorway
   :func:`~observers.kernels.step.prepare` is the only place that knows how the kernels number
   their formulas.
+- :mod:`observers.kernels.propagation`: the interval constraint propagation behind the
+  rescaling of constrained zonotopes (``implied_bounds``), and its rounding bound.
 - :mod:`observers.kernels.switch`: whether numba is available and on (``SETOBS_NUMBA=0``
   turns it off), :func:`~observers.kernels.switch.set_compiled` for tests and timings.
 
