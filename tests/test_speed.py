@@ -20,6 +20,7 @@ from benchmarks.report import freshness
 from benchmarks.timing import speed
 from benchmarks.timing.exact_cost import ExactCase
 from benchmarks.timing.hull_profile import HullCase
+from benchmarks.timing.step_profile import StepCase
 from benchmarks.timing.steps import first_steps
 from observers.families import strip_update
 from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
@@ -118,12 +119,25 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
         {"case": "FRad-A, 2-D vehicle, ms", "observer": "FRad-A", "value": 2.0}]}))
     speed.write_speed_report(out, js, cases, progress=False,
                              exact_cases=(ExactCase("alamo2d", 1e9),),
-                             hull_cases=(HullCase("vehicle6d-cora", "CZN-A", repeat=1),))
+                             hull_cases=(HullCase("vehicle6d-cora", "CZN-A", repeat=1),),
+                             step_cases=(StepCase("vehicle6d-cora", "CZN-A", steps=5),
+                                         StepCase("vehicle6d-cora", "CZN-B", steps=1000)))
     text = out.read_text()
+    steps_section, hull_section = text.split("## Where a constrained zonotope's interval hull")
+    # the step profile: parts that add up to the step, a too short record said as such
+    parts = json.loads(js.read_text())["steps"]
+    assert parts[0]["status"] == "ok" and parts[0]["ms"] > 0
+    assert parts[0]["n"] == systems.scenario("vehicle6d-cora").system.n
+    assert sum(parts[0]["shares"].values()) == pytest.approx(1.0, abs=1e-9)
+    assert all(v >= 0 for v in parts[0]["shares"].values())
+    assert parts[0]["shares"]["propagation"] > 0 and parts[0]["shares"]["reduction"] > 0
+    assert parts[1]["status"] == "n/a" and "needed" in parts[1]["message"]
+    assert "| CZN-B, vehicle6d-cora | n/a: the record ends" in steps_section
     # the hull profile: every strategy on the steady set, the batched and sifted bounds never
     # looser than HiGHS's by more than 1e-9 of the radius, phase shares that add up to at
     # most 1
-    prof = [ln.split("|") for ln in text.splitlines() if ln.startswith("| CZN-A, vehicle6d")]
+    prof = [ln.split("|") for ln in hull_section.splitlines()
+            if ln.startswith("| CZN-A, vehicle6d")]
     assert [r[6].strip() for r in prof] == ["batched", "highs", "sifting"]
     n = systems.scenario("vehicle6d-cora").system.n
     for r in json.loads(js.read_text())["hulls"]:

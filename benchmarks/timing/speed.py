@@ -15,7 +15,8 @@ and writes one Markdown table with
 
 A second section times the exact reference (the accuracy floor) cold on the records and
 budgets of :data:`benchmarks.timing.exact_cost.EXACT_CASES`; a third profiles where a
-constrained zonotope's interval hull spends its time (:mod:`benchmarks.timing.hull_profile`).
+constrained zonotope's step spends its time (:mod:`benchmarks.timing.step_profile`), a fourth
+where its interval hull does (:mod:`benchmarks.timing.hull_profile`).
 
 Every time is a median over repeated runs in one process; the ratio to the Kalman step is
 measured right after the observer in the same process, so it survives a busy machine better
@@ -39,6 +40,7 @@ from ..report.paper import paper_rows
 from ..run.progress import announced
 from .exact_cost import EXACT_CASES, ExactCase, measure_exact, render_exact
 from .hull_profile import HULL_CASES, HullCase, measure_hulls, render_hulls
+from .step_profile import STEP_CASES, StepCase, measure_steps, render_steps
 from .steps import TimingPlan, TimingRow, time_observers
 
 DEFAULT_REPORT = Path("reports") / "speed.md"
@@ -252,7 +254,8 @@ def render(results: list[dict[str, Any]], previous: dict[tuple[str, str], float]
 def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path = DEFAULT_JSON,
                        cases: tuple[Case, ...] = CASES, progress: bool = True,
                        exact_cases: tuple[ExactCase, ...] = EXACT_CASES,
-                       hull_cases: tuple[HullCase, ...] = HULL_CASES) -> Path:
+                       hull_cases: tuple[HullCase, ...] = HULL_CASES,
+                       step_cases: tuple[StepCase, ...] = STEP_CASES) -> Path:
     """Measure :data:`CASES` and the cold cost of the exact reference
     (:mod:`benchmarks.timing.exact_cost`), compare with ``json_path`` (the previous
     measurement), write the Markdown report ``out`` (ending with what to cite,
@@ -263,6 +266,7 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     results = measure(cases, progress)
     exact = measure_exact(exact_cases, progress)
     hulls = measure_hulls(hull_cases, progress)
+    step_parts = measure_steps(step_cases, progress)
     env = environment()
     command = "python -m benchmarks speed"
     if Path(out) != DEFAULT_REPORT or Path(json_path) != DEFAULT_JSON:
@@ -270,6 +274,8 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     text = render(results, previous, previous_git, env)
     if exact:
         text += "\n" + "\n".join(render_exact(exact)) + "\n"
+    if step_parts:
+        text += "\n" + "\n".join(render_steps(step_parts)) + "\n"
     if hulls:
         text += "\n" + "\n".join(render_hulls(hulls)) + "\n"
     text += "\n" + "\n".join(citation_lines("speed", PAPER_TABLES)) + "\n"
@@ -278,5 +284,5 @@ def write_speed_report(out: str | Path = DEFAULT_REPORT, json_path: str | Path =
     clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in r.items()} for r in results]
     atomic_write_json(json_path, {"environment": env, "results": clean, "exact": exact,
-                                  "hulls": hulls})
+                                  "hulls": hulls, "steps": step_parts})
     return Path(out)
