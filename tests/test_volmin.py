@@ -210,3 +210,110 @@ def test_compiled_gram_choice_and_update_are_twins_of_numpy():
         assert j == int(np.argmin(bravo_scores_gram(G, M, c, 0.2, B)))
         np.testing.assert_allclose(kernel_step.gram_update(M, G, c, 0.2, j),
                                    gram_update(M, G, c, 0.2, j), atol=1e-12)
+
+
+# -- scoring from leverages (issue 38) ----------------------------------------------------------
+@pytest.mark.parametrize(("n", "r"), [(1, 3), (2, 5), (3, 8), (4, 12), (6, 40)])
+def test_leverage_ratios_are_the_direct_determinants_over_det_gg(n, r):
+    """det(T_j T_j') / det(G G') = sigma^2 h_j / a_j^2 (module docstring of
+    observers.numerics.volmin), against CORA's definition column by column."""
+    from observers.numerics.volmin import bravo_ratios, leverages
+
+    rng = np.random.default_rng(200 + n * 10 + r)
+    G = rng.normal(size=(n, r))
+    G[:, 1] = 0.0  # c g = 0: the unchanged zonotope
+    c = rng.normal(size=n)
+    M = G @ G.T
+    N, h = leverages(G, M)
+    got = bravo_ratios(c @ G, h, float(c @ M @ c), 0.3)
+    want = _direct_scores(G, c, 0.3)
+    np.testing.assert_allclose(got, want / want[0], rtol=1e-8)
+    assert got[2] == 1.0
+
+
+def test_leverage_update_is_the_inverse_gram_and_leverages_of_the_candidate():
+    """Woodbury's update after candidate j: the inverse of G_j G_j' and the leverages of
+    G_j's columns computed afresh, over strips of several rows in a row."""
+    from observers.numerics.volmin import bravo_ratios, gram_update, leverage_update, leverages
+
+    rng = np.random.default_rng(11)
+    G, C = rng.normal(size=(5, 30)), rng.normal(size=(6, 5))
+    M = G @ G.T
+    N, h = leverages(G, M)
+    chosen = []
+    for c in C:
+        j = int(np.argmin(bravo_ratios(c @ G, h, float(c @ M @ c), 0.2)))
+        chosen.append(j)
+        N, h = leverage_update(N, h, G, c, 0.2, j)
+        M = gram_update(M, G, c, 0.2, j)
+        _, G = bravo_update(np.zeros(5), G, c, 0.0, 0.2, j)
+        np.testing.assert_allclose(N, np.linalg.inv(G @ G.T), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(h, np.einsum("ij,ij->j", G, np.linalg.solve(G @ G.T, G)),
+                                   rtol=1e-9, atol=1e-12)
+    assert any(chosen)  # the strips did change the zonotope
+
+
+def test_leverages_refuse_a_singular_or_badly_conditioned_gram_matrix():
+    """Where G G' is singular or its condition number exceeds about 1e12 the leverages are
+    not used (the Gram matrix's adjugate scores those steps)."""
+    from observers.numerics.volmin import leverages
+
+    G = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0]])  # rank 1
+    assert leverages(G, G @ G.T) is None
+    G = np.diag([1.0, 1e-7])  # Cholesky pivots 1 and 1e-7: below 1e-6 of the largest
+    assert leverages(G, G @ G.T) is None
+    G = np.diag([1.0, 1e-5])
+    assert leverages(G, G @ G.T) is not None
+
+
+def test_compiled_leverage_choice_and_update_are_twins_of_numpy():
+    from observers.kernels import step as kernel_step
+    from observers.kernels import switch
+    from observers.numerics.volmin import bravo_ratios, leverage_update, leverages
+
+    if not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(8)
+    for _ in range(8):
+        G, c = rng.normal(size=(4, 30)), rng.normal(size=4)
+        M = G @ G.T
+        N, h = leverages(G, M)
+        Nk, hk, ok = kernel_step.leverages(G, M)
+        assert ok
+        np.testing.assert_allclose(Nk, N, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(hk, h, rtol=1e-12)
+        j = kernel_step.bravo_choice_ratios(G, M, h, c, 0.2, ZERO_PROJECTION)
+        assert j == int(np.argmin(bravo_ratios(c @ G, h, float(c @ M @ c), 0.2)))
+        for got, want in zip(kernel_step.leverage_update(N, h, G, c, 0.2, j),
+                             leverage_update(N, h, G, c, 0.2, j), strict=True):
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("scenario", ["vehicle6d-cora", "tank6-linear"])
+def test_leverage_and_gram_scores_choose_the_same_candidates_on_the_records(scenario):
+    """VolMin-B's step with the leverage scores gives the same hulls as with the Gram scores
+    at every step (the same candidate at every strip) on the published records."""
+    from observers.builtin import volmin as builtin_volmin
+
+    sc = systems.scenario(scenario)
+    a = observers.create("VolMin-B", sc.system, **sc.options)
+    b = observers.create("VolMin-B", sc.system, **sc.options)
+    a.reset()
+    b.reset()
+    old = builtin_volmin.leverages
+    from observers.kernels import switch
+
+    prev = switch.set_compiled(False)
+    try:
+        for k in range(min(sc.N, 120)):
+            u = sc.u[k - 1] if k else None
+            Za = a.step(u, sc.y[k])
+            builtin_volmin.leverages = lambda G, M: None  # the Gram scores
+            try:
+                Zb = b.step(u, sc.y[k])
+            finally:
+                builtin_volmin.leverages = old
+            np.testing.assert_array_equal(Za.c, Zb.c)
+            np.testing.assert_array_equal(Za.G, Zb.G)
+    finally:
+        switch.set_compiled(prev)

@@ -32,9 +32,12 @@ from ..kernels import StepKernel
 from ..numerics.linalg import first_best
 from ..numerics.volmin import (
     ZERO_PROJECTION,
+    bravo_ratios,
     bravo_scores_gram,
     bravo_update,
     gram_update,
+    leverage_update,
+    leverages,
     null_basis,
     subset_count,
     volume_lp_gain,
@@ -118,7 +121,10 @@ class VolMinB(Linearised, StripBasedObserver):
 
         j^\ast = \arg\min_{0 \le j \le r} \det\left(G(j)\,G(j)^T\right),
 
-    a volume measure of the candidate (:func:`~observers.numerics.volmin.bravo_scores_gram`).
+    a volume measure of the candidate, from the leverages of the generators in ``O(n r)``
+    per strip (:func:`~observers.numerics.volmin.bravo_ratios`; the Gram matrix's adjugate,
+    :func:`~observers.numerics.volmin.bravo_scores_gram`, where ``G G'`` is badly
+    conditioned).
     """
 
     KERNEL = StepKernel.BRAVO
@@ -135,12 +141,20 @@ class VolMinB(Linearised, StripBasedObserver):
         return {"bases": np.stack(self._bases), "zero_projection": ZERO_PROJECTION}
 
     def intersect(self, c, G, y):
-        """Strip after strip, the candidates scored from the Gram matrix ``G G'``, formed
-        once per step and updated in ``O(n^2)`` per strip (:func:`bravo_scores_gram`,
-        :func:`gram_update`)."""
+        """Strip after strip, the candidates scored from the leverages ``g_j' (G G')^-1 g_j``
+        (computed once per step, then updated in ``O(n r)`` per strip: :func:`leverages`,
+        :func:`bravo_ratios`, :func:`leverage_update`); where ``G G'`` is badly conditioned,
+        from the Gram matrix (:func:`bravo_scores_gram`).  ``G G'`` itself is updated in
+        ``O(n^2)`` per strip (:func:`gram_update`)."""
         M = G @ G.T
+        lev = leverages(G, M)
         for i, row in enumerate(self.C):
-            j = first_best(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i]))
+            if lev is None:
+                j = first_best(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i]))
+            else:
+                j = first_best(bravo_ratios(row @ G, lev[1], float(row @ M @ row),
+                                            self.sigma[i]))
+                lev = leverage_update(*lev, G, row, self.sigma[i], j)
             M = gram_update(M, G, row, self.sigma[i], j)
             c, G = bravo_update(c, G, row, y[i], self.sigma[i], j)
         return c, G

@@ -23,8 +23,10 @@ returns ``(c, G, ok)``:
 * :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W`` (:func:`propagate`)
   with a given gain or Combastel's (:func:`combastel_gain`), reduction;
 * :func:`bravo_step`: prediction, Bravo's choice of the least ``det(T T')`` candidate strip by
-  strip (:func:`bravo_choice_gram` on ``G G'`` kept by :func:`gram_update`,
-  :func:`bravo_update`; VolMin-B), reduction.
+  strip (:func:`bravo_choice_ratios` from the leverages of :func:`leverages`, kept by
+  :func:`leverage_update`; :func:`bravo_choice_gram` on ``G G'`` where it is badly
+  conditioned; ``G G'`` kept by :func:`gram_update`, :func:`bravo_update`; VolMin-B),
+  reduction.
 
 The kernels' names for their gain formulas (integers) do not leave this module: :func:`prepare`
 maps the kernel names to them.  The compiled formulas carry the names of their numpy twins
@@ -127,6 +129,10 @@ PIVOT_RTOL = 1e-6
 #: exact arithmetic and differ in the last bits by the BLAS kernel; ranked by those bits, one
 #: kernel reduced one of them and another kernel the other (DD-CZ-A1 on the 6-tank: 1e-5)
 TIE_RTOL = 1e-9
+#: smallest ratio of the least to the largest diagonal entry of the Cholesky factor of
+#: ``G G'`` for which VolMin-B scores its candidates from leverages
+#: (:data:`observers.numerics.volmin.LEVERAGE_MIN_PIVOT`)
+LEVERAGE_MIN_PIVOT = 1e-6
 
 # the gain formulas of the step kernels and the reduction methods of :func:`reduce`, by number
 # (numba branches on integers); outside this module they are named (:func:`prepare`)
@@ -871,6 +877,84 @@ def bravo_choice_gram(G, M, c_row, sigma, B, zero_projection):
     return _least(scores)
 
 
+def leverages(G, M):
+    """:func:`observers.numerics.volmin.leverages`: ``(M^-1, h, ok)`` with the leverages
+    ``h_j = g_j' M^-1 g_j``; ``ok`` false where ``M`` is not positive definite or badly
+    conditioned (:data:`LEVERAGE_MIN_PIVOT`)."""
+    n, r = G.shape
+    h = np.zeros(r)
+    Lc, ok = _cholesky(M)
+    if not ok:
+        return np.zeros((n, n)), h, False
+    dmin = np.inf
+    dmax = -np.inf
+    for i in range(n):
+        dmin = min(dmin, Lc[i, i])
+        dmax = max(dmax, Lc[i, i])
+    if not dmin > LEVERAGE_MIN_PIVOT * dmax:
+        return np.zeros((n, n)), h, False
+    N, ok = _solve(M, np.eye(n))
+    if not ok:
+        return np.zeros((n, n)), h, False
+    for p in range(n):
+        for s in range(p):
+            avg = 0.5 * (N[p, s] + N[s, p])
+            N[p, s] = avg
+            N[s, p] = avg
+    NG = np.dot(N, G)
+    for j in range(r):
+        acc = 0.0
+        for p in range(n):
+            acc += G[p, j] * NG[p, j]
+        h[j] = acc
+    return N, h, True
+
+
+def bravo_choice_ratios(G, M, h, c_row, sigma, zero_projection):
+    """:func:`observers.numerics.volmin.bravo_ratios` and the index of the least ratio (0:
+    unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
+    r = G.shape[1]
+    a = np.dot(c_row, G)
+    u = np.dot(M, c_row)
+    q = np.dot(c_row, u)
+    scores = np.ones(r + 1)
+    if not q > 0.0:
+        return 0
+    s2 = sigma**2
+    for j in range(r):
+        aj = a[j]
+        if abs(aj) > zero_projection:
+            a2 = aj * aj
+            scores[j + 1] = s2 * max(h[j], a2 / q) / a2
+    return _least(scores)
+
+
+def leverage_update(N, h, G, c_row, sigma, j):
+    """:func:`observers.numerics.volmin.leverage_update`: ``(M^-1, h)`` of Bravo's candidate
+    ``j`` (1-based; 0: unchanged)."""
+    if j == 0:
+        return N, h
+    n, r = G.shape
+    w = np.dot(N, np.ascontiguousarray(G[:, j - 1]))
+    hj = h[j - 1]
+    v = np.dot(w, G)
+    h_new = np.empty(r)
+    for o in range(r):
+        h_new[o] = h[o] - v[o] * v[o] / hj
+    h_new[j - 1] = 1.0
+    s2 = sigma**2
+    N_new = np.empty((n, n))
+    for p in range(n):
+        for s in range(n):
+            N_new[p, s] = N[p, s] - w[p] * w[s] / hj + c_row[p] * c_row[s] / s2
+    for p in range(n):
+        for s in range(p):
+            avg = 0.5 * (N_new[p, s] + N_new[s, p])
+            N_new[p, s] = avg
+            N_new[s, p] = avg
+    return N_new, h_new
+
+
 def gram_update(M, G, c_row, sigma, j):
     """:func:`observers.numerics.volmin.gram_update`: ``G_j G_j'`` from ``M = G G'``."""
     if j == 0:
@@ -996,9 +1080,15 @@ def _bravo_step_py(c, G, d, y, args):
     data = StepData(*args)
     cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
     M = np.dot(Gn, np.ascontiguousarray(Gn.T))
+    N, h, by_leverage = leverages(Gn, M)
     for i in range(data.C.shape[0]):
         ci = data.C[i].copy()
-        j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i], data.zero_projection)
+        if by_leverage:
+            j = bravo_choice_ratios(Gn, M, h, ci, data.sigma[i], data.zero_projection)
+            N, h = leverage_update(N, h, Gn, ci, data.sigma[i], j)
+        else:
+            j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i],
+                                  data.zero_projection)
         M = gram_update(M, Gn, ci, data.sigma[i], j)
         cn, Gn = bravo_update(cn, Gn, ci, y[i], data.sigma[i], j)
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
@@ -1017,11 +1107,11 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
     (_predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
      wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update,
-     bravo_update) = (
+     bravo_update, leverages, bravo_choice_ratios, leverage_update) = (
         njit(f, error_model="numpy") for f in (
             _predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
             wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram,
-            gram_update, bravo_update))
+            gram_update, bravo_update, leverages, bravo_choice_ratios, leverage_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with

@@ -34,6 +34,28 @@ one ``n x n`` by ``n x r`` product per strip instead of about four), formed once
 carried from strip to strip by a rank-two update (:func:`gram_update`); measured on the
 regression records and on 12 and 30 tanks, it chooses the same candidates as
 :func:`bravo_scores` at every strip (identical hulls).
+
+Scores from leverages, O(n r) per strip
+---------------------------------------
+Where ``M`` is positive definite the scores simplify.  In the orthogonal coordinates
+``[c / ||c||, B]`` the matrix ``S0 = B' (M - u u' / q) B`` (``u = M c'``, ``q = c M c'``)
+is the Schur complement of the first entry of ``M``, so ``S0^-1 = B' M^-1 B`` and
+``det S0 = det(M) ||c||^2 / q``; ``t_j`` and the projected ``g_j - (a_j / q) u`` have the same
+quadratic form, ``t_j' adj(S0) t_j = det(S0) (h_j - a_j^2 / q)`` with the *leverage*
+``h_j = g_j' M^-1 g_j``.  Hence
+
+    det(T_j T_j') / det(G G') = sigma^2 h_j / a_j^2        (candidate 0: 1),
+
+and ``h_j >= a_j^2 / q`` (Cauchy-Schwarz in the metric of ``M``) bounds the ratio below by
+``sigma^2 / q``.  After candidate ``j`` is taken, ``G G'`` changes by a rank-two term and
+Woodbury's identity gives, with ``w = M^-1 g_j`` and ``v = G' w``,
+
+    M^-1 <- M^-1 - w w' / h_j + c' c / sigma^2,    h_o <- h_o - v_o^2 / h_j  (o != j),    h_j <- 1,
+
+so a strip costs two products with ``G`` (``a = c G`` and ``v``) and ``O(n^2)`` more
+(:func:`leverages`, :func:`bravo_ratios`, :func:`leverage_update`), instead of the ``n^2 r`` of
+the Gram scores; ``M^-1`` and ``h`` are computed afresh at every step.  The two ways choose
+the same candidates up to the ties of :func:`~observers.numerics.linalg.first_best`.
 """
 
 from __future__ import annotations
@@ -46,6 +68,7 @@ import highspy
 import numpy as np
 import scipy.sparse as sp
 
+from observers.kernels.step import LEVERAGE_MIN_PIVOT
 from observers.lp import new_highs
 
 from .linalg import first_best
@@ -175,6 +198,54 @@ def bravo_scores_gram(
     av = a[valid]
     scores[1:][valid] = sigma**2 / cc * (det_S0 + (q / av**2) * quad[valid])
     return scores
+
+
+
+
+def leverages(G: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(M^-1, h)`` with the leverages ``h_j = g_j' M^-1 g_j`` of the columns of ``G``
+    (``M = G G'``), or None where ``M`` is not positive definite or badly conditioned: the
+    least diagonal entry of its Cholesky factor at most ``LEVERAGE_MIN_PIVOT`` (1e-6) times
+    the largest, a condition number above about 1e12 (the Gram scores serve there)."""
+    try:
+        d = np.diag(np.linalg.cholesky(M))
+    except np.linalg.LinAlgError:
+        return None
+    if not d.min() > LEVERAGE_MIN_PIVOT * d.max():
+        return None
+    N = np.linalg.inv(M)
+    N = 0.5 * (N + N.T)
+    return N, np.einsum("ij,ij->j", G, N @ G)
+
+
+def bravo_ratios(a: np.ndarray, h: np.ndarray, q: float, sigma: float) -> np.ndarray:
+    """``det(T_j T_j') / det(G G')`` of Bravo's candidates ``j = 0..r`` from the leverages
+    ``h`` (see the module docstring): 1 for ``j = 0`` and where ``|a_j| <= ZERO_PROJECTION``,
+    else ``sigma^2 max(h_j, a_j^2 / q) / a_j^2`` (the rounding of ``h`` never takes a ratio
+    below its exact lower bound ``sigma^2 / q``); all 1 unless ``q = c M c' > 0``."""
+    out = np.ones(a.size + 1)
+    valid = np.abs(a) > ZERO_PROJECTION
+    if not q > 0.0 or not valid.any():
+        return out
+    av = a[valid]
+    out[1:][valid] = sigma**2 * np.maximum(h[valid], av**2 / q) / av**2
+    return out
+
+
+def leverage_update(N: np.ndarray, h: np.ndarray, G: np.ndarray, c_row: np.ndarray,
+                    sigma: float, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(M^-1, h)`` of Bravo's candidate ``j`` (1-based; 0: unchanged) from those of ``G``
+    (Woodbury's identity, see the module docstring)."""
+    if j == 0:
+        return N, h
+    c_row = np.asarray(c_row, dtype=float).reshape(-1)
+    w = N @ G[:, j - 1]
+    hj = float(h[j - 1])
+    v = G.T @ w
+    h = h - v * v / hj
+    h[j - 1] = 1.0
+    N = N - np.outer(w, w) / hj + np.outer(c_row, c_row) / sigma**2
+    return 0.5 * (N + N.T), h
 
 
 def gram_update(
