@@ -274,3 +274,77 @@ def test_ropo_tank6_radii_stay_near_the_published_smallest():
     res = observers.run(observers.create("ROPO", sc.system), sc.u, sc.y)
     rms = np.sqrt(np.mean(res.radius**2, axis=0))
     assert np.all(rms < 2 * smallest), rms / smallest
+
+
+# -- the compiled shortlist of the generator-axes search (issue 38) -----------------------------
+def _direct_exchange_scores(M, out):
+    """log volume after the pivot on (i, k) for every generator k of ``out`` and row i, as
+    the definition: the tableau pivoted, its row sums' logarithms summed, plus log |M_ik|."""
+    n = M.shape[0]
+    S = np.full((out.size, n), np.inf)
+    for kk, k in enumerate(out):
+        for i in range(n):
+            if M[i, k] == 0.0:
+                continue
+            with np.errstate(all="ignore"):  # a subnormal pivot overflows: not compared
+                T = M - np.outer(M[:, k] / M[i, k], M[i])
+                T[i] = M[i] / M[i, k]
+                S[kk, i] = np.log(abs(M[i, k])) + np.log(np.abs(T).sum(axis=1)).sum()
+    return S
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_exchange_scores_are_within_their_error_bounds(seed):
+    """The compiled approximate scores (sorted breakpoints and prefix sums) are within their
+    stated bounds of the pivoted tableau's scores, for tableaux with the axes as an identity
+    block, repeated generators (tied breakpoints), zero and subnormal entries (a subnormal
+    pivot-row entry made every pair of its row unbounded on the 200-tank record, and every
+    exchange was scored directly)."""
+    from observers.kernels import exchange, switch
+
+    if not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(seed)
+    n, r = 7, 20
+    M = np.hstack([np.eye(n), rng.normal(size=(n, r - n))])
+    M[:, -1] = M[:, -2]  # a repeated generator: tied breakpoints
+    M[2, -3] = 0.0
+    M[3, 0] = 5e-320  # subnormal: its breakpoint would be infinite (bug at 200 tanks)
+    M[4, -5] = 5e-320  # a subnormal pivot: that pair has no bound (scored directly)
+    out = np.arange(n, r)
+    ok = M[:, out].T != 0.0
+    approx, err = exchange.exchange_scores(M, out.astype(np.int64), ok)
+    direct = _direct_exchange_scores(M, out)
+    unbounded = np.zeros_like(ok)
+    unbounded[r - 5 - n, 4] = True
+    assert np.isnan(approx[unbounded]).all()
+    known = ok & ~unbounded
+    assert np.array_equal(np.isfinite(approx), known)  # every other pair has a bound
+    assert np.all(np.abs(approx[known] - direct[known]) <= err[known])
+    assert np.all(err[known] < 1e-10)  # and the bounds are tight enough to shortlist
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_generator_axes_with_the_shortlist_are_those_of_the_direct_scoring(seed):
+    """The shortlist changes which exchanges are scored directly, never the axes chosen: the
+    same axes (bits) with the compiled shortlist and with every exchange scored, on sets
+    large enough for the shortlist, including exact ties (repeated generators)."""
+    from observers.kernels import switch
+    from observers.numerics.ropo import SHORTLIST_MIN_WORK, generator_axes
+
+    if not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(seed)
+    n = 16
+    G = rng.normal(size=(n, 3 * n))
+    G[:, 2 * n:2 * n + 4] = G[:, n:n + 4]  # exact ties
+    assert (2 * n) * n * n * (3 * n) >= SHORTLIST_MIN_WORK
+    old = switch.set_compiled(True)
+    try:
+        fast = generator_axes(G, n)
+        switch.set_compiled(False)
+        slow = generator_axes(G, n)
+    finally:
+        switch.set_compiled(old)
+    np.testing.assert_array_equal(fast, slow)
+    assert not np.array_equal(fast, G[:, :n])  # the search did exchange axes

@@ -124,6 +124,10 @@ CASES: tuple[Case, ...] = (
     # (O(n r) each; the Gram scores' n^2 r took seconds per step from 100 tanks on)
     Case("VolMin-B, 200 tanks, ms per step", "tank200-linear", ("VolMin-B",), "ms", 500.0,
          repeat=1, steps=110, warmup=1),
+    # a parallelotope (n x n) from the first step; its generator-axes search shortlisted by
+    # the compiled exchange scores (observers/kernels/exchange.py)
+    Case("ROPO, 200 tanks, ms per step", "tank200-linear", ("ROPO",), "ms", 500.0,
+         repeat=1, steps=30, warmup=2),
 )
 #: rows of the issue's table this command does not measure, with the reason
 NOT_MEASURED = (

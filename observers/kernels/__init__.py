@@ -12,6 +12,8 @@ one way (``kernels`` <- :mod:`observers.lp` <- :mod:`observers.sets` <- the rest
   their formulas.
 - :mod:`observers.kernels.propagation`: the interval constraint propagation behind the
   rescaling of constrained zonotopes (``implied_bounds``), and its rounding bound.
+- :mod:`observers.kernels.exchange`: approximate scores, with error bounds, of the axis
+  exchanges of ROPO's generator-axes search (a shortlist for the exact scores).
 - :mod:`observers.kernels.switch`: whether numba is available and on (``SETOBS_NUMBA=0``
   turns it off), :func:`~observers.kernels.switch.set_compiled` for tests and timings.
 
