@@ -893,9 +893,10 @@ def leverages(G, M):
         dmax = max(dmax, Lc[i, i])
     if not dmin > LEVERAGE_MIN_PIVOT * dmax:
         return np.zeros((n, n)), h, False
-    N, ok = _solve(M, np.eye(n))
+    Ns, ok = _solve(M, np.eye(n))
     if not ok:
         return np.zeros((n, n)), h, False
+    N = np.ascontiguousarray(Ns)
     for p in range(n):
         for s in range(p):
             avg = 0.5 * (N[p, s] + N[s, p])
@@ -1085,7 +1086,10 @@ def _bravo_step_py(c, G, d, y, args):
         ci = data.C[i].copy()
         if by_leverage:
             j = bravo_choice_ratios(Gn, M, h, ci, data.sigma[i], data.zero_projection)
-            N, h = leverage_update(N, h, Gn, ci, data.sigma[i], j)
+            if j != 0 and not data.sigma[i] > 0.0:  # G G' singular from here: Gram scores
+                by_leverage = False
+            else:
+                N, h = leverage_update(N, h, Gn, ci, data.sigma[i], j)
         else:
             j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i],
                                   data.zero_projection)

@@ -235,7 +235,8 @@ def bravo_ratios(a: np.ndarray, h: np.ndarray, q: float, sigma: float) -> np.nda
 def leverage_update(N: np.ndarray, h: np.ndarray, G: np.ndarray, c_row: np.ndarray,
                     sigma: float, j: int) -> tuple[np.ndarray, np.ndarray]:
     """``(M^-1, h)`` of Bravo's candidate ``j`` (1-based; 0: unchanged) from those of ``G``
-    (Woodbury's identity, see the module docstring)."""
+    (Woodbury's identity, see the module docstring); ``sigma > 0`` (a strip of zero width
+    leaves ``G G'`` singular)."""
     if j == 0:
         return N, h
     c_row = np.asarray(c_row, dtype=float).reshape(-1)
