@@ -3,7 +3,7 @@
 
 The search (:func:`observers.numerics.ropo.generator_axes`) holds the tableau ``M = B^-1 G``
 (n x r) and scores the exchange of axis ``i`` for generator ``k`` by the log volume after the
-pivot on ``(i, k)``:
+pivot on ``(i, k)``::
 
     score(k, i) = log ||M_i||_1 + sum_{l != i} log phi_li(t_kl),
     phi_li(t) = sum_j |M_lj - t M_ij|,   t_kl = M_lk / M_ik.
