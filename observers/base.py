@@ -85,6 +85,11 @@ class Observer(ABC):
     SCENARIO_OPTIONS: ClassVar[tuple[str, ...] | None] = None
     #: system attributes this observer reads (data-driven observers do not read A and B)
     REQUIRES: ClassVar[tuple[str, ...]] = ("A", "B", "C", "W", "V", "X0")
+    #: the kinds of model this observer estimates ("linear", "nonlinear"; a system says which
+    #: it is by ``is_linear``); another kind is refused at construction (``Unsupported``),
+    #: ``MODEL_NOTE`` ending the message with the reason
+    MODELS: ClassVar[tuple[str, ...]] = ("linear", "nonlinear")
+    MODEL_NOTE: ClassVar[str] = ""
     #: relative tolerance of the CI regression gate (``python -m benchmarks check``) on this
     #: observer's RMS radii: 1e-6 for deterministic online computations; observers whose
     #: numbers depend on an offline solver's output override it (see ``OfflineGain``)
@@ -97,6 +102,10 @@ class Observer(ABC):
                 f"{self.name or type(self).__name__} needs a system with attributes "
                 f"{', '.join(self.REQUIRES)}; missing: {', '.join(missing)}"
             )
+        kind = "linear" if getattr(system, "is_linear", True) else "nonlinear"
+        if kind not in self.MODELS:
+            raise Unsupported(f"{self.name or type(self).__name__} needs a "
+                              f"{' or '.join(self.MODELS)} system{self.MODEL_NOTE}")
         self.system = system
         specs = self.option_specs()  # merged along the MRO once per construction
         self.options = self._resolve_options(options, specs)

@@ -337,7 +337,7 @@ ZERO_WIDTH = _zero_width_systems()
 def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
     """Every observer either runs soundly (exact membership at every step) or refuses at
     construction with a message naming W or V; no warning, no other exception.  An observer
-    of nonlinear systems only (MHE-PR) gets the same model written as a nonlinear one."""
+    of nonlinear models only (``MODELS``) gets the same model written as a nonlinear one."""
     from benchmarks.run.membership import MembershipTester
 
     s_linear = ZERO_WIDTH[label]
@@ -354,7 +354,7 @@ def test_zero_width_noise_sets_are_handled_or_refused_by_name(label):
         opts = {"training": training} if "training" in accepted else {}
         if "max_subsets" in accepted:
             opts["order"] = 4  # VolMin-A: keep its LP enumeration small
-        s = s_nonlinear if info.name == "MHE-PR" else s_linear
+        s = s_linear if "linear" in info.cls.MODELS else s_nonlinear
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             try:

@@ -325,6 +325,32 @@ def test_exchange_scores_are_within_their_error_bounds(seed):
 
 
 @pytest.mark.parametrize("seed", range(3))
+def test_exchange_scores_bound_rounding_entries_left_out_of_the_breakpoints(seed):
+    """After some exchanges the identity block of the tableau carries rounding entries
+    (about 1e-17) in every row; at most NEGLIGIBLE of the row's 1-norm they are left out of
+    the breakpoints and their share |t M_ij| is inside the bound, also for large pivot
+    ratios t; entries just above the threshold stay breakpoints."""
+    from observers.kernels import exchange, switch
+
+    if not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(40 + seed)
+    n, r = 8, 24
+    M = np.hstack([np.eye(n) + 1e-17 * rng.normal(size=(n, n)), rng.normal(size=(n, r - n))])
+    M[:, n] *= 1e-6  # small pivots: pivot ratios t of about 1e6 on that generator
+    row = np.abs(M).sum(axis=1)
+    M[1, 2] = exchange.NEGLIGIBLE * row[1]  # at the threshold: left out
+    M[2, 3] = 4.0 * exchange.NEGLIGIBLE * row[2]  # above it: a breakpoint
+    out = np.arange(n, r)
+    ok = M[:, out].T != 0.0
+    approx, err = exchange.exchange_scores(M, out.astype(np.int64), ok)
+    direct = _direct_exchange_scores(M, out)
+    assert np.isfinite(approx[ok]).all()
+    assert np.all(np.abs(approx[ok] - direct[ok]) <= err[ok])
+    assert np.all(err[ok] < 1e-8)
+
+
+@pytest.mark.parametrize("seed", range(3))
 def test_generator_axes_with_the_shortlist_are_those_of_the_direct_scoring(seed):
     """The shortlist changes which exchanges are scored directly, never the axes chosen: the
     same axes (bits) with the compiled shortlist and with every exchange scored, on sets

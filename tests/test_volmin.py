@@ -284,9 +284,55 @@ def test_compiled_leverage_choice_and_update_are_twins_of_numpy():
         np.testing.assert_allclose(hk, h, rtol=1e-12)
         j = kernel_step.bravo_choice_ratios(G, M, h, c, 0.2, ZERO_PROJECTION)
         assert j == int(np.argmin(bravo_ratios(c @ G, h, float(c @ M @ c), 0.2)))
-        for got, want in zip(kernel_step.leverage_update(N, h, G, c, 0.2, j),
-                             leverage_update(N, h, G, c, 0.2, j), strict=True):
+        Nu, hu, ok = kernel_step.leverage_update(N, h, G, c, 0.2, j)
+        assert ok
+        for got, want in zip((Nu, hu), leverage_update(N, h, G, c, 0.2, j), strict=True):
             np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+
+
+def test_a_strip_of_zero_width_ends_the_leverage_updates_on_both_paths():
+    """After a strip of zero width column j of the candidate is zero and G G' singular:
+    leverage_update says so (None; the kernel's ok flag false), unless the zonotope is kept
+    (j = 0), and the step goes on with the Gram scores."""
+    from observers.kernels import step as kernel_step
+    from observers.kernels import switch
+    from observers.numerics.volmin import leverage_update, leverages
+
+    rng = np.random.default_rng(9)
+    G, c = rng.normal(size=(3, 10)), rng.normal(size=3)
+    N, h = leverages(G, G @ G.T)
+    assert leverage_update(N, h, G, c, 0.0, 4) is None
+    kept = leverage_update(N, h, G, c, 0.0, 0)
+    assert kept is not None and kept[0] is N
+    if switch.AVAILABLE:
+        assert not kernel_step.leverage_update(N, h, G, c, 0.0, 4)[2]
+        assert kernel_step.leverage_update(N, h, G, c, 0.0, 0)[2]
+
+
+def test_psd_inverse_from_the_cholesky_factor_on_both_paths():
+    """One factorisation gives the condition check and the inverse: L L' = S and
+    L^-T L^-1 = S^-1 (against numpy's LU inverse), the same on the compiled path; below the
+    pivot ratio CHOLESKY_MIN_PIVOT both refuse."""
+    from observers.kernels import step as kernel_step
+    from observers.kernels import switch
+    from observers.numerics.volmin import psd_inverse
+
+    rng = np.random.default_rng(12)
+    for n in (1, 3, 7, 40):
+        A = rng.normal(size=(n, n + 5))
+        S = A @ A.T
+        L, N = psd_inverse(S)
+        np.testing.assert_allclose(L @ L.T, S, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(N, np.linalg.inv(S), rtol=1e-8, atol=1e-10)
+        assert np.array_equal(N, N.T)
+        if switch.AVAILABLE:
+            Lk, Nk, ok = kernel_step._psd_inverse(S)
+            assert ok and np.array_equal(Nk, Nk.T)
+            np.testing.assert_allclose(Nk, N, rtol=1e-10, atol=1e-12)
+    S = np.diag([1.0, 1e-14])  # pivots 1 and 1e-7
+    assert psd_inverse(S) is None
+    if switch.AVAILABLE:
+        assert not kernel_step._psd_inverse(S)[2]
 
 
 @pytest.mark.parametrize("scenario", ["vehicle6d-cora", "tank6-linear"])

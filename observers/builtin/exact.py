@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import EmptySet, ObserverError, Unsupported
+from ..errors import EmptySet, ObserverError
 from ..families import LinearModelObserver
 from ..numerics import exact as ex
 from ..offline import cache_dir, design_key, key_lock, load_entry, store_entry
@@ -126,15 +126,14 @@ class Exact(LinearModelObserver):
     """
 
     OPTIONS = {"cache": Bool(True)}
-    #: A and B are checked in ``design``, after a nonlinear system is refused by name
+    #: A and B are checked in ``design``, after a nonlinear system is refused (``MODELS``)
     REQUIRES = ("C", "W", "V", "X0")
     SCENARIO_OPTIONS = ()  # no zonotope order or reduction: nothing is reduced
+    MODELS = ("linear",)
+    MODEL_NOTE = (": the states consistent with a nonlinear record form no polytope "
+                  "(no exact reference)")
 
     def design(self) -> None:
-        s = self.system
-        if not getattr(s, "is_linear", True):
-            raise Unsupported("Exact needs a linear system: the states consistent with a "
-                              "nonlinear record form no polytope (no exact reference)")
         super().design()
         sets = tuple((S.c, S.G) for S in (self.X0, self.W, self.V))
         self._model = (self.A, self.B, self.C, *sets)

@@ -20,7 +20,6 @@ from collections import deque
 
 import numpy as np
 
-from ..errors import Unsupported
 from ..families import LinearModelObserver
 from ..numerics import mhe as nm
 from ..options import Choice, Integer
@@ -104,12 +103,10 @@ class MHE(LinearModelObserver):
                "inner": Choice("none", INNER)}
     SCENARIO_OPTIONS = ()  # no zonotope order or reduction: nothing is reduced
     REQUIRES = ("C", "W", "V", "X0")
+    MODELS = ("linear",)
+    MODEL_NOTE = ": the states consistent with a nonlinear window form no polytope"
 
     def design(self) -> None:
-        s = self.system
-        if not getattr(s, "is_linear", True):
-            raise Unsupported("MHE needs a linear system: the states consistent with a "
-                              "nonlinear window form no polytope")
         super().design()
         self.L = int(self.options["window"])
         self._sets = tuple((S.c, S.G) for S in (self.X0, self.W, self.V))

@@ -18,7 +18,6 @@ from functools import partial
 import numpy as np
 
 from ..base import Observer
-from ..errors import Unsupported
 from ..families import as_zonotope
 from ..numerics import nmhe as nn
 from ..numerics.mhe import WindowRecord
@@ -86,14 +85,13 @@ class MHEPR(Observer):
                "shrink": Number(1e-3, low=0.0, high=1.0)}
     SCENARIO_OPTIONS = ()  # no zonotope order or reduction: nothing is reduced
     REQUIRES = ("W", "V", "X0")
+    MODELS = ("nonlinear",)
+    MODEL_NOTE = " (for a linear one use MHE, which is exact over its window)"
 
     def design(self) -> None:
         from ..numerics.relaxation import Factorable
 
         s = self.system
-        if getattr(s, "is_linear", True):
-            raise Unsupported("MHE-PR needs a nonlinear system (for a linear one use MHE, "
-                              "which is exact over its window)")
         d = s.derived
         self._f = Factorable(d.expressions, *d.symbols, what="f")
         C = s.output_matrix

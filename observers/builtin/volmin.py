@@ -154,10 +154,9 @@ class VolMinB(Linearised, StripBasedObserver):
             else:
                 j = first_best(bravo_ratios(row @ G, lev[1], float(row @ M @ row),
                                             self.sigma[i]))
-                # a strip of zero width makes G G' singular (column j becomes zero): no
-                # inverse to update, the Gram scores take over for the rest of the step
-                lev = (leverage_update(*lev, G, row, self.sigma[i], j)
-                       if j == 0 or self.sigma[i] > 0.0 else None)
+                # None after a strip of zero width (G G' singular): the Gram scores take
+                # over for the rest of the step
+                lev = leverage_update(*lev, G, row, self.sigma[i], j)
             M = gram_update(M, G, row, self.sigma[i], j)
             c, G = bravo_update(c, G, row, y[i], self.sigma[i], j)
         return c, G

@@ -129,10 +129,11 @@ PIVOT_RTOL = 1e-6
 #: exact arithmetic and differ in the last bits by the BLAS kernel; ranked by those bits, one
 #: kernel reduced one of them and another kernel the other (DD-CZ-A1 on the 6-tank: 1e-5)
 TIE_RTOL = 1e-9
-#: smallest ratio of the least to the largest diagonal entry of the Cholesky factor of
-#: ``G G'`` for which VolMin-B scores its candidates from leverages
-#: (:data:`observers.numerics.volmin.LEVERAGE_MIN_PIVOT`)
-LEVERAGE_MIN_PIVOT = 1e-6
+#: smallest ratio of the least to the largest diagonal entry of the Cholesky factor of a
+#: symmetric positive definite matrix for which VolMin-B inverts it (its Gram matrices:
+#: :func:`observers.numerics.volmin.psd_inverse`, :func:`_psd_inverse`); below it, a
+#: condition number above about 1e12, the eigendecomposition or the Gram scores serve
+CHOLESKY_MIN_PIVOT = 1e-6
 
 # the gain formulas of the step kernels and the reduction methods of :func:`reduce`, by number
 # (numba branches on integers); outside this module they are named (:func:`prepare`)
@@ -607,6 +608,38 @@ def _cholesky(S):
     return Lc, True
 
 
+def _psd_inverse(S):
+    """``(L, S^-1, ok)`` (:func:`observers.numerics.volmin.psd_inverse`): the Cholesky
+    factor and the inverse ``L^-T L^-1``, symmetrised; ``ok`` false where ``S`` is not
+    positive definite or badly conditioned (:data:`CHOLESKY_MIN_PIVOT`)."""
+    k = S.shape[0]
+    Lc, ok = _cholesky(S)
+    if not ok:
+        return Lc, np.zeros((k, k)), False
+    dmin = np.inf
+    dmax = -np.inf
+    for i in range(k):
+        dmin = min(dmin, Lc[i, i])
+        dmax = max(dmax, Lc[i, i])
+    if not dmin > CHOLESKY_MIN_PIVOT * dmax:
+        return Lc, np.zeros((k, k)), False
+    Li = np.zeros((k, k))  # L^-1 by forward substitution, column by column
+    for col in range(k):
+        Li[col, col] = 1.0 / Lc[col, col]
+        for i in range(col + 1, k):
+            acc = 0.0
+            for q in range(col, i):
+                acc -= Lc[i, q] * Li[q, col]
+            Li[i, col] = acc / Lc[i, i]
+    N = np.dot(np.ascontiguousarray(Li.T), Li)
+    for p in range(k):
+        for s in range(p):
+            avg = 0.5 * (N[p, s] + N[s, p])
+            N[p, s] = avg
+            N[s, p] = avg
+    return Lc, N, True
+
+
 def _solve_t(S, B):
     """``(S^{-1} B)'`` for a symmetric ``S`` (LU solve), and whether it exists and is finite
     (else the caller falls back to the numpy path)."""
@@ -754,20 +787,13 @@ def _adjugate_psd(S):
     k = S.shape[0]
     if k == 0:
         return 1.0, np.zeros((0, 0))
-    Lc, chol_ok = _cholesky(S)
-    if chol_ok:
-        dmin = np.inf
-        dmax = -np.inf
+    Lc, N, ok = _psd_inverse(S)
+    if ok:
+        det = 1.0
         for i in range(k):
-            dmin = min(dmin, Lc[i, i])
-            dmax = max(dmax, Lc[i, i])
-        if dmin > 1e-6 * dmax:
-            det = 1.0
-            for i in range(k):
-                det *= Lc[i, i]
-            det = det**2
-            inv, _ = _solve(S, np.eye(k))
-            return det, det * inv
+            det *= Lc[i, i]
+        det = det**2
+        return det, det * N
     mu, U = np.linalg.eigh(S)
     cof = np.empty(k)
     for i in range(k):
@@ -880,32 +906,16 @@ def bravo_choice_gram(G, M, c_row, sigma, B, zero_projection):
 def leverages(G, M):
     """:func:`observers.numerics.volmin.leverages`: ``(M^-1, h, ok)`` with the leverages
     ``h_j = g_j' M^-1 g_j``; ``ok`` false where ``M`` is not positive definite or badly
-    conditioned (:data:`LEVERAGE_MIN_PIVOT`)."""
-    n, r = G.shape
+    conditioned (:func:`_psd_inverse`)."""
+    r = G.shape[1]
     h = np.zeros(r)
-    Lc, ok = _cholesky(M)
+    _, N, ok = _psd_inverse(M)
     if not ok:
-        return np.zeros((n, n)), h, False
-    dmin = np.inf
-    dmax = -np.inf
-    for i in range(n):
-        dmin = min(dmin, Lc[i, i])
-        dmax = max(dmax, Lc[i, i])
-    if not dmin > LEVERAGE_MIN_PIVOT * dmax:
-        return np.zeros((n, n)), h, False
-    Ns, ok = _solve(M, np.eye(n))
-    if not ok:
-        return np.zeros((n, n)), h, False
-    N = np.ascontiguousarray(Ns)
-    for p in range(n):
-        for s in range(p):
-            avg = 0.5 * (N[p, s] + N[s, p])
-            N[p, s] = avg
-            N[s, p] = avg
+        return N, h, False
     NG = np.dot(N, G)
     for j in range(r):
         acc = 0.0
-        for p in range(n):
+        for p in range(G.shape[0]):
             acc += G[p, j] * NG[p, j]
         h[j] = acc
     return N, h, True
@@ -931,10 +941,12 @@ def bravo_choice_ratios(G, M, h, c_row, sigma, zero_projection):
 
 
 def leverage_update(N, h, G, c_row, sigma, j):
-    """:func:`observers.numerics.volmin.leverage_update`: ``(M^-1, h)`` of Bravo's candidate
-    ``j`` (1-based; 0: unchanged)."""
+    """:func:`observers.numerics.volmin.leverage_update`: ``(M^-1, h, ok)`` of Bravo's
+    candidate ``j`` (1-based; 0: unchanged); ``ok`` false after a strip of zero width."""
     if j == 0:
-        return N, h
+        return N, h, True
+    if not sigma > 0.0:
+        return N, h, False
     n, r = G.shape
     w = np.dot(N, np.ascontiguousarray(G[:, j - 1]))
     hj = h[j - 1]
@@ -953,7 +965,7 @@ def leverage_update(N, h, G, c_row, sigma, j):
             avg = 0.5 * (N_new[p, s] + N_new[s, p])
             N_new[p, s] = avg
             N_new[s, p] = avg
-    return N_new, h_new
+    return N_new, h_new, True
 
 
 def gram_update(M, G, c_row, sigma, j):
@@ -1086,10 +1098,8 @@ def _bravo_step_py(c, G, d, y, args):
         ci = data.C[i].copy()
         if by_leverage:
             j = bravo_choice_ratios(Gn, M, h, ci, data.sigma[i], data.zero_projection)
-            if j != 0 and not data.sigma[i] > 0.0:  # G G' singular from here: Gram scores
-                by_leverage = False
-            else:
-                N, h = leverage_update(N, h, Gn, ci, data.sigma[i], j)
+            # false after a strip of zero width (G G' singular): the Gram scores take over
+            N, h, by_leverage = leverage_update(N, h, Gn, ci, data.sigma[i], j)
         else:
             j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i],
                                   data.zero_projection)
@@ -1102,10 +1112,10 @@ def _bravo_step_py(c, G, d, y, args):
 
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
     (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
-     _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
+     _principal_axes, _lu_small, _det, _solve, _cholesky, _psd_inverse, _adjugate_psd, _finite,
      _solve_t, _least) = (njit(f) for f in (
          _pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
-         _principal_axes, _lu_small, _det, _solve, _cholesky, _adjugate_psd, _finite,
+         _principal_axes, _lu_small, _det, _solve, _cholesky, _psd_inverse, _adjugate_psd, _finite,
          _solve_t, _least))
     # the formulas of the kernels keep the kernels' error model (a division by zero gives
     # inf or nan, as in numpy, instead of raising; no checks in the loops)

@@ -66,9 +66,10 @@ from itertools import combinations
 
 import highspy
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 
-from observers.kernels.step import LEVERAGE_MIN_PIVOT
+from observers.kernels.step import CHOLESKY_MIN_PIVOT
 from observers.lp import new_highs
 
 from .linalg import first_best
@@ -85,24 +86,40 @@ def null_basis(c_row: np.ndarray) -> np.ndarray:
     return Vt[1:].T
 
 
+def psd_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(L, S^-1)`` of a symmetric positive definite ``S = L L'`` (the inverse from the
+    Cholesky factor, ``L^-T L^-1``, symmetrised), or None where ``S`` is not positive definite
+    or badly conditioned: the least diagonal entry of ``L`` at most ``CHOLESKY_MIN_PIVOT``
+    (1e-6) times the largest, a condition number above about 1e12."""
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.diag(L)
+    if not d.min() > CHOLESKY_MIN_PIVOT * d.max():
+        return None
+    Li = scipy.linalg.solve_triangular(L, np.eye(S.shape[0]), lower=True)
+    N = Li.T @ Li
+    return L, 0.5 * (N + N.T)
+
+
 def _adjugate_psd(S: np.ndarray) -> tuple[float, np.ndarray]:
     """``(det S, adj S)`` of a symmetric positive semidefinite matrix (S may be singular).
 
-    Well-conditioned S (the usual case) goes through Cholesky and ``adj = det * inv``; a
-    singular or badly conditioned one through the eigendecomposition, where the adjugate is
-    ``U diag(prod_{k != i} mu_k) U'`` without any division.  (LAPACK's threaded symmetric
-    eigensolver is also far slower than Cholesky on a loaded machine.)
+    Well-conditioned S (the usual case) goes through Cholesky and ``adj = det * inv``
+    (:func:`psd_inverse`); a singular or badly conditioned one through the
+    eigendecomposition, where the adjugate is ``U diag(prod_{k != i} mu_k) U'`` without any
+    division.  (LAPACK's threaded symmetric eigensolver is also far slower than Cholesky on
+    a loaded machine.)
     """
     k = S.shape[0]
     if k == 0:
         return 1.0, np.zeros((0, 0))
-    try:
-        d = np.diag(np.linalg.cholesky(S))
-        if d.min() > 1e-6 * d.max():
-            det = float(np.prod(d)) ** 2
-            return det, det * np.linalg.inv(S)
-    except np.linalg.LinAlgError:
-        pass
+    inverse = psd_inverse(S)
+    if inverse is not None:
+        L, N = inverse
+        det = float(np.prod(np.diag(L))) ** 2
+        return det, det * N
     mu, U = np.linalg.eigh(S)
     # product of all eigenvalues except the i-th, without dividing by (possibly zero) mu_i
     others = np.where(np.eye(k, dtype=bool), 1.0, mu[None, :])
@@ -204,17 +221,12 @@ def bravo_scores_gram(
 
 def leverages(G: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``(M^-1, h)`` with the leverages ``h_j = g_j' M^-1 g_j`` of the columns of ``G``
-    (``M = G G'``), or None where ``M`` is not positive definite or badly conditioned: the
-    least diagonal entry of its Cholesky factor at most ``LEVERAGE_MIN_PIVOT`` (1e-6) times
-    the largest, a condition number above about 1e12 (the Gram scores serve there)."""
-    try:
-        d = np.diag(np.linalg.cholesky(M))
-    except np.linalg.LinAlgError:
+    (``M = G G'``), or None where ``M`` is not positive definite or badly conditioned
+    (:func:`psd_inverse`; the Gram scores serve there)."""
+    inverse = psd_inverse(M)
+    if inverse is None:
         return None
-    if not d.min() > LEVERAGE_MIN_PIVOT * d.max():
-        return None
-    N = np.linalg.inv(M)
-    N = 0.5 * (N + N.T)
+    N = inverse[1]
     return N, np.einsum("ij,ij->j", G, N @ G)
 
 
@@ -233,12 +245,14 @@ def bravo_ratios(a: np.ndarray, h: np.ndarray, q: float, sigma: float) -> np.nda
 
 
 def leverage_update(N: np.ndarray, h: np.ndarray, G: np.ndarray, c_row: np.ndarray,
-                    sigma: float, j: int) -> tuple[np.ndarray, np.ndarray]:
+                    sigma: float, j: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``(M^-1, h)`` of Bravo's candidate ``j`` (1-based; 0: unchanged) from those of ``G``
-    (Woodbury's identity, see the module docstring); ``sigma > 0`` (a strip of zero width
-    leaves ``G G'`` singular)."""
+    (Woodbury's identity, see the module docstring), or None where the candidate's ``G G'``
+    has no inverse: a strip of zero width (``sigma = 0``) leaves column ``j`` zero."""
     if j == 0:
         return N, h
+    if not sigma > 0.0:
+        return None
     c_row = np.asarray(c_row, dtype=float).reshape(-1)
     w = N @ G[:, j - 1]
     hj = float(h[j - 1])
