@@ -169,11 +169,11 @@ def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
 
 
 def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
-    """The paper-table rows whose stored fingerprint differs from the one the kernel study
-    measured (:mod:`benchmarks.studies.kernels`), and the paper tables it never measured."""
+    """The rows whose stored fingerprint differs from the one the kernel study measured
+    (:mod:`benchmarks.studies.kernels`), and the tables it measures but never measured."""
 
+    from ..report.spread import KERNEL_CONFIGS as CONFIGS
     from ..report.spread import KERNEL_TABLE as TABLE
-    from ..report.spread import PAPER_CONFIGS as CONFIGS
 
     reports = reports if reports is not None else root / REPORTS
     if not (reports / "kernels.md").is_file():

@@ -1,8 +1,9 @@
-"""The paper tables under every OpenBLAS kernel of this CPU: how far each accuracy cell moves.
+"""The paper tables (and the textbook plants) under every OpenBLAS kernel of this CPU: how far
+each accuracy cell moves.
 
 ``python -m benchmarks.studies.kernels`` (``make kernels``) re-runs each published table's
-configuration (:data:`CONFIGS`) in a subprocess per OpenBLAS core type of
-:data:`benchmarks.gate.blas.SPREAD_CORETYPES` that this CPU runs other than its own
+configuration and the textbook plants' (:data:`CONFIGS`) in a subprocess per OpenBLAS core
+type of :data:`benchmarks.gate.blas.SPREAD_CORETYPES` that this CPU runs other than its own
 (``OPENBLAS_CORETYPE=K`` is read when OpenBLAS loads, so each kernel is its own process), each
 with an empty offline-design cache (a design cached under one kernel would hide the kernel
 dependence of the design), and compares every accuracy cell (``rms_radius`` per observer,
@@ -39,11 +40,11 @@ from ..gate.blas import available_coretypes
 from ..io import atomic_write_text, blas_corename, environment, read_table
 from ..report.citation import citation_lines
 from ..report.numbers import fmt, markdown_table
-from ..report.spread import KERNEL_TABLE, PAPER_CONFIGS, SHOWN_ABOVE
+from ..report.spread import KERNEL_CONFIGS, KERNEL_TABLE, SHOWN_ABOVE
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
-#: the configurations of the published tables (``make bench``'s paper tables)
-CONFIGS = PAPER_CONFIGS
+#: the configurations measured: the published tables and the textbook plants
+CONFIGS = KERNEL_CONFIGS
 #: the columns of ``kernel_spread.csv``
 COLUMNS = ["config", "scenario", "observer", "state", "value", "spread", "kernels",
            "status_here", "status_other", "fingerprint"]
@@ -128,10 +129,12 @@ def report(df: pd.DataFrame, here: str, elapsed: float) -> str:
     compared = df[(df["status_here"] == "ok") & (df["status_other"] == "")]
     above = compared[compared["spread"] > SHOWN_ABOVE]
     parts = [
-        "# The paper tables under every OpenBLAS kernel of this CPU", "",
-        f"Each published table's configuration re-run under the OpenBLAS kernels "
-        f"{', '.join(kernels)} (one process each, an empty offline-design cache) and compared "
-        f"with the committed result store, produced by `make bench` under {here}. A cell is "
+        "# The paper tables and the textbook plants under every OpenBLAS kernel of this CPU",
+        "",
+        "Each published table's configuration, and the textbook plants', re-run under the "
+        f"OpenBLAS kernels {', '.join(kernels)} (one process each, an empty offline-design "
+        "cache) and compared with the committed result store, produced by `make bench` "
+        f"under {here}. A cell is "
         "an observer's RMS radius of one state on one scenario; **spread** is its largest "
         "relative difference over the kernels. Cells above "
         f"{SHOWN_ABOVE:g} are listed here and carry their spread beside the value in the "
@@ -181,7 +184,8 @@ def main(argv: list[str] | None = None) -> int:
                      render_help="no run: the report from results/kernels/kernel_spread.csv",
                      jobs_help="worker processes per run (default 2)")
     p.add_argument("--config", action="append", default=None,
-                   help="a configuration to compare (repeatable; default the paper tables)")
+                   help="a configuration to compare (repeatable; default the paper tables "
+                        "and the textbook plants)")
     p.add_argument("--kernel", action="append", default=None,
                    help="an OpenBLAS core type to compare with (repeatable; default every "
                         "other one this CPU runs)")
