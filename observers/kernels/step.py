@@ -310,12 +310,16 @@ def _tie_band(h, r, k, out, scale):
 
 
 #: in the step kernels, up to this dimension the principal axes come from :func:`_jacobi_left`
-#: (no LAPACK call: the QR and SVD of numba's LAPACK wrappers cost about 15 us of copies and
-#: workspace queries on a 6 x 14 matrix); above it from LAPACK as in the numpy path.  The
-#: reductions called alone (:class:`.reduction.PCA`, e.g. the lifted reductions of the CZN
+#: (plain loops, so the same bits under every BLAS kernel; and no LAPACK call, whose wrappers
+#: cost about 15 us of copies and workspace queries on a 6 x 14 matrix); above it from LAPACK
+#: as in the numpy path.  30 covers the paper tables: measured (FRad-A/B/C on ARCH Table 5,
+#: SkylakeX against Haswell), the largest per-state spread at 18 tanks fell from 1.0e-3 to
+#: 3.3e-7 and at 24 tanks from 3.4e-2 to 4.9e-6, at 5-10 % more time per step (30 tanks: FRad-C
+#: 1.9e-2 -> 1.6e-6, FRad-A/B stay near 1e-2: rounding of the kernel reaches them elsewhere);
+#: at 100-200 states the sweeps would cost more than the step.  The reductions called alone (:class:`.reduction.PCA`, e.g. the lifted reductions of the CZN
 #: observers, whose hulls amplify a 1e-13 change of the axes to 1e-3 of an RMS radius on the
 #: 6-tank record) keep LAPACK's QR and SVD, as the numpy path
-JACOBI_MAX_DIM = 12
+JACOBI_MAX_DIM = 30
 
 
 def _jacobi_left(red):
