@@ -259,21 +259,28 @@ for name, scenario, kwargs, options in {rows!r}:
 """
 
 
-def test_formerly_chaotic_rows_are_the_same_under_every_kernel_this_cpu_runs():
-    # issue 37: each row of FORMERLY_CHAOTIC moved by 2e-4 to 0.11 (relative) between
-    # OpenBLAS kernels (PRad-A on the 6-tank by 3.9); now every radius agrees to 1e-6 under
-    # every kernel this CPU runs
+def _rows_under_every_kernel(rows) -> tuple[list, dict]:
+    """The lines of :data:`RADII_OF_ROWS` for ``rows`` under the first kernel this CPU runs,
+    and under each other one by name (skips where the CPU runs fewer than two)."""
     found = blas.available_coretypes(blas.SPREAD_CORETYPES)
     if len(found) < 2:
         pytest.skip("this CPU runs fewer than two of the OpenBLAS kernels "
                     + ", ".join(blas.SPREAD_CORETYPES))
-    code = RADII_OF_ROWS.format(rows=FORMERLY_CHAOTIC)
+    code = RADII_OF_ROWS.format(rows=rows)
     runs = {k: [line.split() for line in _python(code, k, timeout=900).splitlines()]
             for k in found}
     first = runs[found[0]]
-    assert len(first) == len(FORMERLY_CHAOTIC)
-    for kernel in found[1:]:
-        for a, b in zip(first, runs[kernel], strict=True):
+    assert len(first) == len(rows)
+    return first, {k: runs[k] for k in found[1:]}
+
+
+def test_formerly_chaotic_rows_are_the_same_under_every_kernel_this_cpu_runs():
+    # issue 37: each row of FORMERLY_CHAOTIC moved by 2e-4 to 0.11 (relative) between
+    # OpenBLAS kernels (PRad-A on the 6-tank by 3.9); now every radius agrees to 1e-6 under
+    # every kernel this CPU runs
+    first, others = _rows_under_every_kernel(FORMERLY_CHAOTIC)
+    for kernel, rows in others.items():
+        for a, b in zip(first, rows, strict=True):
             # DD-CZ-A1 with its default options explodes (its hull passes 1e8 times X0's
             # radius) and is diverged under every kernel (observers.base.GROWTH_BOUND)
             want = "diverged" if (a[0], a[1]) == ("DD-CZ-A1", "tank6-linear") else "ok"
@@ -288,18 +295,10 @@ def test_f_radius_rows_of_24_linear_tanks_are_the_same_under_every_kernel_this_c
     # issue 37: the step kernels took the principal axes from LAPACK above 12 states, and
     # FRad-B's radii on ARCH Table 5's 24 tanks moved by 3.4e-2 between OpenBLAS kernels
     # (FRad-A 7.4e-4); with the Jacobi axes up to JACOBI_MAX_DIM = 30 they agree to 4.9e-6
-    found = blas.available_coretypes(blas.SPREAD_CORETYPES)
-    if len(found) < 2:
-        pytest.skip("this CPU runs fewer than two of the OpenBLAS kernels "
-                    + ", ".join(blas.SPREAD_CORETYPES))
-    rows = [(name, "tank24-linear", {}, None) for name in ("FRad-A", "FRad-B", "FRad-C")]
-    code = RADII_OF_ROWS.format(rows=rows)
-    runs = {k: [line.split() for line in _python(code, k, timeout=900).splitlines()]
-            for k in found}
-    first = runs[found[0]]
-    assert len(first) == len(rows)
-    for kernel in found[1:]:
-        for a, b in zip(first, runs[kernel], strict=True):
+    first, others = _rows_under_every_kernel(
+        [(name, "tank24-linear", {}, None) for name in ("FRad-A", "FRad-B", "FRad-C")])
+    for kernel, rows in others.items():
+        for a, b in zip(first, rows, strict=True):
             assert a[:3] == b[:3] and a[2] == "ok", (kernel, a[:3], b[:3])
             np.testing.assert_allclose(np.array(b[3:], float), np.array(a[3:], float),
                                        rtol=1e-4, err_msg=f"{a[0]} on {a[1]} with {kernel}")

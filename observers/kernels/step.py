@@ -311,14 +311,15 @@ def _tie_band(h, r, k, out, scale):
 
 #: in the step kernels, up to this dimension the principal axes come from :func:`_jacobi_left`
 #: (plain loops, so the same bits under every BLAS kernel; and no LAPACK call, whose wrappers
-#: cost about 15 us of copies and workspace queries on a 6 x 14 matrix); above it from LAPACK
-#: as in the numpy path.  30 covers the paper tables: measured (FRad-A/B/C on ARCH Table 5,
+#: cost about 15 us of copies and workspace queries on a 6 x 14 matrix); above it from LAPACK as
+#: in the numpy path.  30 covers the paper tables: measured (FRad-A/B/C on ARCH Table 5,
 #: SkylakeX against Haswell), the largest per-state spread at 18 tanks fell from 1.0e-3 to
 #: 3.3e-7 and at 24 tanks from 3.4e-2 to 4.9e-6, at 5-10 % more time per step (30 tanks: FRad-C
-#: 1.9e-2 -> 1.6e-6, FRad-A/B stay near 1e-2: rounding of the kernel reaches them elsewhere);
-#: at 100-200 states the sweeps would cost more than the step.  The reductions called alone (:class:`.reduction.PCA`, e.g. the lifted reductions of the CZN
-#: observers, whose hulls amplify a 1e-13 change of the axes to 1e-3 of an RMS radius on the
-#: 6-tank record) keep LAPACK's QR and SVD, as the numpy path
+#: 1.9e-2 -> 1.6e-6, FRad-A/B stay near 1e-2: rounding of the kernel reaches them elsewhere); at
+#: 100-200 states the sweeps would cost more than the step.  The reductions called alone
+#: (:class:`.reduction.PCA`, e.g. the lifted reductions of the CZN observers, whose hulls
+#: amplify a 1e-13 change of the axes to 1e-3 of an RMS radius on the 6-tank record) keep
+#: LAPACK's QR and SVD, as the numpy path
 JACOBI_MAX_DIM = 30
 
 
@@ -612,6 +613,16 @@ def _cholesky(S):
     return Lc, True
 
 
+def _symmetrise(M):
+    """``M <- (M + M') / 2`` in place (pairs averaged once, so the result is exactly
+    symmetric)."""
+    for p in range(M.shape[0]):
+        for s in range(p):
+            avg = 0.5 * (M[p, s] + M[s, p])
+            M[p, s] = avg
+            M[s, p] = avg
+
+
 def _psd_inverse(S):
     """``(L, S^-1, ok)`` (:func:`observers.numerics.volmin.psd_inverse`): the Cholesky
     factor and the inverse ``L^-T L^-1``, symmetrised; ``ok`` false where ``S`` is not
@@ -636,11 +647,7 @@ def _psd_inverse(S):
                 acc -= Lc[i, q] * Li[q, col]
             Li[i, col] = acc / Lc[i, i]
     N = np.dot(np.ascontiguousarray(Li.T), Li)
-    for p in range(k):
-        for s in range(p):
-            avg = 0.5 * (N[p, s] + N[s, p])
-            N[p, s] = avg
-            N[s, p] = avg
+    _symmetrise(N)
     return Lc, N, True
 
 
@@ -880,11 +887,7 @@ def bravo_choice_gram(G, M, c_row, sigma, B, zero_projection):
     for p in range(k):
         for s in range(k):
             S0[p, s] -= Bu[p] * Bu[s] / q
-    for p in range(k):
-        for s in range(p):
-            avg = 0.5 * (S0[p, s] + S0[s, p])
-            S0[p, s] = avg
-            S0[s, p] = avg
+    _symmetrise(S0)
     det_S0, adj = _adjugate_psd(S0)
     K = np.dot(np.dot(B, adj), Bt)
     KG = np.dot(K, G)
@@ -964,11 +967,7 @@ def leverage_update(N, h, G, c_row, sigma, j):
     for p in range(n):
         for s in range(n):
             N_new[p, s] = N[p, s] - w[p] * w[s] / hj + c_row[p] * c_row[s] / s2
-    for p in range(n):
-        for s in range(p):
-            avg = 0.5 * (N_new[p, s] + N_new[s, p])
-            N_new[p, s] = avg
-            N_new[s, p] = avg
+    _symmetrise(N_new)
     return N_new, h_new, True
 
 
@@ -989,11 +988,7 @@ def gram_update(M, G, c_row, sigma, j):
     for p in range(n):
         for s in range(n):
             out[p, s] = M[p, s] - lam[p] * u[s] - u[p] * lam[s] + (q + sigma**2) * lam[p] * lam[s]
-    for p in range(n):
-        for s in range(p):
-            avg = 0.5 * (out[p, s] + out[s, p])
-            out[p, s] = avg
-            out[s, p] = avg
+    _symmetrise(out)
     return out
 
 
@@ -1115,12 +1110,12 @@ def _bravo_step_py(c, G, d, y, args):
 
 
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
+    _HELPERS = (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into,
+                _jacobi_left, _principal_axes, _lu_small, _det, _solve, _cholesky, _symmetrise,
+                _psd_inverse, _adjugate_psd, _finite, _solve_t, _least)
     (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
-     _principal_axes, _lu_small, _det, _solve, _cholesky, _psd_inverse, _adjugate_psd, _finite,
-     _solve_t, _least) = (njit(f) for f in (
-         _pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
-         _principal_axes, _lu_small, _det, _solve, _cholesky, _psd_inverse, _adjugate_psd, _finite,
-         _solve_t, _least))
+     _principal_axes, _lu_small, _det, _solve, _cholesky, _symmetrise, _psd_inverse,
+     _adjugate_psd, _finite, _solve_t, _least) = (njit(f) for f in _HELPERS)
     # the formulas of the kernels keep the kernels' error model (a division by zero gives
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
     (_predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
