@@ -174,7 +174,7 @@ def test_bravo_choice_and_update_twins(seed):
     j = kernel_step.bravo_choice(G, row.copy(), sigma[0], basis, volmin.ZERO_PROJECTION)
     assert j == volmin.bravo_choice(G, row, sigma[0], basis)
     for jj in {0, j, 1 + seed % G.shape[1]}:
-        for got, want in zip(kernel_step.bravo_update(c, G, row, y[0], sigma[0], jj),
+        for got, want in zip(kernel_step.bravo_update(c, G, row @ G, row, y[0], sigma[0], jj),
                              volmin.bravo_update(c, G, row, y[0], sigma[0], jj), strict=True):
             _close(got, want)
 

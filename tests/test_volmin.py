@@ -206,7 +206,7 @@ def test_compiled_gram_choice_and_update_are_twins_of_numpy():
     for _ in range(8):
         G, c = rng.normal(size=(4, 30)), rng.normal(size=4)
         M, B = G @ G.T, null_basis(c)
-        j = kernel_step.bravo_choice_gram(G, M, c, 0.2, B, ZERO_PROJECTION)
+        j = kernel_step.bravo_choice_gram(G, c @ G, M, c, 0.2, B, ZERO_PROJECTION)
         assert j == int(np.argmin(bravo_scores_gram(G, M, c, 0.2, B)))
         np.testing.assert_allclose(kernel_step.gram_update(M, G, c, 0.2, j),
                                    gram_update(M, G, c, 0.2, j), atol=1e-12)
@@ -253,6 +253,31 @@ def test_leverage_update_is_the_inverse_gram_and_leverages_of_the_candidate():
     assert any(chosen)  # the strips did change the zonotope
 
 
+@pytest.mark.parametrize("compiled", [False, True])
+def test_projections_carried_across_strips_are_c_g_of_the_candidates(compiled):
+    """P = C G formed once and carried by projections_update is C G(j) formed afresh after
+    every candidate taken, over a step of strips (numpy and compiled)."""
+    from observers.kernels import step as kernel_step
+    from observers.kernels import switch
+    from observers.numerics.volmin import projections_update
+
+    if compiled and not switch.AVAILABLE:
+        pytest.skip("numba not available")
+    rng = np.random.default_rng(12)
+    G, C = rng.normal(size=(5, 40)), rng.normal(size=(7, 5))
+    P = C @ G
+    for i, c in enumerate(C):
+        j = 1 + (3 * i) % G.shape[1] if i % 3 else 0  # candidate 0 every third strip
+        a = P[i].copy()
+        np.testing.assert_allclose(a, c @ G, rtol=1e-12, atol=1e-12)
+        if compiled:
+            kernel_step.projections_update(P, i + 1, C, G, a, 0.3, j)
+        else:
+            P[i + 1:] = projections_update(P[i + 1:], C[i + 1:], G[:, j - 1], a, 0.3, j)
+        _, G = bravo_update(np.zeros(5), G, c, 0.0, 0.3, j, a)
+        np.testing.assert_allclose(P[i + 1:], C[i + 1:] @ G, rtol=1e-12, atol=1e-12)
+
+
 def test_leverages_refuse_a_singular_or_badly_conditioned_gram_matrix():
     """Where G G' is singular or its condition number exceeds about 1e12 the leverages are
     not used (the Gram matrix's adjugate scores those steps)."""
@@ -282,7 +307,7 @@ def test_compiled_leverage_choice_and_update_are_twins_of_numpy():
         assert ok
         np.testing.assert_allclose(Nk, N, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(hk, h, rtol=1e-12)
-        j = kernel_step.bravo_choice_ratios(G, M, h, c, 0.2, ZERO_PROJECTION)
+        j = kernel_step.bravo_choice_ratios(c @ G, M, h, c, 0.2, ZERO_PROJECTION)
         assert j == int(np.argmin(bravo_ratios(c @ G, h, float(c @ M @ c), 0.2)))
         Nu, hu, ok = kernel_step.leverage_update(N, h, G, c, 0.2, j)
         assert ok

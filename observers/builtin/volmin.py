@@ -39,6 +39,7 @@ from ..numerics.volmin import (
     leverage_update,
     leverages,
     null_basis,
+    projections_update,
     subset_count,
     volume_lp_gain,
 )
@@ -145,18 +146,24 @@ class VolMinB(Linearised, StripBasedObserver):
         (computed once per step, then updated in ``O(n r)`` per strip: :func:`leverages`,
         :func:`bravo_ratios`, :func:`leverage_update`); where ``G G'`` is badly conditioned,
         from the Gram matrix (:func:`bravo_scores_gram`).  ``G G'`` itself is updated in
-        ``O(n^2)`` per strip (:func:`gram_update`)."""
+        ``O(n^2)`` per strip (:func:`gram_update`), and the projections ``a = c G`` of all
+        strips are one product ``C G`` per step, carried to the later strips in ``O(m r)``
+        where a strip takes a candidate (:func:`projections_update`)."""
         M = G @ G.T
         lev = leverages(G, M)
+        P = self.C @ G
         for i, row in enumerate(self.C):
+            a = P[i]
             if lev is None:
-                j = first_best(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i]))
+                j = first_best(bravo_scores_gram(G, M, row, self.sigma[i], self._bases[i], a))
             else:
-                j = first_best(bravo_ratios(row @ G, lev[1], float(row @ M @ row),
-                                            self.sigma[i]))
+                j = first_best(bravo_ratios(a, lev[1], float(row @ M @ row), self.sigma[i]))
                 # None after a strip of zero width (G G' singular): the Gram scores take
                 # over for the rest of the step
                 lev = leverage_update(*lev, G, row, self.sigma[i], j)
             M = gram_update(M, G, row, self.sigma[i], j)
-            c, G = bravo_update(c, G, row, y[i], self.sigma[i], j)
+            if j:
+                P[i + 1:] = projections_update(P[i + 1:], self.C[i + 1:], G[:, j - 1], a,
+                                               self.sigma[i], j)
+            c, G = bravo_update(c, G, row, y[i], self.sigma[i], j, a)
         return c, G

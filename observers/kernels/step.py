@@ -867,11 +867,10 @@ def bravo_choice(G, c_row, sigma, B, zero_projection):
     return _least(scores)
 
 
-def bravo_choice_gram(G, M, c_row, sigma, B, zero_projection):
-    """:func:`observers.numerics.volmin.bravo_scores_gram` and the index of the least score
-    (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
+def bravo_choice_gram(G, a, M, c_row, sigma, B, zero_projection):
+    """:func:`observers.numerics.volmin.bravo_scores_gram` (``a = c G``) and the index of the
+    least score (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
     n, r = G.shape
-    a = np.dot(c_row, G)
     u = np.dot(M, c_row)
     q = np.dot(c_row, u)
     nvalid = 0
@@ -928,11 +927,10 @@ def leverages(G, M):
     return N, h, True
 
 
-def bravo_choice_ratios(G, M, h, c_row, sigma, zero_projection):
-    """:func:`observers.numerics.volmin.bravo_ratios` and the index of the least ratio (0:
-    unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
-    r = G.shape[1]
-    a = np.dot(c_row, G)
+def bravo_choice_ratios(a, M, h, c_row, sigma, zero_projection):
+    """:func:`observers.numerics.volmin.bravo_ratios` (``a = c G``) and the index of the
+    least ratio (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
+    r = a.shape[0]
     u = np.dot(M, c_row)
     q = np.dot(c_row, u)
     scores = np.ones(r + 1)
@@ -992,13 +990,30 @@ def gram_update(M, G, c_row, sigma, j):
     return out
 
 
-def bravo_update(c, G, c_row, y, sigma, j):
-    """:func:`observers.numerics.volmin.bravo_update`: Bravo's candidate ``j`` (1-based
-    generator index; 0 returns ``(c, G)`` unchanged)."""
+def projections_update(P, first, C, G, a, sigma, j):
+    """:func:`observers.numerics.volmin.projections_update` in place on the rows ``first``
+    onward of ``P = C G`` (``a = c G`` of the strip taking candidate ``j``; 0: nothing)."""
+    if j == 0:
+        return
+    n = G.shape[0]
+    lam = np.empty(n)
+    for p in range(n):
+        lam[p] = G[p, j - 1] / a[j - 1]
+    for k in range(first, P.shape[0]):
+        cl = 0.0
+        for p in range(n):
+            cl += C[k, p] * lam[p]
+        for o in range(P.shape[1]):
+            P[k, o] = P[k, o] - cl * a[o]
+        P[k, j - 1] = sigma * cl
+
+
+def bravo_update(c, G, a, c_row, y, sigma, j):
+    """:func:`observers.numerics.volmin.bravo_update` (``a = c G``): Bravo's candidate ``j``
+    (1-based generator index; 0 returns ``(c, G)`` unchanged)."""
     if j == 0:
         return c, G
     n = G.shape[0]
-    a = np.dot(c_row, G)
     lam = G[:, j - 1] / a[j - 1]
     c_new = c + lam * (y - np.dot(c_row, c))
     G_new = np.empty_like(G)
@@ -1093,17 +1108,21 @@ def _bravo_step_py(c, G, d, y, args):
     cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
     M = np.dot(Gn, np.ascontiguousarray(Gn.T))
     N, h, by_leverage = leverages(Gn, M)
+    # the projections c G of every strip: one product, then carried strip to strip
+    P = np.dot(data.C, Gn)
     for i in range(data.C.shape[0]):
         ci = data.C[i].copy()
+        a = P[i].copy()
         if by_leverage:
-            j = bravo_choice_ratios(Gn, M, h, ci, data.sigma[i], data.zero_projection)
+            j = bravo_choice_ratios(a, M, h, ci, data.sigma[i], data.zero_projection)
             # false after a strip of zero width (G G' singular): the Gram scores take over
             N, h, by_leverage = leverage_update(N, h, Gn, ci, data.sigma[i], j)
         else:
-            j = bravo_choice_gram(Gn, M, ci, data.sigma[i], data.bases[i],
+            j = bravo_choice_gram(Gn, a, M, ci, data.sigma[i], data.bases[i],
                                   data.zero_projection)
         M = gram_update(M, Gn, ci, data.sigma[i], j)
-        cn, Gn = bravo_update(cn, Gn, ci, y[i], data.sigma[i], j)
+        projections_update(P, i + 1, data.C, Gn, a, data.sigma[i], j)
+        cn, Gn = bravo_update(cn, Gn, a, ci, y[i], data.sigma[i], j)
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
                      JACOBI_MAX_DIM)
     return cn, out, ok
@@ -1120,11 +1139,12 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
     (_predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
      wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram, gram_update,
-     bravo_update, leverages, bravo_choice_ratios, leverage_update) = (
+     bravo_update, leverages, bravo_choice_ratios, leverage_update, projections_update) = (
         njit(f, error_model="numpy") for f in (
             _predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
             wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram,
-            gram_update, bravo_update, leverages, bravo_choice_ratios, leverage_update))
+            gram_update, bravo_update, leverages, bravo_choice_ratios, leverage_update,
+            projections_update))
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
