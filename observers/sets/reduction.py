@@ -235,6 +235,21 @@ def principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -> np.nd
     return np.hstack([_cluster_basis(U[:, a:b]) for a, b in zip(starts, ends, strict=True)])
 
 
+def jacobi_principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -> np.ndarray:
+    """:func:`principal_axes` with the singular vectors from one-sided Jacobi (plain loops, no
+    LAPACK: the same bits under every BLAS kernel) up to
+    :data:`~observers.kernels.step.JACOBI_MAX_DIM` rows, as the compiled step kernels take
+    them (:func:`observers.kernels.step._principal_axes`, compiled where numba is, the same
+    loops in Python otherwise); LAPACK's above.  For a caller whose axes feed back into the
+    next step's generators: where singular values lie 1e-6 to 1e-4 apart (the identical
+    tanks), LAPACK's kernel-dependent rounding turns the axes by ``eps / gap``, and the
+    filter compounds it."""
+    if red.shape[0] > kernel_step.JACOBI_MAX_DIM:
+        return principal_axes(red, cluster_rtol)
+    return kernel_step._principal_axes(np.ascontiguousarray(red, dtype=float), cluster_rtol,
+                                       PIVOT_RTOL, kernel_step.JACOBI_MAX_DIM)
+
+
 def _box_in_basis(keep: np.ndarray, red: np.ndarray, U: np.ndarray,
                   zero_rtol: float = 0.0) -> np.ndarray:
     """``[keep, U diag(w)]`` with ``w = |U' red| 1``: the reduced generators ``red`` replaced
