@@ -374,3 +374,25 @@ def test_generator_axes_with_the_shortlist_are_those_of_the_direct_scoring(seed)
         switch.set_compiled(old)
     np.testing.assert_array_equal(fast, slow)
     assert not np.array_equal(fast, G[:, :n])  # the search did exchange axes
+
+
+@pytest.mark.parametrize("order", [(0, 1, 2), (0, 2, 1)])
+def test_generator_axes_refuse_a_numerically_singular_start_in_any_column_order(order):
+    """Two starting columns parallel in exact arithmetic (one 1e-5 times the other, the
+    rounding of A T): refused whatever the order, not only where LU meets an exact zero."""
+    from observers.numerics.ropo import generator_axes
+
+    v = np.array([5.06e-4, 0.4915, -3.37e-3])
+    start = np.column_stack([[1e-3, 0.0, 0.0], v, v * 1.5e-5 * (1.0 + 1e-15)])
+    G = np.hstack([start[:, list(order)], np.diag([1e-4, 5e-2, 1e-3])])
+    assert generator_axes(G, 3) is None
+
+
+def test_generator_axes_come_in_the_order_of_their_generators():
+    from observers.numerics.ropo import generator_axes
+
+    rng = np.random.default_rng(3)
+    G = rng.normal(size=(4, 12))
+    B = generator_axes(G, 4)
+    cols = [int(np.flatnonzero(np.all(G == B[:, [j]], axis=0))[0]) for j in range(4)]
+    assert cols == sorted(cols)

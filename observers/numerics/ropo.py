@@ -241,7 +241,9 @@ def generator_axes(G: np.ndarray, n: int) -> np.ndarray | None:
     multiplies ``det B`` by ``M_ik`` and pivots the tableau on ``(i, k)`` (as a simplex
     step), so every exchange is scored without a new solve; the best one is made while it
     lowers the volume, at most :data:`MAX_EXCHANGES` times n.  ``None`` if the first ``n``
-    columns are singular.  The caller recomputes the enclosure from the returned axes.
+    columns are numerically singular (column-normalised condition number above
+    :data:`COND_MAX`).  The axes are returned in the order of their generators in ``G``.
+    The caller recomputes the enclosure from the returned axes.
 
     Scoring all ``K n`` exchanges directly costs ``K n^2 r`` per exchange made (seconds at 200
     states); with numba the compiled approximate scores (``n^2 r log r``) and their error
@@ -249,6 +251,12 @@ def generator_axes(G: np.ndarray, n: int) -> np.ndarray | None:
     the others are scored directly, so the axes are those of the direct scoring, bit for bit.
     """
     B0 = G[:, :n]
+    norms = np.linalg.norm(B0, axis=0)
+    # numerically singular as outer_parallelotope judges it (COND_MAX), not only where the LU
+    # factorisation meets an exact zero: two columns parallel in exact arithmetic gave a
+    # zero pivot on one BLAS kernel and a huge tableau on another (ROPO on the DC motor)
+    if not np.all(norms > 0) or not np.linalg.cond(B0 / norms) <= COND_MAX:
+        return None
     try:
         with np.errstate(all="ignore"):
             M = np.linalg.solve(B0, G)
@@ -292,7 +300,9 @@ def generator_axes(G: np.ndarray, n: int) -> np.ndarray | None:
         M -= np.outer(p / p[i], pivot_row)
         M[i] = pivot_row / p[i]
         idx[i] = k
-    return G[:, idx]
+    # the axes in the order of the generators: two exchange sequences that reach the same
+    # generators give the same axes (the order is the next step's starting basis)
+    return G[:, np.sort(idx)]
 
 
 def shortlist(M: np.ndarray, out: np.ndarray, ok: np.ndarray) -> np.ndarray:
