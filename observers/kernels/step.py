@@ -1145,6 +1145,9 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
             wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram,
             gram_update, bravo_update, leverages, bravo_choice_ratios, leverage_update,
             projections_update))
+#: the principal axes in their deterministic basis, from one-sided Jacobi up to ``jacobi_dim``
+#: rows (compiled where numba is; ``observers.sets.reduction.jacobi_principal_axes``)
+principal_axes = _principal_axes
 #: the compiled :func:`_reduce_py` (``None`` without numba)
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with

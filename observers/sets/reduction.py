@@ -239,15 +239,15 @@ def jacobi_principal_axes(red: np.ndarray, cluster_rtol: float = CLUSTER_RTOL) -
     """:func:`principal_axes` with the singular vectors from one-sided Jacobi (plain loops, no
     LAPACK: the same bits under every BLAS kernel) up to
     :data:`~observers.kernels.step.JACOBI_MAX_DIM` rows, as the compiled step kernels take
-    them (:func:`observers.kernels.step._principal_axes`, compiled where numba is, the same
+    them (``observers.kernels.step.principal_axes``, compiled where numba is, the same
     loops in Python otherwise); LAPACK's above.  For a caller whose axes feed back into the
     next step's generators: where singular values lie 1e-6 to 1e-4 apart (the identical
     tanks), LAPACK's kernel-dependent rounding turns the axes by ``eps / gap``, and the
     filter compounds it."""
     if red.shape[0] > kernel_step.JACOBI_MAX_DIM:
         return principal_axes(red, cluster_rtol)
-    return kernel_step._principal_axes(np.ascontiguousarray(red, dtype=float), cluster_rtol,
-                                       PIVOT_RTOL, kernel_step.JACOBI_MAX_DIM)
+    return kernel_step.principal_axes(np.ascontiguousarray(red, dtype=float), cluster_rtol,
+                                      PIVOT_RTOL, kernel_step.JACOBI_MAX_DIM)
 
 
 def _box_in_basis(keep: np.ndarray, red: np.ndarray, U: np.ndarray,
