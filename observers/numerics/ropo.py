@@ -38,7 +38,7 @@ parallelotope are sought among the generators), found by exchange from ``A T``
 (:func:`generator_axes`); the principal axes of the generators
 (:func:`observers.sets.reduction.jacobi_principal_axes`, the order-1 PCA reduction, its axes
 from one-sided Jacobi up to 30 states: from LAPACK, ROPO's radii on 30 tanks moved by 2.5e-4
-between BLAS kernels, now 2.4e-6); and the
+between BLAS kernels, now 3.5e-6); and the
 coordinate axes (the order-1 Girard reduction, the interval hull).  The default takes the
 one of least volume.
 
