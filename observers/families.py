@@ -296,10 +296,29 @@ class ZonotopeObserver(LinearModelObserver):
         path runs (no kernel for this observer, or the kernel declined the step)."""
         if self._step_kernel is None or not switch.use_compiled():
             return None
-        kernel, data, args = self._kernel_run or self._prepare_run()
+        kernel, data, args, _ = self._kernel_run or self._prepare_run()
         try:
             # y.copy(): a fresh writable C-contiguous vector, one argument type per position
-            c, G, ok = kernel(self._c, self._G, data.B @ u, y.copy(), args)
+            # the input term in index order too (kernel_step.FIXED_ORDER_MAX_DIM)
+            d = kernel_step.matvec(data.B, np.ascontiguousarray(u, dtype=np.float64))
+            c, G, ok = kernel(self._c, self._G, d, y.copy(), args)
+        except np.linalg.LinAlgError:
+            return None
+        return self._finish_step(c, G) if ok else None
+
+    def _compiled_first(self, y: np.ndarray) -> Zonotope | None:
+        """The first set (``X0`` intersected with the strips of ``y``, not reduced) by the
+        compiled measurement update of this observer's kernel, the same formulas as every
+        later compiled step, or ``None``: the numpy path runs."""
+        if self._step_kernel is None or not switch.use_compiled():
+            return None
+        run = self._kernel_run or self._prepare_run()
+        if run.first is None:
+            return None
+        X0 = self.X0
+        try:
+            c, G, ok = run.first(np.array(X0.c, dtype=np.float64), np.ascontiguousarray(
+                X0.G, dtype=np.float64), y.copy(), run.args)
         except np.linalg.LinAlgError:
             return None
         return self._finish_step(c, G) if ok else None
@@ -353,6 +372,9 @@ class StripBasedObserver(ZonotopeObserver):
         y = self._measurement(y)
         times = self.phase_times
         if self._c is None:  # first set: X0 intersected with y[0], not reduced (as CORA)
+            out = self._compiled_first(y)
+            if out is not None:
+                return out
             t0 = perf_counter()
             c, G = self.intersect(self.X0.c, self.X0.G,
                                   self.linearise_output(self.X0.c, self.X0.G, y))

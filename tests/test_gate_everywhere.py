@@ -291,17 +291,20 @@ def test_formerly_chaotic_rows_are_the_same_under_every_kernel_this_cpu_runs():
                                        rtol=1e-6, err_msg=f"{a[0]} on {a[1]} with {kernel}")
 
 
-def test_f_radius_rows_of_24_linear_tanks_are_the_same_under_every_kernel_this_cpu_runs():
+def test_f_radius_rows_of_24_and_30_linear_tanks_are_bit_identical_under_every_kernel():
     # issue 37: the step kernels took the principal axes from LAPACK above 12 states, and
     # FRad-B's radii on ARCH Table 5's 24 tanks moved by 3.4e-2 between OpenBLAS kernels
-    # (FRad-A 7.4e-4); with the Jacobi axes up to JACOBI_MAX_DIM = 30 they agree to 4.9e-6
+    # (FRad-A 7.4e-4); with the Jacobi axes up to JACOBI_MAX_DIM = 30 they agreed to 4.9e-6,
+    # but on the 30 tanks FRad-A and FRad-B still moved by 7.4e-3 and 1.7e-2: their products
+    # and solves went to BLAS and LAPACK, and the first set to the numpy path.  With every
+    # product of the kernels in index order up to FIXED_ORDER_MAX_DIM and the first set by the
+    # kernel's own update, the radii are the same to the last bit under every kernel
     first, others = _rows_under_every_kernel(
-        [(name, "tank24-linear", {}, None) for name in ("FRad-A", "FRad-B", "FRad-C")])
+        [(name, scenario, {}, None) for scenario in ("tank24-linear", "tank30-linear")
+         for name in ("FRad-A", "FRad-B", "FRad-C")])
     for kernel, rows in others.items():
         for a, b in zip(first, rows, strict=True):
-            assert a[:3] == b[:3] and a[2] == "ok", (kernel, a[:3], b[:3])
-            np.testing.assert_allclose(np.array(b[3:], float), np.array(a[3:], float),
-                                       rtol=1e-4, err_msg=f"{a[0]} on {a[1]} with {kernel}")
+            assert a[2] == "ok" and a == b, (kernel, a[:3], b[:3])
 
 
 def test_ropo_on_30_linear_tanks_is_the_same_under_every_kernel_this_cpu_runs():

@@ -240,7 +240,8 @@ def test_each_kernel_is_compiled_once():
     sc = systems.scenario("vehicle2d-cora")
     for name, options in CASES:
         observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
-    for kernel in (kernel_step.strip_step, kernel_step.propagate_step, kernel_step.bravo_step):
+    for kernel in (kernel_step.strip_step, kernel_step.propagate_step, kernel_step.bravo_step,
+                   kernel_step.strip_first, kernel_step.bravo_first):
         assert len(kernel.signatures) == 1, kernel.signatures
 
 
@@ -303,3 +304,57 @@ def test_reduction_ignores_the_rounding_noise_of_axis_aligned_generators():
     want = np.hstack([base[:, [1, 3, 5, 6, 7]], np.diag([1.0 + 2.0 + 1.5, 0.0])])
     for out in outs.values():
         np.testing.assert_allclose(out, want, atol=1e-15)
+
+
+def _index_order(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A @ B`` with every entry summed term by term in index order, in Python floats."""
+    out = np.zeros((A.shape[0], B.shape[1]))
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            acc = 0.0
+            for s in range(A.shape[1]):
+                acc += float(A[i, s]) * float(B[s, j])
+            out[i, j] = acc
+    return out
+
+
+def test_products_of_the_kernels_are_summed_in_index_order_up_to_their_bound():
+    # issue 37: the kernels' products went to BLAS, whose kernels order the sums by CPU, and
+    # FRad-A/B on 30 tanks moved by up to 1.7e-2 between kernels.  Up to FIXED_ORDER_MAX_DIM
+    # every entry is the plain left-to-right sum, exactly (no reordering, no fused
+    # multiply-add: the same bits on every machine); above it BLAS, equal to rounding
+    rng = np.random.default_rng(37)
+    bound = kernel_step.FIXED_ORDER_MAX_DIM
+    for m, k, q in [(6, 40, 5), (bound, 3 * bound, bound), (1, 200, 3), (bound, bound, 700)]:
+        A, B = rng.standard_normal((m, k)), rng.standard_normal((k, q))
+        want, b = _index_order(A, B), np.ascontiguousarray(B[:, 0])
+        assert np.array_equal(kernel_step._mm(A, B), want)
+        gram = kernel_step._gram(A)
+        assert np.array_equal(gram, _index_order(A, A.T)) and np.array_equal(gram, gram.T)
+        assert np.array_equal(kernel_step._mv(A, b), want[:, 0])
+        assert np.array_equal(kernel_step._vm(A[0], B), want[0])
+        assert kernel_step._vv(A[0], b) == want[0, 0]
+        assert np.array_equal(kernel_step.matvec(A, b), want[:, 0])
+    A, B = rng.standard_normal((bound + 1, bound + 2)), rng.standard_normal((bound + 2, 40))
+    A2 = rng.standard_normal((bound + 1, bound + 1))
+    np.testing.assert_allclose(kernel_step._mm(A, B), A @ B, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(kernel_step._mm(A2, A2), A2 @ A2, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["FRad-A", "FRad-B", "PRad-B", "VolMin-B"])
+def test_the_first_set_of_a_strip_observer_is_the_kernels_update_of_x0(name):
+    # the first set (X0 intersected with y[0]) went to the numpy path and its BLAS products
+    # while every later step ran in the kernel; now the kernel's update makes it too, and it
+    # is the numpy path's set up to rounding
+    sc = systems.scenario("tank6-linear")
+    obs = observers.create(name, sc.system, reduction="pca", order=5)
+    compiled, plain = both_paths(lambda: observers.create(
+        name, sc.system, reduction="pca", order=5).step(np.zeros(sc.u.shape[1]), sc.y[0]))
+    assert obs._step_kernel is not None
+    scale = max(1.0, float(np.abs(plain.G).max()), float(np.abs(plain.c).max()))
+    assert compiled.G.shape == plain.G.shape
+    np.testing.assert_allclose(compiled.c, plain.c, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(compiled.G, plain.G, rtol=0, atol=1e-12 * scale)
+    first = observers.create(name, sc.system, reduction="pca", order=5)
+    first.step(np.zeros(sc.u.shape[1]), sc.y[0])
+    assert first._kernel_run is not None  # the compiled update made it

@@ -309,6 +309,82 @@ def _tie_band(h, r, k, out, scale):
     return out
 
 
+#: where at most one of the three dimensions of a matrix product (rows, columns, inner terms)
+#: exceeds this, the compiled kernels form it by the fixed-order loops below (:func:`_mm`,
+#: :func:`_gram`, :func:`_mv`, :func:`_vm`, :func:`_vv`) instead of BLAS: every entry is
+#: summed term by term in index order, so the bits are the same under every BLAS kernel and on
+#: every machine (the loops vectorise across independent entries only, which does not reorder
+#: a sum, and numba fuses no multiply-add without ``fastmath``).  OpenBLAS's kernels block and
+#: order their sums by CPU (AVX-512, AVX2, AVX), and observers whose reductions sit near ties
+#: amplify that last-bit difference by about 1.2 per step: FRad-A and FRad-B on ARCH 2021
+#: Table 5's 30 tanks moved by 0.7 % and 1.7 % between kernels (issue 37) with the Jacobi axes
+#: below already in place.  Above it (the 100- and 200-state sweeps) BLAS's speed wins.
+FIXED_ORDER_MAX_DIM = 30
+
+
+def _mm(A, B):
+    """``A @ B`` (2-D by 2-D) summed in index order (BLAS above :data:`FIXED_ORDER_MAX_DIM`)."""
+    m, k = A.shape
+    q = B.shape[1]
+    if m + k + q - min(m, k, q) - max(m, k, q) > FIXED_ORDER_MAX_DIM:
+        return np.dot(A, B)
+    out = np.zeros((m, q))
+    for i in range(m):
+        row = out[i]
+        for s in range(k):
+            a = A[i, s]
+            b = B[s]
+            for j in range(q):
+                row[j] += a * b[j]
+    return out
+
+
+def _gram(G):
+    """``G @ G.T`` as :func:`_mm` forms it (the same bits): rank-one updates ``g_s g_s'`` over
+    the columns in index order, exactly symmetric (entries ``(i, j)`` and ``(j, i)`` sum the
+    same products in the same order); BLAS above :data:`FIXED_ORDER_MAX_DIM` rows."""
+    n, r = G.shape
+    if n > FIXED_ORDER_MAX_DIM:
+        return np.dot(G, np.ascontiguousarray(G.T))
+    Gt = np.ascontiguousarray(G.T)
+    out = np.zeros((n, n))
+    for s in range(r):
+        g = Gt[s]
+        for i in range(n):
+            a = g[i]
+            row = out[i]
+            for j in range(n):  # the whole row: it vectorises, a triangle did not
+                row[j] += a * g[j]
+    return out
+
+
+def _mv(A, x):
+    """``A @ x`` (2-D by 1-D) summed in index order (BLAS above :data:`FIXED_ORDER_MAX_DIM`)."""
+    m, k = A.shape
+    if min(m, k) > FIXED_ORDER_MAX_DIM:
+        return np.dot(A, x)
+    out = np.zeros(m)
+    for i in range(m):
+        acc = 0.0
+        for s in range(k):
+            acc += A[i, s] * x[s]
+        out[i] = acc
+    return out
+
+
+def _vm(x, B):
+    """``x @ B`` (1-D by 2-D): :func:`_mm` of the row ``x``."""
+    return _mm(np.ascontiguousarray(x).reshape((1, x.shape[0])), B)[0]
+
+
+def _vv(x, y):
+    """``x @ y`` (1-D by 1-D) summed in index order."""
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += x[i] * y[i]
+    return acc
+
+
 #: in the step kernels, up to this dimension the principal axes come from :func:`_jacobi_left`
 #: (plain loops, so the same bits under every BLAS kernel; and no LAPACK call, whose wrappers
 #: cost about 15 us of copies and workspace queries on a 6 x 14 matrix); above it from LAPACK as
@@ -487,7 +563,7 @@ def _reduce_py(G, order, method, cluster_rtol, pivot_rtol, jacobi_dim):
         for i in range(n):
             red[i, q] = G[i, j]
     U = _principal_axes(red, cluster_rtol, pivot_rtol, jacobi_dim)
-    proj = np.dot(np.ascontiguousarray(U.T), red)
+    proj = _mm(np.ascontiguousarray(U.T), red)
     box = np.zeros(n)
     for a in range(n):
         for q in range(n_red):
@@ -508,9 +584,12 @@ def _finite(a):
 
 
 #: up to this size the kernels factor matrices with the small loops below (LU with partial
-#: pivoting, Cholesky) instead of numba's LAPACK wrappers, whose copies and checks cost a few
-#: microseconds per call; the same factorisations, equal up to rounding
-SMALL_DIM = 12
+#: pivoting, Cholesky) instead of numba's LAPACK wrappers: the same factorisations, equal up to
+#: rounding, but summed in index order, so the same bits under every BLAS kernel (LAPACK's
+#: blocked factorisations call BLAS; FRad-B on ARCH Table 5's 30 tanks solves with 15 x 15
+#: matrices), and without the wrappers' copies and checks (a few microseconds per call).  The
+#: same bound as :data:`FIXED_ORDER_MAX_DIM` (it was 12 before issue 37)
+SMALL_DIM = FIXED_ORDER_MAX_DIM
 
 
 def _lu_small(M):
@@ -646,7 +725,7 @@ def _psd_inverse(S):
             for q in range(col, i):
                 acc -= Lc[i, q] * Li[q, col]
             Li[i, col] = acc / Lc[i, i]
-    N = np.dot(np.ascontiguousarray(Li.T), Li)
+    N = _mm(np.ascontiguousarray(Li.T), Li)
     _symmetrise(N)
     return Lc, N, True
 
@@ -662,9 +741,9 @@ def _solve_t(S, B):
 def _predict(c, G, A, d, W_c, E):
     """Prediction ``(A c + d + c_W, [A G, E])`` (the start of every strip-based step)."""
     n, r = G.shape
-    cp = np.dot(A, c) + d + W_c
+    cp = _mv(A, c) + d + W_c
     Gp = np.empty((n, r + E.shape[1]))
-    Gp[:, :r] = np.dot(A, G)
+    Gp[:, :r] = _mm(A, G)
     Gp[:, r:] = E
     return cp, Gp
 
@@ -672,7 +751,7 @@ def _predict(c, G, A, d, W_c, E):
 def strip_update(c, G, Lam, C, y, sigma):
     """:func:`observers.families.strip_update`: ``(c, G)`` intersected with the strips
     ``|C x - y| <= sigma`` with the gain ``Lam``."""
-    c_new = c + np.dot(Lam, y - np.dot(C, c))
+    c_new = c + _mv(Lam, y - _mv(C, c))
     return c_new, _strip_generators(G, Lam, C, sigma)
 
 
@@ -683,12 +762,12 @@ def _strip_generators(G, Lam, C, sigma):
     m = C.shape[0]
     G_new = np.empty((n, r + m))
     if 2 * m < n:  # G - Lam (C G): 2 m n r flops
-        G_new[:, :r] = G - np.dot(Lam, np.dot(C, G))
+        G_new[:, :r] = G - _mm(Lam, _mm(C, G))
     else:  # (I - Lam C) G: n^2 r flops, fewer when 2 m >= n
-        T = -np.dot(Lam, C)
+        T = -_mm(Lam, C)
         for a in range(n):
             T[a, a] += 1.0
-        G_new[:, :r] = np.dot(T, G)
+        G_new[:, :r] = _mm(T, G)
     for i in range(n):
         for j in range(m):
             G_new[i, r + j] = Lam[i, j] * sigma[j]
@@ -702,10 +781,10 @@ def _per_strip_update(c, G, L, C, y, sigma):
     for i in range(C.shape[0]):
         lam = L[:, i].copy()
         ci = C[i]
-        c = c + lam * (y[i] - np.dot(ci, c))
+        c = c + lam * (y[i] - _vv(ci, c))
         k = G.shape[1]
         G2 = np.empty((n, k + 1))
-        cg = np.dot(ci, G)
+        cg = _vm(ci, G)
         for a in range(n):
             for b in range(k):
                 G2[a, b] = G[a, b] - lam[a] * cg[b]
@@ -719,18 +798,18 @@ def alamo_frad_strips(c, G, C, y, sigma):
     F-radius gain, computed on ``P = G G'`` and applied to ``G`` once (FRad-A)."""
     n, r = G.shape
     m = C.shape[0]
-    P = np.dot(G, np.ascontiguousarray(G.T))
+    P = _gram(G)
     Lm = np.empty((n, m))
     cn = c.copy()
     for i in range(m):
         ci = C[i].copy()
-        p = np.dot(P, ci)
-        s = np.dot(ci, p) + sigma[i] ** 2
+        p = _mv(P, ci)
+        s = _vv(ci, p) + sigma[i] ** 2
         if s > 0:
             lam = p / s
         else:
             lam = np.zeros(n)
-        cn = cn + lam * (y[i] - np.dot(ci, cn))
+        cn = cn + lam * (y[i] - _vv(ci, cn))
         if i:
             for b in range(i):
                 wb = 0.0
@@ -752,24 +831,24 @@ def wang_frad_gain(P, A, C, E, F):
     if A is None:
         R = P
     else:
-        R = np.dot(np.dot(A, P), np.ascontiguousarray(A.T)) + np.dot(
+        R = _mm(_mm(A, P), np.ascontiguousarray(A.T)) + _mm(
             E, np.ascontiguousarray(E.T))
-    S = np.dot(np.dot(C, R), np.ascontiguousarray(C.T)) + np.dot(F, np.ascontiguousarray(F.T))
+    S = _mm(_mm(C, R), np.ascontiguousarray(C.T)) + _mm(F, np.ascontiguousarray(F.T))
     if not _finite(S):
         return np.zeros((P.shape[0], C.shape[0])), False
-    return _solve_t(S, np.dot(C, R))
+    return _solve_t(S, _mm(C, R))
 
 
 def combastel_gain(P, A, C, F):
     """:func:`observers.numerics.frad.combastel_gain`: ``(L, ok)`` with
     ``L = A P C' (C P C' + F F')^{-1}``; ``ok`` as in :func:`wang_frad_gain`."""
-    S = np.dot(np.dot(C, P), np.ascontiguousarray(C.T)) + np.dot(F, np.ascontiguousarray(F.T))
+    S = _mm(_mm(C, P), np.ascontiguousarray(C.T)) + _mm(F, np.ascontiguousarray(F.T))
     if not _finite(S):
         return np.zeros((A.shape[0], C.shape[0])), False
-    X, ok = _solve_t(S, np.dot(C, P))
+    X, ok = _solve_t(S, _mm(C, P))
     if not ok:
         return X, False
-    return np.dot(A, X), True
+    return _mm(A, X), True
 
 
 def propagate(S, prediction, C, L, y, V, W):
@@ -782,11 +861,11 @@ def propagate(S, prediction, C, L, y, V, W):
     W_c, E = W
     n, r = G.shape
     rv, rw = F.shape[1], E.shape[1]
-    M = A - np.dot(L, C)
-    c_new = np.dot(M, c) + d + np.dot(L, y - V_c) + W_c
+    M = A - _mm(L, C)
+    c_new = _mv(M, c) + d + _mv(L, y - V_c) + W_c
     G_new = np.empty((n, r + rv + rw))
-    G_new[:, :r] = np.dot(M, G)
-    G_new[:, r:r + rv] = np.dot(-L, F)
+    G_new[:, :r] = _mm(M, G)
+    G_new[:, r:r + rv] = _mm(-L, F)
     G_new[:, r + rv:] = E
     return c_new, G_new
 
@@ -815,7 +894,7 @@ def _adjugate_psd(S):
     det = 1.0
     for j in range(k):
         det *= mu[j]
-    return det, np.dot(np.ascontiguousarray(U * cof), np.ascontiguousarray(U.T))
+    return det, _mm(np.ascontiguousarray(U * cof), np.ascontiguousarray(U.T))
 
 
 def _least(scores):
@@ -839,9 +918,9 @@ def bravo_choice(G, c_row, sigma, B, zero_projection):
     ``det(T T')`` (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
     n, r = G.shape
     scores = np.empty(r + 1)
-    scores[0] = _det(np.dot(G, np.ascontiguousarray(G.T)))
-    a = np.dot(c_row, G)
-    q = np.dot(a, a)
+    scores[0] = _det(_gram(G))
+    a = _vm(c_row, G)
+    q = _vv(a, a)
     nvalid = 0
     for j in range(r):
         scores[j + 1] = scores[0]
@@ -849,15 +928,15 @@ def bravo_choice(G, c_row, sigma, B, zero_projection):
             nvalid += 1
     if q == 0.0 or nvalid == 0:
         return _least(scores)
-    BG = np.dot(np.ascontiguousarray(B.T), G)
-    Ga = np.dot(BG, a)
+    BG = _mm(np.ascontiguousarray(B.T), G)
+    Ga = _mv(BG, a)
     Gt = np.empty_like(BG)
     for i in range(BG.shape[0]):
         for j in range(r):
             Gt[i, j] = BG[i, j] - Ga[i] * (a[j] / q)
-    det_S0, adj = _adjugate_psd(np.dot(Gt, np.ascontiguousarray(Gt.T)))
-    AG = np.dot(adj, Gt)
-    scale = sigma**2 / np.dot(c_row, c_row)
+    det_S0, adj = _adjugate_psd(_gram(Gt))
+    AG = _mm(adj, Gt)
+    scale = sigma**2 / _vv(c_row, c_row)
     for j in range(r):
         if abs(a[j]) > zero_projection:
             quad = 0.0
@@ -871,8 +950,8 @@ def bravo_choice_gram(G, a, M, c_row, sigma, B, zero_projection):
     """:func:`observers.numerics.volmin.bravo_scores_gram` (``a = c G``) and the index of the
     least score (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
     n, r = G.shape
-    u = np.dot(M, c_row)
-    q = np.dot(c_row, u)
+    u = _mv(M, c_row)
+    q = _vv(c_row, u)
     nvalid = 0
     for j in range(r):
         if abs(a[j]) > zero_projection:
@@ -880,19 +959,19 @@ def bravo_choice_gram(G, a, M, c_row, sigma, B, zero_projection):
     if not q > 0.0 or nvalid == 0:
         return 0
     Bt = np.ascontiguousarray(B.T)
-    Bu = np.dot(Bt, u)
-    S0 = np.dot(np.dot(Bt, M), B)
+    Bu = _mv(Bt, u)
+    S0 = _mm(_mm(Bt, M), B)
     k = S0.shape[0]
     for p in range(k):
         for s in range(k):
             S0[p, s] -= Bu[p] * Bu[s] / q
     _symmetrise(S0)
     det_S0, adj = _adjugate_psd(S0)
-    K = np.dot(np.dot(B, adj), Bt)
-    KG = np.dot(K, G)
-    Ku = np.dot(K, u)
-    uKu = np.dot(u, Ku)
-    cc = np.dot(c_row, c_row)
+    K = _mm(_mm(B, adj), Bt)
+    KG = _mm(K, G)
+    Ku = _mv(K, u)
+    uKu = _vv(u, Ku)
+    cc = _vv(c_row, c_row)
     scores = np.empty(r + 1)
     scores[0] = q * det_S0 / cc
     scale = sigma**2 / cc
@@ -918,7 +997,7 @@ def leverages(G, M):
     _, N, ok = _psd_inverse(M)
     if not ok:
         return N, h, False
-    NG = np.dot(N, G)
+    NG = _mm(N, G)
     for j in range(r):
         acc = 0.0
         for p in range(G.shape[0]):
@@ -931,8 +1010,8 @@ def bravo_choice_ratios(a, M, h, c_row, sigma, zero_projection):
     """:func:`observers.numerics.volmin.bravo_ratios` (``a = c G``) and the index of the
     least ratio (0: unchanged zonotope; ties within ``TIE_RTOL``: the first, :func:`_least`)."""
     r = a.shape[0]
-    u = np.dot(M, c_row)
-    q = np.dot(c_row, u)
+    u = _mv(M, c_row)
+    q = _vv(c_row, u)
     scores = np.ones(r + 1)
     if not q > 0.0:
         return 0
@@ -953,9 +1032,9 @@ def leverage_update(N, h, G, c_row, sigma, j):
     if not sigma > 0.0:
         return N, h, False
     n, r = G.shape
-    w = np.dot(N, np.ascontiguousarray(G[:, j - 1]))
+    w = _mv(N, np.ascontiguousarray(G[:, j - 1]))
     hj = h[j - 1]
-    v = np.dot(w, G)
+    v = _vm(w, G)
     h_new = np.empty(r)
     for o in range(r):
         h_new[o] = h[o] - v[o] * v[o] / hj
@@ -980,8 +1059,8 @@ def gram_update(M, G, c_row, sigma, j):
     lam = np.empty(n)
     for p in range(n):
         lam[p] = G[p, j - 1] / a_j
-    u = np.dot(M, c_row)
-    q = np.dot(c_row, u)
+    u = _mv(M, c_row)
+    q = _vv(c_row, u)
     out = np.empty((n, n))
     for p in range(n):
         for s in range(n):
@@ -1015,7 +1094,7 @@ def bravo_update(c, G, a, c_row, y, sigma, j):
         return c, G
     n = G.shape[0]
     lam = G[:, j - 1] / a[j - 1]
-    c_new = c + lam * (y - np.dot(c_row, c))
+    c_new = c + lam * (y - _vv(c_row, c))
     G_new = np.empty_like(G)
     for p in range(n):
         for k in range(G.shape[1]):
@@ -1063,9 +1142,9 @@ class StepData(NamedTuple):
     pivot_rtol: float
 
 
-def _strip_step_py(c, G, d, y, args):
-    data = StepData(*args)
-    cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
+def _strip_update(cp, Gp, y, data):
+    """The measurement update of the strip-based kernels: ``(c, G, ok)`` of the predicted set
+    ``(cp, Gp)`` intersected with the strips of ``y`` by the gain of ``data.mode``."""
     mode = data.mode
     if mode == _PER_STRIP:
         cn, Gn = _per_strip_update(cp, Gp, data.gain, data.C, y, data.sigma)
@@ -1074,7 +1153,7 @@ def _strip_step_py(c, G, d, y, args):
     elif mode == _GIVEN:
         cn, Gn = strip_update(cp, Gp, data.gain, data.C, y, data.sigma)
     else:  # _WANG, _WANG_CORA
-        P = np.dot(Gp, np.ascontiguousarray(Gp.T))
+        P = _gram(Gp)
         if mode == _WANG_CORA:
             Lam, ok = wang_frad_gain(P, data.A, data.C, data.E, data.F)
         else:
@@ -1082,15 +1161,28 @@ def _strip_step_py(c, G, d, y, args):
         if not ok:
             return cp, Gp, False
         cn, Gn = strip_update(cp, Gp, Lam, data.C, y, data.sigma)
+    return cn, Gn, True
+
+
+def _strip_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
+    cn, Gn, ok = _strip_update(cp, Gp, y, data)
+    if not ok:
+        return cp, Gp, False
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
                      JACOBI_MAX_DIM)
     return cn, out, ok
 
 
+def _strip_first_py(c, G, y, args):
+    return _strip_update(c, G, y, StepData(*args))
+
+
 def _propagate_step_py(c, G, d, y, args):
     data = StepData(*args)
     if data.mode == _COMBASTEL:
-        L, ok = combastel_gain(np.dot(G, np.ascontiguousarray(G.T)), data.A, data.C, data.F)
+        L, ok = combastel_gain(_gram(G), data.A, data.C, data.F)
         if not ok:
             return c, G, False
         cn, Gn = propagate((c, G), (data.A, d), data.C, L, y, (data.V_c, data.F),
@@ -1103,13 +1195,12 @@ def _propagate_step_py(c, G, d, y, args):
     return cn, out, ok
 
 
-def _bravo_step_py(c, G, d, y, args):
-    data = StepData(*args)
-    cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
-    M = np.dot(Gn, np.ascontiguousarray(Gn.T))
+def _bravo_update(cn, Gn, y, data):
+    """Bravo's measurement update, strip after strip: ``(c, G, True)``."""
+    M = _gram(Gn)
     N, h, by_leverage = leverages(Gn, M)
     # the projections c G of every strip: one product, then carried strip to strip
-    P = np.dot(data.C, Gn)
+    P = _mm(data.C, Gn)
     for i in range(data.C.shape[0]):
         ci = data.C[i].copy()
         a = P[i].copy()
@@ -1123,12 +1214,25 @@ def _bravo_step_py(c, G, d, y, args):
         M = gram_update(M, Gn, ci, data.sigma[i], j)
         projections_update(P, i + 1, data.C, Gn, a, data.sigma[i], j)
         cn, Gn = bravo_update(cn, Gn, a, ci, y[i], data.sigma[i], j)
+    return cn, Gn, True
+
+
+def _bravo_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
+    cn, Gn, _ = _bravo_update(cn, Gn, y, data)
     out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
                      JACOBI_MAX_DIM)
     return cn, out, ok
 
 
+def _bravo_first_py(c, G, y, args):
+    return _bravo_update(c, G, y, StepData(*args))
+
+
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
+    _PRODUCTS = (_mm, _gram, _mv, _vm, _vv)
+    _mm, _gram, _mv, _vm, _vv = (njit(f) for f in _PRODUCTS)
     _HELPERS = (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into,
                 _jacobi_left, _principal_axes, _lu_small, _det, _solve, _cholesky, _symmetrise,
                 _psd_inverse, _adjugate_psd, _finite, _solve_t, _least)
@@ -1145,6 +1249,9 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
             wang_frad_gain, combastel_gain, propagate, bravo_choice, bravo_choice_gram,
             gram_update, bravo_update, leverages, bravo_choice_ratios, leverage_update,
             projections_update))
+#: ``B @ u`` summed in index order (:func:`_mv`; compiled where numba is): the input term of a
+#: compiled step, the same bits under every BLAS kernel as the step itself
+matvec = _mv
 #: the principal axes in their deterministic basis, from one-sided Jacobi up to ``jacobi_dim``
 #: rows (compiled where numba is; ``observers.sets.reduction.jacobi_principal_axes``)
 principal_axes = _principal_axes
@@ -1152,20 +1259,28 @@ principal_axes = _principal_axes
 reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
 #: ``args = tuple(data)`` of a :class:`StepData` (``None`` without numba)
+if AVAILABLE:
+    _strip_update, _bravo_update = (njit(f, error_model="numpy")
+                                    for f in (_strip_update, _bravo_update))
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
 bravo_step = njit(_bravo_step_py, error_model="numpy")
+#: the measurement updates alone ``first(c, G, y, args) -> (c, G, ok)``: the first set of a
+#: strip-based observer (``X0`` intersected with ``y[0]``, not reduced), by the same compiled
+#: formulas as every later step
+strip_first = njit(_strip_first_py, error_model="numpy")
+bravo_first = njit(_bravo_first_py, error_model="numpy")
 
 #: the kernel names (:class:`observers.kernels.StepKernel`) -> (kernel, gain formula)
 _KERNELS = {
-    "strip-given": (strip_step, _GIVEN),
-    "per-strip": (strip_step, _PER_STRIP),
-    "alamo": (strip_step, _ALAMO),
-    "wang": (strip_step, _WANG),
-    "wang-cora": (strip_step, _WANG_CORA),
-    "bravo": (bravo_step, _BRAVO),
-    "propagation-given": (propagate_step, _GIVEN),
-    "combastel": (propagate_step, _COMBASTEL),
+    "strip-given": (strip_step, _GIVEN, strip_first),
+    "per-strip": (strip_step, _PER_STRIP, strip_first),
+    "alamo": (strip_step, _ALAMO, strip_first),
+    "wang": (strip_step, _WANG, strip_first),
+    "wang-cora": (strip_step, _WANG_CORA, strip_first),
+    "bravo": (bravo_step, _BRAVO, bravo_first),
+    "propagation-given": (propagate_step, _GIVEN, None),
+    "combastel": (propagate_step, _COMBASTEL, None),
 }
 #: the kernel names :func:`prepare` accepts
 KERNEL_NAMES = tuple(_KERNELS)
@@ -1191,6 +1306,9 @@ class StepRun(NamedTuple):
     data: StepData
     #: ``tuple(data)``, the kernel's last argument
     args: tuple
+    #: ``first(c, G, y, args) -> (c, G, ok)``, the measurement update alone (the first set of
+    #: a strip-based observer); ``None`` for the propagation kernels (their first set is X0)
+    first: Callable | None = None
 
 
 class StepModel(NamedTuple):
@@ -1235,14 +1353,15 @@ def prepare(
     Returns
     -------
     StepRun
-        ``(kernel, data, args)``: call ``kernel(c, G, data.B @ u, y, args)`` with writable
-        C-contiguous float vectors ``data.B @ u`` and ``y`` and the ``c, G`` of the previous
-        step (read-only, as the sets keep them).
+        ``(kernel, data, args, first)``: call ``kernel(c, G, matvec(data.B, u), y, args)``
+        with writable C-contiguous float vectors ``matvec(data.B, u)`` and ``y`` and the
+        ``c, G`` of the previous step (read-only, as the sets keep them); ``first(c, G, y,
+        args)`` for the first set of a strip-based observer.
     """
-    step, mode = _KERNELS[kernel]
+    step, mode, first = _KERNELS[kernel]
     data = StepData(
         mode, _NO_GAIN if gain is None else _frozen_c(gain),
         _NO_BASES if bases is None else _frozen_c(bases),
         *(_frozen_c(a) for a in model),
         float(zero_projection), float(order), REDUCTIONS[reduction], CLUSTER_RTOL, PIVOT_RTOL)
-    return StepRun(step, data, tuple(data))
+    return StepRun(step, data, tuple(data), first)
