@@ -239,7 +239,10 @@ class ZonotopeObserver(LinearModelObserver):
         self._reduction_name = compiled_name(strategy)
         kernel = None if self.KERNEL is None else self.KERNEL.select(self.options)
         self._step_kernel = (kernel if self._reduction_name is not None and self.output_linear
-                             and isinstance(self.prediction, LinearPrediction) else None)
+                             else None)
+        #: the model is linear: one kernel call per step; else the kernel runs on the
+        #: linearisation of each step (:func:`observers.kernels.step.predict_linearised`)
+        self._linear_model = isinstance(self.prediction, LinearPrediction)
 
     def output_enclosure(self, lo: np.ndarray, hi: np.ndarray):
         """``(H, d, rad)`` with ``h(x) in H x + d + [-rad, rad]`` over the box ``[lo, hi]``
@@ -290,38 +293,56 @@ class ZonotopeObserver(LinearModelObserver):
             **self.kernel_inputs())
         return self._kernel_run
 
-    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> Zonotope | None:
-        """The set of this step by the compiled kernel from the current set, the input ``u``
-        and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
-        path runs (no kernel for this observer, or the kernel declined the step)."""
+    def kernel_state_matrix(self, c: np.ndarray) -> np.ndarray:
+        """Nonlinear systems: the state matrix the compiled kernel's gain reads for the set
+        with centre ``c`` (the predicted one for a strip-based observer), as the numpy gain
+        does: the latest linearisation ``self.A`` (default)."""
+        return self.A
+
+    def _kernel(self) -> kernel_step.StepRun | None:
+        """The compiled kernel of this run, or ``None``: the numpy path runs."""
         if self._step_kernel is None or not switch.use_compiled():
             return None
-        kernel, data, args, _ = self._kernel_run or self._prepare_run()
+        return self._kernel_run or self._prepare_run()
+
+    def _args(self, run: kernel_step.StepRun, c: np.ndarray) -> tuple:
+        """The kernel's ``args``: the run's own on a linear model, else with
+        :meth:`kernel_state_matrix` at ``c`` as its ``A``."""
+        return run.args if self._linear_model else kernel_step.linearised_args(
+            run, self.kernel_state_matrix(c))
+
+    def _run_compiled(self, fn, *inputs) -> Zonotope | None:
+        """``fn(*inputs) -> (c, G, ok)`` (a compiled kernel) as the set of this step, or
+        ``None`` where the kernel declined it (the numpy path then runs)."""
         try:
-            # y.copy(): a fresh writable C-contiguous vector, one argument type per position
-            # the input term in index order too (kernel_step.FIXED_ORDER_MAX_DIM)
-            d = kernel_step.matvec(data.B, np.ascontiguousarray(u, dtype=np.float64))
-            c, G, ok = kernel(self._c, self._G, d, y.copy(), args)
+            c, G, ok = fn(*inputs)
         except np.linalg.LinAlgError:
             return None
         return self._finish_step(c, G) if ok else None
+
+    def _compiled_step(self, u: np.ndarray, y: np.ndarray) -> Zonotope | None:
+        """The set of this step by the compiled kernel from the current set, the input ``u``
+        and the measurement ``y`` the kernel consumes (a float vector), or ``None``: the numpy
+        path runs (no kernel for this observer, a nonlinear model, or the kernel declined the
+        step)."""
+        run = self._kernel() if self._linear_model else None
+        if run is None:
+            return None
+        # y.copy(): a fresh writable C-contiguous vector, one argument type per position;
+        # the input term in index order too (kernel_step.FIXED_ORDER_MAX_DIM)
+        d = kernel_step.matvec(run.data.B, np.ascontiguousarray(u, dtype=np.float64))
+        return self._run_compiled(run.kernel, self._c, self._G, d, y.copy(), run.args)
 
     def _compiled_first(self, y: np.ndarray) -> Zonotope | None:
         """The first set (``X0`` intersected with the strips of ``y``, not reduced) by the
         compiled measurement update of this observer's kernel, the same formulas as every
         later compiled step, or ``None``: the numpy path runs."""
-        if self._step_kernel is None or not switch.use_compiled():
+        run = self._kernel()
+        if run is None or run.first is None:
             return None
-        run = self._kernel_run or self._prepare_run()
-        if run.first is None:
-            return None
-        X0 = self.X0
-        try:
-            c, G, ok = run.first(np.array(X0.c, dtype=np.float64), np.ascontiguousarray(
-                X0.G, dtype=np.float64), y.copy(), run.args)
-        except np.linalg.LinAlgError:
-            return None
-        return self._finish_step(c, G) if ok else None
+        c = np.array(self.X0.c, dtype=np.float64)
+        return self._run_compiled(run.first, c, np.ascontiguousarray(
+            self.X0.G, dtype=np.float64), y.copy(), self._args(run, c))
 
     def _finish_step(self, c: np.ndarray, G: np.ndarray) -> Zonotope:
         """Keep ``(c, G)`` as the current set, count the step and return the set (the end of
@@ -386,13 +407,25 @@ class StripBasedObserver(ZonotopeObserver):
             if out is not None:
                 return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
-            c = self.A @ self._c + d + self.W.c
-            r, re = self._G.shape[1], self.E.shape[1]
-            # [A G, E, R] without hstack (R: remainder generators, none for a linear system)
-            G = np.empty((self.A.shape[0], r + re + R.shape[1]))
-            np.matmul(self.A, self._G, out=G[:, :r])
-            G[:, r : r + re] = self.E
-            G[:, r + re :] = R
+            run = self._kernel()
+            if run is not None:  # a nonlinear model: the kernel on the linearisation
+                c, G = kernel_step.predict_linearised(
+                    self._c, self._G, np.ascontiguousarray(self.A, dtype=np.float64),
+                    np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(
+                        R, dtype=np.float64), run.args)
+                out = self._run_compiled(kernel_step.strip_predicted, c, G, y.copy(),
+                                         self._args(run, c))
+                if out is not None:
+                    return out
+            else:
+                c = self.A @ self._c + d + self.W.c
+                r, re = self._G.shape[1], self.E.shape[1]
+                # [A G, E, R] without hstack (R: remainder generators, none for a linear
+                # system)
+                G = np.empty((self.A.shape[0], r + re + R.shape[1]))
+                np.matmul(self.A, self._G, out=G[:, :r])
+                G[:, r : r + re] = self.E
+                G[:, r + re :] = R
             t1 = perf_counter()
             c, G = self.intersect(c, G, self.linearise_output(c, G, y))
             t2 = perf_counter()
@@ -500,6 +533,16 @@ class PropagationObserver(ZonotopeObserver):
                 self._y_prev = y
                 return out
             self.A, d, R = self.prediction(self._c, self._G, u, self.k)
+            run = self._kernel()
+            if run is not None:  # a nonlinear model: the kernel on the linearisation
+                out = self._run_compiled(
+                    kernel_step.propagate_linearised, self._c, self._G,
+                    np.ascontiguousarray(d, dtype=np.float64),
+                    np.ascontiguousarray(R, dtype=np.float64), self._y_prev.copy(),
+                    self._args(run, self._c))
+                if out is not None:
+                    self._y_prev = y
+                    return out
             L = self.gain(self._c, self._G)
             c, G = propagate((self._c, self._G), (self.A, d, R), self.C, L, self._y_prev,
                              (self.V.c, self.F), (self.W.c, self.E))

@@ -28,6 +28,18 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import Diverged
+from .kernels import step as kernel_step
+from .kernels import switch
+from .sets.reduction import step_reduction
+
+
+def _matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A @ x`` summed in index order where the kernels are compiled (the same bits under
+    every BLAS kernel up to :data:`~observers.kernels.step.FIXED_ORDER_MAX_DIM`)."""
+    if not switch.use_compiled():
+        return A @ x
+    return kernel_step.matvec(np.ascontiguousarray(A, dtype=np.float64),
+                              np.ascontiguousarray(x, dtype=np.float64))
 
 
 class LinearPrediction:
@@ -60,9 +72,13 @@ def quadratic_forms(Gr: np.ndarray, idx: np.ndarray, Hm: np.ndarray) -> np.ndarr
     ``Hm_e`` at ``idx = (i, j, k)`` (``j <= k``; a mixed entry fills ``(j, k)`` and ``(k, j)``)."""
     n, r = Gr.shape
     i, j, k = idx.T
-    S = np.zeros((n, len(i)))  # scatter of the entries to their output i
-    S[i, np.arange(len(i))] = np.where(j != k, 1.0, 0.5) * Hm
-    P = (S @ (Gr[j][:, :, None] * Gr[k][:, None, :]).reshape(len(i), r * r)).reshape(n, r, r)
+    # each entry's weighted outer product added to its output i, entry after entry: a sum in
+    # index order, the same bits under every BLAS kernel (a product with the scatter matrix
+    # went to BLAS, whose fused multiply-adds differ between kernels)
+    terms = (np.where(j != k, 1.0, 0.5) * Hm)[:, None, None] * (
+        Gr[j][:, :, None] * Gr[k][:, None, :])
+    P = np.zeros((n, r, r))
+    np.add.at(P, i, terms)
     return P + P.transpose(0, 2, 1)
 
 
@@ -102,7 +118,8 @@ class ConservativeLinearisation:
 
     def __init__(self, system, reduction, remainder: str = "box"):
         self.system = system
-        self.reduction = reduction
+        # the order-one reduction feeds the next step: the kernels' deterministic axes
+        self.reduction = step_reduction(reduction)
         self.as_box = remainder == "box"
         self._u = np.zeros(system.nu)
 
@@ -117,7 +134,9 @@ class ConservativeLinearisation:
         a larger one goes whole into the strategy's box (with :class:`PCA`, the box in its
         deterministic principal axes: LAPACK's eigenvectors of ``G G'``, used before 0.7.0,
         depend on the BLAS kernel where eigenvalues repeat or nearly repeat, and moved the
-        18-30-tank rows of ARCH Table 6 by up to 6 % between kernels)."""
+        18-30-tank rows of ARCH Table 6 by up to 6 % between kernels; since 0.13.0 the axes
+        of the step kernels, :meth:`PCA.in_step`: LAPACK's SVD of distinct but close
+        singular values still moved them by up to 7.6 %)."""
         return self.reduction.reduce(G, 1.0)
 
     def __call__(self, c, G, u, k):
@@ -131,7 +150,8 @@ class ConservativeLinearisation:
         J, _ = self.system.jacobian(c, u)
         fc = self.system.f(c, u)
         eps = np.finfo(float).eps
-        rad = 4 * eps * (np.abs(fc) + np.abs(J @ c))  # rounding of f(c) and J c
+        Jc = _matvec(J, c)
+        rad = 4 * eps * (np.abs(fc) + np.abs(Jc))  # rounding of f(c) and J c
         cq, Z = np.zeros(c.size), np.zeros((c.size, 0))
         if len(idx):
             idx = np.asarray(idx, dtype=int).reshape(-1, 3)
@@ -148,7 +168,7 @@ class ConservativeLinearisation:
             rad = np.nextafter(rad + 8 * eps * (c.size ** 2 + len(i)) * mag, np.inf)
         if not (np.all(np.isfinite(rad)) and np.all(np.isfinite(J)) and np.all(np.isfinite(Z))):
             raise Diverged("non-finite linearisation", step=k)
-        return J, fc + cq - J @ c, np.hstack([Z, box_generators(rad)])
+        return J, fc + cq - Jc, np.hstack([Z, box_generators(rad)])
 
 
 class MeanValuePrediction:
@@ -173,10 +193,11 @@ class MeanValuePrediction:
         Jm = 0.5 * (Jlo + Jhi)
         Jr = np.nextafter(0.5 * (Jhi - Jlo), np.inf)
         # f(x) - f(c) in J(B)(x - c) subset Jm (x - c) + [-Jr |x - c|, Jr |x - c|], |x - c| <= r
-        rem = np.nextafter((Jr @ r) * (1 + 4 * np.finfo(float).eps * r.size), np.inf)
-        d = self.system.f(c, u) - Jm @ c
+        rem = np.nextafter(_matvec(Jr, r) * (1 + 4 * np.finfo(float).eps * r.size), np.inf)
+        Jc = _matvec(Jm, c)
+        d = self.system.f(c, u) - Jc
         # rounding of f(c) and of the centre terms: a relative ulp margin on d
-        rem = rem + 4 * np.finfo(float).eps * (np.abs(d) + np.abs(Jm @ c))
+        rem = rem + 4 * np.finfo(float).eps * (np.abs(d) + np.abs(Jc))
         return Jm, d, box_generators(rem)
 
 

@@ -269,7 +269,8 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
             "print('observers.builtin.czn' in sys.modules, 'highspy' in sys.modules, "
             "not dual_simplex_jit.AVAILABLE or len(dual_simplex_jit.iterate.signatures) > 0, "
             "all(k is None or len(k.signatures) == 1 "
-            "for k in (ks.strip_step, ks.propagate_step, ks.bravo_step)))")
+            "for k in (ks.strip_step, ks.propagate_step, ks.predict_linearised, "
+            "ks.strip_predicted, ks.propagate_linearised)))")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert res.stdout.split() == ["True", "True", "True", "True"]

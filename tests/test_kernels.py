@@ -236,12 +236,15 @@ def test_step_kernels_give_the_sets_of_the_numpy_path(scenario, name, options):
 
 
 def test_each_kernel_is_compiled_once():
-    """Every observer passes arguments of the same types (one signature per kernel)."""
-    sc = systems.scenario("vehicle2d-cora")
-    for name, options in CASES:
-        observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
-    for kernel in (kernel_step.strip_step, kernel_step.propagate_step, kernel_step.bravo_step,
-                   kernel_step.strip_first, kernel_step.bravo_first):
+    """Every observer passes arguments of the same types (one signature per kernel), on a
+    linear and on a nonlinear system."""
+    for scenario, cases in (("vehicle2d-cora", CASES), ("tank6-nonlinear", NONLINEAR_CASES)):
+        sc = systems.scenario(scenario)
+        for name, options in cases:
+            observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
+    for kernel in (kernel_step.strip_step, kernel_step.propagate_step, kernel_step.strip_first,
+                   kernel_step.predict_linearised, kernel_step.strip_predicted,
+                   kernel_step.propagate_linearised):
         assert len(kernel.signatures) == 1, kernel.signatures
 
 
@@ -252,10 +255,77 @@ def test_the_kernel_follows_the_option_it_depends_on():
     assert (cora._step_kernel, textbook._step_kernel) == (StepKernel.WANG_CORA, StepKernel.WANG)
 
 
-def test_nonlinear_systems_and_other_reductions_keep_the_numpy_path():
+# observer, options on a nonlinear system: every kernel of an observer that linearises
+# (Alamo, Wang with and without the extra A, Combastel, Bravo), both reductions
+NONLINEAR_CASES = [
+    ("FRad-A", {"reduction": "pca", "order": 5}),
+    ("FRad-A", {"reduction": "girard", "order": 6}),
+    ("FRad-B", {"reduction": "pca", "order": 5}),
+    ("FRad-B", {"reduction": "girard", "order": 5, "variant": "textbook"}),
+    ("FRad-C", {"reduction": "pca", "order": 5}),
+    ("FRad-C", {"reduction": "girard", "order": 10, "remainder": "zonotope"}),
+    ("VolMin-B", {"reduction": "pca", "order": 5}),
+]
+
+
+@pytest.mark.parametrize("scenario", ["tank6-nonlinear", "vanderpol-sim"])
+@pytest.mark.parametrize(("name", "options"), NONLINEAR_CASES,
+                         ids=[f"{n}-{o['reduction']}-{o.get('remainder', 'box')}"
+                              for n, o in NONLINEAR_CASES])
+def test_step_kernels_on_a_linearisation_give_the_sets_of_the_numpy_path(
+        scenario, name, options):
+    # issue 37: on a nonlinear system every step ran in numpy (BLAS products, LAPACK solves),
+    # and ARCH Table 6's 18-30-tank rows moved by up to 7.6 % between OpenBLAS kernels; the
+    # kernels now run the update and the reduction on each step's linearisation
+    sc = systems.scenario(scenario)
+    obs = observers.create(name, sc.system, **options)
+    u, y = sc.u[:30], sc.y[:31]
+    runs = []
+
+    def run():
+        res = observers.run(obs, u, y, on_error="status")
+        runs.append(obs._kernel_run)
+        return res
+
+    compiled, plain = both_paths(run)
+    assert runs[0] is not None and runs[1] is None  # the compiled path really ran, then not
+    assert compiled.status == plain.status == "ok"
+    assert len(compiled.sets) == len(plain.sets) == 31
+    for Sc, Sp in zip(compiled.sets, plain.sets, strict=True):
+        assert Sc.G.shape == Sp.G.shape
+        scale = max(1.0, float(np.abs(Sp.G).max()), float(np.abs(Sp.c).max()))
+        np.testing.assert_allclose(Sc.c, Sp.c, rtol=0, atol=1e-10 * scale)
+        np.testing.assert_allclose(Sc.G, Sp.G, rtol=0, atol=1e-10 * scale)
+
+
+def test_the_linearised_kernels_run_every_step_after_the_first(monkeypatch):
+    # the numpy update and reduction never run on a nonlinear system with a linear output
     sc = systems.scenario("tank6-nonlinear")
-    obs = observers.create("FRad-A", sc.system)
-    assert obs._step_kernel is None
+
+    def numpy_path(*args, **kwargs):
+        raise AssertionError("a step went to the numpy path")
+
+    old = switch.set_compiled(True)
+    try:
+        for name in ("FRad-A", "FRad-B", "VolMin-B"):
+            cls = observers.get(name).cls
+            with monkeypatch.context() as m:
+                m.setattr(cls, "intersect", numpy_path)
+                obs = observers.create(name, sc.system, reduction="pca", order=5)
+                m.setattr(obs, "_reduce", numpy_path)
+                assert observers.run(obs, sc.u[:12], sc.y[:13]).status == "ok"
+        obs = observers.create("FRad-C", sc.system, reduction="pca", order=5)
+        monkeypatch.setattr(obs, "gain", numpy_path)
+        assert observers.run(obs, sc.u[:12], sc.y[:13]).status == "ok"
+    finally:
+        switch.set_compiled(old)
+
+
+def test_other_reductions_and_nonlinear_outputs_keep_the_numpy_path():
+    sc = systems.scenario("tank6-nonlinear")
+    assert observers.create("FRad-A", sc.system)._step_kernel is StepKernel.ALAMO
+    sc = systems.scenario("robot-range")  # a nonlinear output: C changes at every step
+    assert observers.create("FRad-A", sc.system)._step_kernel is None
 
     class Halve:
         name = "halve"

@@ -115,6 +115,36 @@ def test_remainder_is_tight_for_a_quadratic():
     assert np.abs(R).sum() == pytest.approx(0.125, rel=1e-9)
 
 
+def test_quadratic_forms_are_the_hand_formula_summed_entry_by_entry():
+    # M_i = Gr' Q_i Gr with Q_i the symmetric matrix of the entries (i, j, k): a diagonal entry
+    # fills (j, j), a mixed one (j, k) and (k, j) with the same value.  Issue 37: the sum went
+    # through a BLAS product with a scatter matrix, whose fused multiply-adds differ between
+    # kernels; it is now added entry after entry, so two entries of one output are summed in
+    # their index order, exactly
+    from observers.prediction import quadratic_forms
+
+    rng = np.random.default_rng(3)
+    n, r = 4, 3
+    Gr = rng.standard_normal((n, r))
+    idx = np.array([[0, 0, 0], [0, 1, 2], [2, 3, 3], [2, 0, 1], [3, 1, 1], [0, 2, 2]])
+    Hm = rng.standard_normal(len(idx))
+    M = quadratic_forms(Gr, idx, Hm)
+    for i in range(n):
+        Q = np.zeros((n, n))
+        for (o, j, k), h in zip(idx, Hm, strict=True):
+            if o == i:
+                Q[j, k] += h
+                if j != k:
+                    Q[k, j] += h
+        np.testing.assert_allclose(M[i], Gr.T @ Q @ Gr, rtol=0, atol=1e-13)
+    # output 0 has three entries: their terms summed in index order, bit for bit
+    w = np.where(idx[:, 1] != idx[:, 2], 1.0, 0.5) * Hm
+    P0 = np.zeros((r, r))
+    for e in np.flatnonzero(idx[:, 0] == 0):
+        P0 = P0 + w[e] * (Gr[idx[e, 1]][:, None] * Gr[idx[e, 2]][None, :])
+    np.testing.assert_array_equal(M[0], P0 + P0.T)
+
+
 # -- interval arithmetic ---------------------------------------------------------------------
 def test_interval_functions_enclose_sampled_values():
     rng = np.random.default_rng(0)

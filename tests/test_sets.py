@@ -320,3 +320,30 @@ def test_memory_of_the_set_types_by_hand():
     cols = memory_columns(np.array([100.0, 50.0, 10.0, 20.0, 30.0, np.nan]))
     # N = 6: steady from ceil(1.2) = 2 on: median of (10, 20, 30) = 20; peak 100
     assert cols == {"memory": 20.0, "memory_peak": 100.0}
+
+
+def test_step_reduction_takes_the_kernels_jacobi_axes():
+    # issue 37: the order-one reduction of a linearisation's deviation set took LAPACK's SVD
+    # (the stand-alone PCA), whose rounding depends on the BLAS kernel; inside a step it now
+    # takes the step kernels' Jacobi axes, the same box up to rounding where the singular
+    # values are distinct
+    from observers.kernels import switch
+    from observers.sets.reduction import PCA, jacobi_principal_axes, step_reduction
+
+    assert step_reduction(get_reduction("girard")) is get_reduction("girard")
+    stepwise = step_reduction(get_reduction("pca"))
+    assert isinstance(stepwise, PCA) and stepwise.jacobi_dim > 0
+    assert stepwise.cluster_rtol == get_reduction("pca").cluster_rtol
+    rng = np.random.default_rng(7)
+    G = rng.standard_normal((5, 40))
+    for compiled in (True, False) if switch.AVAILABLE else (False,):
+        old = switch.set_compiled(compiled)
+        try:
+            box = stepwise.reduce(G, 1.0)
+            np.testing.assert_allclose(box, get_reduction("pca").reduce(G, 1.0), atol=1e-10)
+        finally:
+            switch.set_compiled(old)
+        # the box's axes are the Jacobi axes: the hand formula U diag(|U' G| 1)
+        U = jacobi_principal_axes(G)
+        np.testing.assert_array_equal(box.shape, (5, 5))
+        np.testing.assert_allclose(box, U * np.abs(U.T @ G).sum(axis=1), atol=1e-12)

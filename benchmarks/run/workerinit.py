@@ -20,12 +20,15 @@ import observers
 import systems
 from observers.sets import ConZonotope
 
-#: one observer per compiled step kernel (``strip_step``: FRad-A; ``propagate_step``: FRad-C;
-#: ``bravo_step``: VolMin-B), run for two steps by :func:`warm`.  Every observer passes its
-#: kernel the same argument types (one ``StepData`` per run), so one call loads a kernel for
-#: all of them, and none of these three has an offline SDP design, so a server with a cold
-#: design cache solves no SDP before forking.
+#: one observer per compiled step kernel (``strip_step`` and ``strip_first``: FRad-A, VolMin-B;
+#: ``propagate_step``: FRad-C), run for two steps by :func:`warm` on a linear system and on a
+#: nonlinear one (``predict_linearised``, ``strip_predicted``, ``propagate_linearised``).  Every
+#: observer passes its kernel the same argument types (one ``StepData`` per run), so one call
+#: loads a kernel for all of them, and none of these three has an offline SDP design, so a
+#: server with a cold design cache solves no SDP before forking.
 KERNEL_OBSERVERS = ("FRad-A", "FRad-C", "VolMin-B")
+#: the scenarios of :func:`warm`: linear, nonlinear
+KERNEL_SCENARIOS = ("alamo2d", "tank6-nonlinear")
 
 
 def warm() -> None:
@@ -35,9 +38,11 @@ def warm() -> None:
         observers.names()
         ConZonotope(np.zeros(2), np.array([[1.0, 0.5, 0.2], [0.0, 1.0, 0.3]]),
                     np.array([[1.0, 1.0, 1.0]]), np.array([0.5])).interval()
-        sc = systems.scenario("alamo2d")
-        for name in KERNEL_OBSERVERS:
-            observers.run(observers.create(name, sc.system, **sc.options), sc.u[:2], sc.y[:2])
+        for scenario in KERNEL_SCENARIOS:
+            sc = systems.scenario(scenario)
+            for name in KERNEL_OBSERVERS:
+                observers.run(observers.create(name, sc.system, **sc.options), sc.u[:2],
+                              sc.y[:2])
     except Exception:  # pragma: no cover - a broken plugin is reported by the run itself
         pass
 

@@ -57,6 +57,11 @@ class WangGainVariant:
         A = self.prediction.jacobian(c) if self.options["variant"] == "cora" else None
         return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
 
+    def kernel_state_matrix(self, c: np.ndarray) -> np.ndarray:
+        """The compiled ``"wang-cora"`` gain's ``A`` on a nonlinear system: the Jacobian at the
+        predicted centre ``c``, as :meth:`wang_gain` (unused by ``"textbook"``)."""
+        return self.prediction.jacobian(c) if self.options["variant"] == "cora" else self.A
+
 
 @register(
     "FRad-B", family="strip", set_type="zonotope", ready_for_control=False,

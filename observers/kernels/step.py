@@ -19,14 +19,21 @@ returns ``(c, G, ok)``:
 * :func:`strip_step`: prediction ``(A c + d + c_W, [A G, E])``, intersection with the strips
   ``|C x - y| <= sigma`` with a given gain (:func:`strip_update`; column by column for
   ``"per-strip"``), Alamo's strip-by-strip gains (:func:`alamo_frad_strips`) or Wang's gain
-  (:func:`wang_frad_gain`, with ``A`` applied once more for ``"wang-cora"``), reduction;
-* :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W`` (:func:`propagate`)
-  with a given gain or Combastel's (:func:`combastel_gain`), reduction;
-* :func:`bravo_step`: prediction, Bravo's choice of the least ``det(T T')`` candidate strip by
-  strip (:func:`bravo_choice_ratios` from the leverages of :func:`leverages`, kept by
+  (:func:`wang_frad_gain`, with ``A`` applied once more for ``"wang-cora"``) or, for
+  ``"bravo"``, Bravo's choice of the least ``det(T T')`` candidate strip by strip
+  (:func:`bravo_choice_ratios` from the leverages of :func:`leverages`, kept by
   :func:`leverage_update`; :func:`bravo_choice_gram` on ``G G'`` where it is badly
   conditioned; ``G G'`` kept by :func:`gram_update`, :func:`bravo_update`; VolMin-B),
-  reduction.
+  reduction;
+* :func:`propagate_step`: ``S+ = (A - L C) S + d + L y + (-L) V + W`` (:func:`propagate`)
+  with a given gain or Combastel's (:func:`combastel_gain`), reduction;
+* :func:`strip_first`: the measurement update alone (the first set of a strip-based observer).
+
+On a nonlinear system the family linearises at every step (``x+ in J x + d + R``,
+:mod:`observers.prediction`) and runs the same formulas on the linearisation:
+:func:`predict_linearised` (``J c + d + c_W``, ``[J G, E, R]``) then :func:`strip_predicted`
+(update and reduction), or :func:`propagate_linearised`, with ``J`` in place of the model's ``A``
+(:func:`linearised_args`).
 
 The kernels' names for their gain formulas (integers) do not leave this module: :func:`prepare`
 maps the kernel names to them.  The compiled formulas carry the names of their numpy twins
@@ -1164,34 +1171,89 @@ def _strip_update(cp, Gp, y, data):
     return cn, Gn, True
 
 
-def _strip_step_py(c, G, d, y, args):
-    data = StepData(*args)
-    cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
-    cn, Gn, ok = _strip_update(cp, Gp, y, data)
+def _update(cp, Gp, y, data):
+    """The measurement update of the strip-based kernels by the gain of ``data.mode``: Bravo's
+    (:func:`_bravo_update`) or a strip gain (:func:`_strip_update`); ``(c, G, ok)``."""
+    if data.mode == _BRAVO:
+        return _bravo_update(cp, Gp, y, data)
+    return _strip_update(cp, Gp, y, data)
+
+
+def _reduced(Gn, data):
+    """The order reduction of every step kernel: ``(G, ok)`` (:func:`reduce`)."""
+    return reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
+                  JACOBI_MAX_DIM)
+
+
+def _update_reduce(cp, Gp, y, data):
+    """Update of the predicted set ``(cp, Gp)`` with ``y``, then the order reduction."""
+    cn, Gn, ok = _update(cp, Gp, y, data)
     if not ok:
         return cp, Gp, False
-    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
-                     JACOBI_MAX_DIM)
+    out, ok = _reduced(Gn, data)
     return cn, out, ok
 
 
-def _strip_first_py(c, G, y, args):
-    return _strip_update(c, G, y, StepData(*args))
+def _append_columns(G, R):
+    """``[G, R]``: the remainder generators of a linearisation after the others (the order of
+    :func:`observers.families.propagate` and of the strip-based numpy step)."""
+    n, r = G.shape
+    out = np.empty((n, r + R.shape[1]))
+    out[:, :r] = G
+    out[:, r:] = R
+    return out
 
 
-def _propagate_step_py(c, G, d, y, args):
+def _strip_step_py(c, G, d, y, args):
     data = StepData(*args)
+    cp, Gp = _predict(c, G, data.A, d, data.W_c, data.E)
+    return _update_reduce(cp, Gp, y, data)
+
+
+def _strip_first_py(c, G, y, args):
+    return _update(c, G, y, StepData(*args))
+
+
+def _predict_linearised_py(c, G, J, d, R, args):
+    data = StepData(*args)
+    cp, Gp = _predict(c, G, J, d, data.W_c, data.E)
+    return cp, _append_columns(Gp, R)
+
+
+def _strip_predicted_py(cp, Gp, y, args):
+    return _update_reduce(cp, Gp, y, StepData(*args))
+
+
+def _propagation(c, G, d, y, data):
+    """:func:`propagate` with the gain of ``data.mode`` (Combastel's or the given one), not
+    reduced: ``(c, G, ok)``."""
     if data.mode == _COMBASTEL:
         L, ok = combastel_gain(_gram(G), data.A, data.C, data.F)
         if not ok:
             return c, G, False
         cn, Gn = propagate((c, G), (data.A, d), data.C, L, y, (data.V_c, data.F),
                            (data.W_c, data.E))
-    else:  # _GIVEN
+    else:  # _GIVEN (two calls: the given gain is read-only, Combastel's is not)
         cn, Gn = propagate((c, G), (data.A, d), data.C, data.gain, y, (data.V_c, data.F),
                            (data.W_c, data.E))
-    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
-                     JACOBI_MAX_DIM)
+    return cn, Gn, True
+
+
+def _propagate_step_py(c, G, d, y, args):
+    data = StepData(*args)
+    cn, Gn, ok = _propagation(c, G, d, y, data)
+    if not ok:
+        return c, G, False
+    out, ok = _reduced(Gn, data)
+    return cn, out, ok
+
+
+def _propagate_linearised_py(c, G, d, R, y, args):
+    data = StepData(*args)
+    cn, Gn, ok = _propagation(c, G, d, y, data)
+    if not ok:
+        return c, G, False
+    out, ok = _reduced(_append_columns(Gn, R), data)
     return cn, out, ok
 
 
@@ -1215,19 +1277,6 @@ def _bravo_update(cn, Gn, y, data):
         projections_update(P, i + 1, data.C, Gn, a, data.sigma[i], j)
         cn, Gn = bravo_update(cn, Gn, a, ci, y[i], data.sigma[i], j)
     return cn, Gn, True
-
-
-def _bravo_step_py(c, G, d, y, args):
-    data = StepData(*args)
-    cn, Gn = _predict(c, G, data.A, d, data.W_c, data.E)
-    cn, Gn, _ = _bravo_update(cn, Gn, y, data)
-    out, ok = reduce(Gn, data.order, data.method, data.cluster_rtol, data.pivot_rtol,
-                     JACOBI_MAX_DIM)
-    return cn, out, ok
-
-
-def _bravo_first_py(c, G, y, args):
-    return _bravo_update(c, G, y, StepData(*args))
 
 
 if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their first call)
@@ -1260,25 +1309,36 @@ reduce = njit(_reduce_py, error_model="numpy")
 #: the compiled step kernels ``kernel(c, G, d, y, args) -> (c, G, ok)`` with
 #: ``args = tuple(data)`` of a :class:`StepData` (``None`` without numba)
 if AVAILABLE:
-    _strip_update, _bravo_update = (njit(f, error_model="numpy")
-                                    for f in (_strip_update, _bravo_update))
+    _strip_update, _bravo_update, _update, _reduced, _update_reduce, _append_columns, \
+        _propagation = (njit(f, error_model="numpy") for f in (
+            _strip_update, _bravo_update, _update, _reduced, _update_reduce, _append_columns,
+            _propagation))
+#: the strip-based step (every gain of the strips, Bravo's too: the mode of its data)
 strip_step = njit(_strip_step_py, error_model="numpy")
 propagate_step = njit(_propagate_step_py, error_model="numpy")
-bravo_step = njit(_bravo_step_py, error_model="numpy")
-#: the measurement updates alone ``first(c, G, y, args) -> (c, G, ok)``: the first set of a
+#: the measurement update alone ``first(c, G, y, args) -> (c, G, ok)``: the first set of a
 #: strip-based observer (``X0`` intersected with ``y[0]``, not reduced), by the same compiled
 #: formulas as every later step
 strip_first = njit(_strip_first_py, error_model="numpy")
-bravo_first = njit(_bravo_first_py, error_model="numpy")
+#: a step on a per-step linearisation ``x+ in J x + d + R`` (nonlinear systems,
+#: :mod:`observers.prediction`), in two calls so that a gain may read the Jacobian at the
+#: predicted centre: ``predict_linearised(c, G, J, d, R, args) -> (cp, [J G, E, R])``, then
+#: ``strip_predicted(cp, Gp, y, args) -> (c, G, ok)`` (update and reduction); the
+#: propagation kernels in one call, ``propagate_linearised(c, G, d, R, y, args)``, with the
+#: Jacobian ``J`` as the ``A`` of ``args``
+predict_linearised = njit(_predict_linearised_py, error_model="numpy")
+strip_predicted = njit(_strip_predicted_py, error_model="numpy")
+propagate_linearised = njit(_propagate_linearised_py, error_model="numpy")
 
-#: the kernel names (:class:`observers.kernels.StepKernel`) -> (kernel, gain formula)
+#: the kernel names (:class:`observers.kernels.StepKernel`) -> (kernel, gain formula, first
+#: set)
 _KERNELS = {
     "strip-given": (strip_step, _GIVEN, strip_first),
     "per-strip": (strip_step, _PER_STRIP, strip_first),
     "alamo": (strip_step, _ALAMO, strip_first),
     "wang": (strip_step, _WANG, strip_first),
     "wang-cora": (strip_step, _WANG_CORA, strip_first),
-    "bravo": (bravo_step, _BRAVO, bravo_first),
+    "bravo": (strip_step, _BRAVO, strip_first),
     "propagation-given": (propagate_step, _GIVEN, None),
     "combastel": (propagate_step, _COMBASTEL, None),
 }
@@ -1365,3 +1425,10 @@ def prepare(
         *(_frozen_c(a) for a in model),
         float(zero_projection), float(order), REDUCTIONS[reduction], CLUSTER_RTOL, PIVOT_RTOL)
     return StepRun(step, data, tuple(data), first)
+
+
+def linearised_args(run: StepRun, A) -> tuple:
+    """The ``args`` of ``run`` with the state matrix ``A`` of this step in place of the model's
+    (a per-step linearisation: the Jacobian the propagation kernels apply and the ``"wang-cora"``
+    gain reads); a read-only copy, so that every step passes the same argument types."""
+    return tuple(run.data._replace(A=_frozen_c(A)))

@@ -167,14 +167,15 @@ def use_compiled() -> bool:
 
 
 def _compiled(G: np.ndarray, order: float, method: str,
-              cluster_rtol: float = CLUSTER_RTOL) -> np.ndarray | None:
+              cluster_rtol: float = CLUSTER_RTOL, jacobi_dim: int = 0) -> np.ndarray | None:
     """The compiled reduction ``method`` (a name of
-    :data:`observers.kernels.step.REDUCTIONS`) of ``G`` (``order`` trusted), or ``None``
-    where the numpy path must decide (numba off, not a float matrix, or a non-finite entry)."""
+    :data:`observers.kernels.step.REDUCTIONS`) of ``G`` (``order`` trusted; principal axes
+    by Jacobi up to ``jacobi_dim`` rows), or ``None`` where the numpy path must decide (numba
+    off, not a float matrix, or a non-finite entry)."""
     if not switch.use_compiled() or G.dtype != np.float64 or G.ndim != 2:
         return None
     out, ok = kernel_step.reduce(G, float(order), kernel_step.REDUCTIONS[method], cluster_rtol,
-                               PIVOT_RTOL, 0)
+                               PIVOT_RTOL, jacobi_dim)
     return out if ok else None
 
 
@@ -270,17 +271,26 @@ class PCA:
 
     name = "pca"
 
-    def __init__(self, cluster_rtol: float = CLUSTER_RTOL):
+    def __init__(self, cluster_rtol: float = CLUSTER_RTOL, jacobi_dim: int = 0):
         self.cluster_rtol = cluster_rtol
+        #: up to this many rows the axes come from one-sided Jacobi (:meth:`in_step`)
+        self.jacobi_dim = jacobi_dim
 
     def lifted(self, cluster_rtol: float = LIFTED_CLUSTER_RTOL) -> PCA:
         """The strategy for the lifted zonotopes of constrained zonotopes: clusters at least
         as wide as ``cluster_rtol`` (:data:`observers.kernels.step.LIFTED_CLUSTER_RTOL`, whose
         comment says why)."""
-        return PCA(max(self.cluster_rtol, cluster_rtol))
+        return PCA(max(self.cluster_rtol, cluster_rtol), self.jacobi_dim)
+
+    def in_step(self) -> PCA:
+        """The strategy as the step kernels compute it: the axes by one-sided Jacobi up to
+        :data:`~observers.kernels.step.JACOBI_MAX_DIM` rows (:func:`jacobi_principal_axes`,
+        the same bits under every BLAS kernel), for a reduction whose result feeds the next
+        step (the order-one deviation set of a linearisation's remainder)."""
+        return PCA(self.cluster_rtol, kernel_step.JACOBI_MAX_DIM)
 
     def reduce(self, G: np.ndarray, order: float) -> np.ndarray:
-        out = _compiled(G, order, "pca", self.cluster_rtol)
+        out = _compiled(G, order, "pca", self.cluster_rtol, self.jacobi_dim)
         if out is not None:
             return out
         keep, red, abs_red = _split(G, order)
@@ -288,7 +298,9 @@ class PCA:
             return keep
         # the covariance of [red, -red] is proportional to red @ red.T (zero mean by
         # symmetry): its eigenvectors are the left singular vectors of red
-        return _box_in_basis(keep, red, principal_axes(red, self.cluster_rtol), BOX_ZERO_RTOL)
+        axes = (jacobi_principal_axes(red, self.cluster_rtol) if self.jacobi_dim
+                else principal_axes(red, self.cluster_rtol))
+        return _box_in_basis(keep, red, axes, BOX_ZERO_RTOL)
 
 
 def lifted_reduction(strategy: Reduction, **options) -> Reduction:
@@ -297,6 +309,14 @@ def lifted_reduction(strategy: Reduction, **options) -> Reduction:
     method: :meth:`PCA.lifted`), else the strategy itself."""
     lifted = getattr(strategy, "lifted", None)
     return lifted(**options) if callable(lifted) else strategy
+
+
+def step_reduction(strategy: Reduction) -> Reduction:
+    """The strategy as the step kernels compute it, for a reduction inside a step whose result
+    feeds the next one: the strategy's ``in_step()`` variant where it has one
+    (:meth:`PCA.in_step`), else the strategy itself."""
+    in_step = getattr(strategy, "in_step", None)
+    return in_step() if callable(in_step) else strategy
 
 
 def cora_principal_axes(red: np.ndarray) -> np.ndarray:
