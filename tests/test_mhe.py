@@ -10,6 +10,7 @@ import pytest
 import observers
 import systems
 from observers.builtin.exact import exact_hulls
+from observers.numerics import mhe as nm
 from observers.numerics.mhe import WindowHullLP
 from observers.sets import Zonotope
 
@@ -218,3 +219,29 @@ def test_contains_the_independent_exact_hull_where_the_audit_floor_is_loose():
         _, _, rlo, rhi = explicit_hulls((s.A, s.B, s.C, *sets), sc.u[:k], sc.y[:N], steps=[k])[k]
         tol = 1e-9 * (1 + np.abs(rlo))  # the reference's own LP precision
         assert np.all(lo[k] <= rlo + tol) and np.all(hi[k] >= rhi - tol), (form, k)
+
+
+@pytest.mark.parametrize("T", [0, 1, 4])
+def test_window_arrays_of_the_compiled_kernel_are_the_numpy_paths(T):
+    # the window's constrained zonotope in one compiled call (observers.kernels.window) and by
+    # the numpy recursion: the same arrays up to rounding
+    from observers.kernels import switch
+
+    g = np.random.default_rng(T)
+    n, m, nu = 4, 2, 1
+    model = (g.normal(size=(n, n)) * 0.5, g.normal(size=(n, nu)), g.normal(size=(m, n)),
+             (g.normal(size=n), np.diag(g.uniform(0.5, 1.0, n))),
+             (g.normal(size=n) * 0.01, np.diag(np.full(n, 0.1))),
+             (np.zeros(m), np.diag(np.full(m, 0.2))))
+    u, y = g.normal(size=(T, nu)), g.normal(size=(T + 1, m))
+    old = switch.set_compiled(False)
+    try:
+        plain = nm.window_conzonotope(model, u, y)
+    finally:
+        switch.set_compiled(old)
+    if not switch.use_compiled():
+        pytest.skip("numba not installed or disabled")
+    compiled = nm.window_conzonotope(model, u, y)
+    for a, b in zip(compiled, plain, strict=True):
+        assert a.shape == b.shape
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * max(1.0, np.abs(b).max()))

@@ -58,8 +58,8 @@ HULL_CASES: tuple[HullCase, ...] = (
     HullCase("tank200-linear", "CZN-A", repeat=1, solvers=("highs", "sifting")),
 )
 #: the phases of :attr:`observers.sets.HullLPStats.seconds`, in the order of the table
-PHASES = ("setup", "pivots", "refactor", "certify", "start", "models", "restricted", "pricing",
-          "bounds", "highs")
+PHASES = ("solve", "setup", "pivots", "refactor", "certify", "start", "models", "restricted",
+          "pricing", "bounds", "highs")
 
 
 def steady_hull_problem(case: HullCase) -> tuple[dict[str, Any], tuple[np.ndarray, ...]]:

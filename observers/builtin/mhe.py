@@ -178,5 +178,6 @@ class MHE(LinearModelObserver):
         c, G, A, b = nm.window_conzonotope(
             (self.A, self.B, self.C, start, self._sets[1], self._V_czn),
             self._record.inputs(), self._record.outputs())
-        I = ConZonotope(c, G, A, b).with_solver(self._solver).interval()
+        # arrays built here from finite data (the measurements and hulls are checked)
+        I = ConZonotope.trusted(c, G, A, b, self._solver).interval()
         return np.asarray(I.lo, float), np.asarray(I.hi, float)

@@ -14,7 +14,9 @@ A room of its own between the compiled kernels and the set types (``kernels`` <-
   of columns priced against all of them (:func:`observers.lp.sifting.solve`);
 - :mod:`observers.lp.dual_simplex` and :mod:`observers.lp.dual_simplex_jit`: the batched
   bounded dual simplex that solves the 2n hull LPs of one set together, numpy path and
-  compiled twin side by side (same pivots).
+  compiled twin side by side (same pivots); :mod:`observers.lp.batch_solve_jit`: the same
+  solve (set-up, iterations, refactorisations, certificate) as one compiled call, which the
+  hulls take where the kernels are compiled.
 """
 
 from .highs import new_highs

@@ -29,7 +29,7 @@ except ImportError as exc:  # pragma: no cover - exercised only on broken instal
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
 from ..errors import EmptySet, SetError
-from . import dual_simplex, sifting
+from . import batch_solve_jit, dual_simplex, sifting
 from .highs import new_highs
 
 _EPS = np.finfo(float).eps
@@ -259,7 +259,9 @@ class HullLP:
             return self._sift(Gd, A, b)
         if self.solver == "auto" and not batched_is_cheaper(K, p):
             return np.array([self.maximize(g, A, b) for g in Gd])
-        res = dual_simplex.solve(A, b, Gd)
+        # one compiled call where the kernels are compiled (the same method)
+        res = (batch_solve_jit.solve if dual_simplex.use_compiled() else dual_simplex.solve)(
+            A, b, Gd)
         t0 = perf_counter()
         bounds = dual_bounds(Gd, A, b, res.mu)
         self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})

@@ -64,6 +64,8 @@ from collections import deque
 import numpy as np
 
 from ..errors import EmptySet
+from ..kernels import switch
+from ..kernels import window as kernel_window
 from .exact import MARGIN, ExactHullLP, StepHulls, _Layout
 
 __all__ = ["WindowHullLP", "WindowRecord", "box_factors", "window_conzonotope"]
@@ -131,6 +133,9 @@ def window_conzonotope(model: tuple, u, y
     c0, G0 = start
     cW, GW = W
     cV, GV = V
+    if switch.use_compiled():  # the same recursion in one compiled call
+        return kernel_window.window_arrays(*(np.ascontiguousarray(a, dtype=np.float64) for a in (
+            A, B, C, c0, G0, cW, GW, cV, GV, np.reshape(u, (u.shape[0], B.shape[1])), y)))
     n, m = A.shape[0], C.shape[0]
     T = u.shape[0]
     rs, rw, rv = G0.shape[1], GW.shape[1], GV.shape[1]
