@@ -6,9 +6,13 @@ A job is a picklable value, ``fn`` a module-level function; an executor yields
 One failed job never stops the others.
 
 Every executor keeps per-job *limits* (:meth:`set_limits`): a *job timeout* in seconds and a
-memory limit in bytes (the resident memory of the worker process running the job, watched
-from the parent every :data:`POLL_S` seconds; a ``MemoryError`` in the job counts too).  A job
-over one is stopped from outside and reported as ``timeout`` or ``memory``.  Three time limits
+memory limit in bytes (the resident memory the worker process running the job has gained
+since it became ready for its first job, watched from the parent every :data:`POLL_S` seconds;
+a ``MemoryError`` in the job counts too).  A job over one is stopped from outside (its worker
+ended) and reported as ``timeout`` or ``memory``.  What the worker holds when it is ready is not
+the job's: the harness it imported, and the pages it shares with the server it was forked from
+(with a cold numba cache that server compiled every kernel and holds about 1 GB of the
+compiler's memory, which a fork counts as resident).  Three time limits
 of the harness, not to be confused:
 
 * the *job timeout* here, a hard stop: ``run --timeout`` or a configuration's ``timeout:``
@@ -117,12 +121,20 @@ def rss_bytes(pid: int) -> int | None:
         return None
 
 
+def job_memory(w: _Worker) -> int | None:
+    """Resident bytes worker ``w`` gained since it first started a job (None if unknown)."""
+    used = rss_bytes(w.proc.pid)
+    if used is None:
+        return None
+    return used - (w.base or 0)
+
+
 def _timeout_message(timeout: float) -> str:
     return f"stopped after the budget of {timeout:g} s"
 
 
 def _memory_message(limit: int, used: int | None = None) -> str:
-    used_s = f" (resident {format_bytes(used)})" if used else ""
+    used_s = f" (the job's resident memory {format_bytes(used)})" if used else ""
     return f"stopped over the memory limit of {format_bytes(limit)}{used_s}"
 
 
@@ -285,6 +297,8 @@ class _Worker:
         child.close()
         self.chunk: deque = deque()
         self.started: float | None = None
+        #: resident bytes when the worker first started a job (what it holds before any job)
+        self.base: int | None = None
 
     @property
     def index(self) -> int:
@@ -364,8 +378,8 @@ class ProcessExecutor(_Limited):
         Budget in seconds per job; a job over it is stopped (its worker ended) and reported
         as ``timeout``.
     memory_limit : int, optional
-        Bytes of resident memory a worker may hold while it runs a job; a job over it is
-        stopped (its worker ended) and reported as ``memory``.
+        Bytes of resident memory a worker may gain, from the start of its first job, while it
+        runs a job; a job over it is stopped (its worker ended) and reported as ``memory``.
     """
 
     name = "processes"
@@ -438,7 +452,12 @@ class ProcessExecutor(_Limited):
                         continue
                     if kind == "started":
                         w.started = time.monotonic()
+                        if w.base is None and self.memory_limit is not None:
+                            w.base = rss_bytes(w.proc.pid)
                         busy[conn] = w
+                        continue
+                    if kind == "memory":  # the worker may keep what the job took: end it
+                        yield fail(w, "memory", value)
                         continue
                     index, _ = w.chunk.popleft()
                     w.started = None
@@ -448,8 +467,7 @@ class ProcessExecutor(_Limited):
                         self._idle.append(w)
                     if kind == "config":
                         raise ConfigError(value)
-                    yield index, value if kind == "ok" else JobFailure(
-                        "memory" if kind == "memory" else "error", value)
+                    yield index, value if kind == "ok" else JobFailure("error", value)
                 now = time.monotonic()
                 for conn, w in list(busy.items()):
                     if w.started is None:
@@ -458,7 +476,7 @@ class ProcessExecutor(_Limited):
                         del busy[conn]
                         yield fail(w, "timeout", _timeout_message(self.timeout))
                     elif self.memory_limit is not None:
-                        used = rss_bytes(w.proc.pid)
+                        used = job_memory(w)
                         if used is not None and used > self.memory_limit:
                             del busy[conn]
                             yield fail(w, "memory", _memory_message(self.memory_limit, used))
