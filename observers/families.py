@@ -119,6 +119,12 @@ def propagate(
     return c_new, G_new
 
 
+def _fresh(a) -> np.ndarray:
+    """A writable C-ordered float copy of ``a`` (a user's Jacobian may be read-only: passed
+    as it is, it would compile the linearised kernels once more for that array type)."""
+    return np.array(a, dtype=np.float64, order="C")
+
+
 def as_zonotope(S, what: str) -> Zonotope:
     """Zonotope view of a system set (zonotopes and intervals are accepted)."""
     if isinstance(S, Zonotope):
@@ -410,9 +416,7 @@ class StripBasedObserver(ZonotopeObserver):
             run = self._kernel()
             if run is not None:  # a nonlinear model: the kernel on the linearisation
                 c, G = kernel_step.predict_linearised(
-                    self._c, self._G, np.ascontiguousarray(self.A, dtype=np.float64),
-                    np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(
-                        R, dtype=np.float64), run.args)
+                    self._c, self._G, _fresh(self.A), _fresh(d), _fresh(R), run.args)
                 out = self._run_compiled(kernel_step.strip_predicted, c, G, y.copy(),
                                          self._args(run, c))
                 if out is not None:
@@ -536,9 +540,8 @@ class PropagationObserver(ZonotopeObserver):
             run = self._kernel()
             if run is not None:  # a nonlinear model: the kernel on the linearisation
                 out = self._run_compiled(
-                    kernel_step.propagate_linearised, self._c, self._G,
-                    np.ascontiguousarray(d, dtype=np.float64),
-                    np.ascontiguousarray(R, dtype=np.float64), self._y_prev.copy(),
+                    kernel_step.propagate_linearised, self._c, self._G, _fresh(d), _fresh(R),
+                    self._y_prev.copy(),
                     self._args(run, self._c))
                 if out is not None:
                     self._y_prev = y

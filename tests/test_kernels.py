@@ -247,12 +247,28 @@ def _both_runs(obs, u, y):
 ONE_SIGNATURE = """
 import observers, systems
 from observers.kernels import step as ks
+from systems import NonlinearSystem
 from tests.test_kernels import CASES, NONLINEAR_CASES
+
+
+def frozen_jacobian(x, u):  # a user's Jacobian that returns read-only arrays
+    J, Bu = base.jacobian(x, u)
+    J.setflags(write=False)
+    return J, Bu
+
+
 for scenario, cases in (("vehicle2d-cora", CASES), ("tank6-nonlinear", NONLINEAR_CASES),
                         ("vanderpol-sim", NONLINEAR_CASES)):
     sc = systems.scenario(scenario)
     for name, options in cases:
         observers.run(observers.create(name, sc.system, **options), sc.u[:4], sc.y[:4])
+sc = systems.scenario("tank6-nonlinear")
+base = sc.system
+user = NonlinearSystem(base._f, base.n, base.nu, base.C, W=base.W, V=base.V, X0=base.X0,
+                       jacobian=frozen_jacobian, hessian=base.hessian, domain=(0.0, float("inf")),
+                       name="user-tank6")
+for name, options in NONLINEAR_CASES:
+    observers.run(observers.create(name, user, **options), sc.u[:4], sc.y[:4])
 for k in (ks.strip_step, ks.propagate_step, ks.strip_first, ks.predict_linearised,
           ks.strip_predicted, ks.propagate_linearised):
     print(k.py_func.__name__, len(k.signatures))
@@ -261,9 +277,9 @@ for k in (ks.strip_step, ks.propagate_step, ks.strip_first, ks.predict_linearise
 
 def test_each_kernel_is_compiled_once():
     """Every observer passes arguments of the same types (one signature per kernel), on a
-    linear and on nonlinear systems.  In a process of its own: a user's system whose Jacobian
-    is a read-only array (other tests build such systems) passes another array type, and
-    compiles the linearised kernels once more."""
+    linear and on nonlinear systems, also a user's system whose Jacobian returns read-only
+    arrays (bug: passed as they were, they compiled the linearised kernels once more).  In a
+    process of its own: the count covers only the systems above."""
     import subprocess
     import sys
 
@@ -449,3 +465,27 @@ def test_the_first_set_of_a_strip_observer_is_the_kernels_update_of_x0(name, mon
         first_set()  # made by the kernel alone: the numpy intersection never runs
     finally:
         switch.set_compiled(old)
+
+
+@pytest.mark.parametrize("shape", [(3, 10), (6, 50), (5, 5), (30, 900)])
+def test_householder_factor_has_the_gram_matrix_and_the_axes_of_the_columns(shape):
+    """The Jacobi axes of a wide deviation set run on the ``n x n`` Householder factor (the
+    order-one reduction of a nonlinear remainder has ``k`` near ``100 n`` columns): ``L`` is
+    lower triangular with ``L L' = red red'`` (also with a zero row and a tiny one), and the
+    axes span the SVD's singular subspaces."""
+    from observers.sets.reduction import CLUSTER_RTOL, PIVOT_RTOL
+
+    rng = np.random.default_rng(7)
+    red = rng.standard_normal(shape)
+    red[1] *= 1e-9
+    if shape[0] > 3:
+        red[2] = 0.0
+    L = kernel_step._householder_lower(red)
+    gram = red @ red.T
+    assert np.array_equal(L, np.tril(L))
+    np.testing.assert_allclose(L @ L.T, gram, rtol=0, atol=1e-14 * np.abs(gram).max())
+    U = kernel_step.principal_axes(red, CLUSTER_RTOL, PIVOT_RTOL, kernel_step.JACOBI_MAX_DIM)
+    np.testing.assert_allclose(U.T @ U, np.eye(shape[0]), atol=1e-13)
+    V, s, _ = np.linalg.svd(red)
+    big = s > 1e-6 * s[0]  # well-separated singular values: each axis is one of the SVD's
+    np.testing.assert_allclose(np.abs(U[:, big].T @ V[:, big]).max(axis=0), 1.0, atol=1e-10)

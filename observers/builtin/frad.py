@@ -54,13 +54,18 @@ class WangGainVariant:
         """Gain (n x m) for the predicted set ``(c, G)``; for a nonlinear system ``A`` is the
         Jacobian at the predicted centre ``c`` (as CORA, whose stored results this reproduces
         to 1e-9)."""
-        A = self.prediction.jacobian(c) if self.options["variant"] == "cora" else None
-        return wang_frad_gain(G @ G.T, A, self.C, self.E, self.F)
+        return wang_frad_gain(G @ G.T, self.gain_state_matrix(c), self.C, self.E, self.F)
+
+    def gain_state_matrix(self, c: np.ndarray) -> np.ndarray | None:
+        """The ``A`` the gain applies to the predicted set with centre ``c``: ``"cora"`` the
+        Jacobian at ``c`` (``A`` itself on a linear system), ``"textbook"`` none."""
+        return self.prediction.jacobian(c) if self.options["variant"] == "cora" else None
 
     def kernel_state_matrix(self, c: np.ndarray) -> np.ndarray:
-        """The compiled ``"wang-cora"`` gain's ``A`` on a nonlinear system: the Jacobian at the
-        predicted centre ``c``, as :meth:`wang_gain` (unused by ``"textbook"``)."""
-        return self.prediction.jacobian(c) if self.options["variant"] == "cora" else self.A
+        """The compiled gain's ``A`` on a nonlinear system: :meth:`gain_state_matrix` (the
+        latest linearisation where ``"textbook"``'s gain reads none)."""
+        A = self.gain_state_matrix(c)
+        return self.A if A is None else A
 
 
 @register(

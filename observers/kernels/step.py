@@ -463,12 +463,49 @@ def _jacobi_left(red):
     return U, s_sorted
 
 
+def _householder_lower(red):
+    """A lower-triangular ``L`` (n x n) with ``L L' = red red'`` for ``red`` (n x k, k >= n):
+    ``L = R'`` of the Householder QR ``red' = Q R``, so ``red`` and ``L`` have the same left
+    singular vectors and values.  Plain loops in index order (the same bits under every BLAS
+    kernel), on the rows of a copy of ``red`` (the columns of ``red'``): reflection ``j`` maps
+    row ``j``'s entries ``j..k-1`` onto a multiple of the first and applies to the rows below.
+    Costs about ``2 k n^2`` flops once; the Jacobi sweeps then run on ``n`` columns instead of
+    ``k`` (the order-one reduction of a nonlinear remainder has ``k`` near ``100 n``)."""
+    n, k = red.shape
+    W = red.copy()
+    L = np.zeros((n, n))
+    for j in range(n):
+        xx = 0.0
+        for i in range(j, k):
+            xx += W[j, i] * W[j, i]
+        norm = math.sqrt(xx)
+        alpha = -norm if W[j, j] >= 0.0 else norm
+        L[j, j] = alpha
+        if norm == 0.0:  # nothing to reflect: the rows below keep their entry j
+            for r in range(j + 1, n):
+                L[r, j] = W[r, j]
+            continue
+        x0 = W[j, j]
+        W[j, j] = x0 - alpha  # W[j, j:] is now the reflection's vector v
+        vv = 2.0 * (xx - x0 * alpha)  # v'v
+        for r in range(j + 1, n):
+            dot = 0.0
+            for i in range(j, k):
+                dot += W[j, i] * W[r, i]
+            f = 2.0 * dot / vv
+            for i in range(j, k):
+                W[r, i] -= f * W[j, i]
+            L[r, j] = W[r, j]
+    return L
+
+
 def _principal_axes(red, cluster_rtol, pivot_rtol, jacobi_dim):
     """:func:`.reduction.principal_axes` (n x n orthonormal axes of the columns ``red``), by
-    :func:`_jacobi_left` if ``n <= jacobi_dim``."""
+    :func:`_jacobi_left` if ``n <= jacobi_dim`` (on :func:`_householder_lower`'s ``n x n``
+    factor where ``red`` has more columns than rows)."""
     n, k = red.shape
     if n <= jacobi_dim:
-        U, s = _jacobi_left(red)
+        U, s = _jacobi_left(_householder_lower(red) if k > n else red)
     else:
         if k > n:
             _, R = np.linalg.qr(np.ascontiguousarray(red.T))
@@ -1283,11 +1320,12 @@ if AVAILABLE:  # helpers, resolved by the kernels when they compile (at their fi
     _PRODUCTS = (_mm, _gram, _mv, _vm, _vv)
     _mm, _gram, _mv, _vm, _vv = (njit(f) for f in _PRODUCTS)
     _HELPERS = (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into,
-                _jacobi_left, _principal_axes, _lu_small, _det, _solve, _cholesky, _symmetrise,
-                _psd_inverse, _adjugate_psd, _finite, _solve_t, _least)
-    (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into, _jacobi_left,
-     _principal_axes, _lu_small, _det, _solve, _cholesky, _symmetrise, _psd_inverse,
-     _adjugate_psd, _finite, _solve_t, _least) = (njit(f) for f in _HELPERS)
+                _householder_lower, _jacobi_left, _principal_axes, _lu_small, _det, _solve,
+                _cholesky, _symmetrise, _psd_inverse, _adjugate_psd, _finite, _solve_t, _least)
+    (_pairwise_block, _pairwise_sum, _smallest, _tie_band, _cluster_basis_into,
+     _householder_lower, _jacobi_left, _principal_axes, _lu_small, _det, _solve, _cholesky,
+     _symmetrise, _psd_inverse, _adjugate_psd, _finite, _solve_t, _least) = (
+        njit(f) for f in _HELPERS)
     # the formulas of the kernels keep the kernels' error model (a division by zero gives
     # inf or nan, as in numpy, instead of raising; no checks in the loops)
     (_predict, _strip_generators, strip_update, _per_strip_update, alamo_frad_strips,
