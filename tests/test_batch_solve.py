@@ -56,17 +56,25 @@ def _observer_hulls(scenario: str, name: str, steps: int, **options) -> list[tup
     seen = []
     solve = bs.solve
 
+    hull = bs.hull
+
     def spy(A, b, Gd, *args, **kwargs):
         seen.append((np.array(A), np.array(b), np.array(Gd)))
         return solve(A, b, Gd, *args, **kwargs)
 
+    def spy_hull(G, A, b, *args, **kwargs):  # the LPs of the hull: its constrained columns
+        coupled = np.any(A != 0.0, axis=0)
+        seen.append((np.array(A[:, coupled]), np.array(b),
+                     np.vstack([G[:, coupled], -G[:, coupled]])))
+        return hull(G, A, b, *args, **kwargs)
+
     sc = systems.scenario(scenario)
-    bs.solve = spy  # the hulls call it where the kernels are compiled
+    bs.solve, bs.hull = spy, spy_hull  # the hulls call them where the kernels are compiled
     try:
         res = observers.run(observers.create(name, sc.system, **options), sc.u[:steps],
                             sc.y[:steps + 1])
     finally:
-        bs.solve = solve
+        bs.solve, bs.hull = solve, hull
     assert res.status == "ok" and seen
     return seen
 
@@ -130,3 +138,64 @@ def test_hulls_take_the_one_call_solve_where_the_kernels_are_compiled(monkeypatc
     finally:
         ds.set_compiled(old)
     assert calls == [1]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("seed", range(4))
+def test_the_bounds_evaluated_in_the_call_are_those_of_its_dual_points(kind, seed):
+    """The one call evaluates the weak-duality bounds of its dual points itself (``bounds``,
+    summed in index order): the bound :func:`dual_bounds` gives for the same points, up to
+    the rounding both slacks cover, also for the problems re-solved in the clean-up."""
+    A, b, Gd, _ = _instance(kind, seed)
+    res = bs.solve(A, b, Gd)
+    ref = dual_bounds(Gd, A, b, res.mu)
+    p, r = A.shape
+    rounding = (p + r + 4) * np.finfo(float).eps * (
+        np.abs(res.mu) @ np.abs(b) + np.abs(Gd).sum(axis=1)
+        + np.abs(res.mu) @ np.abs(A).sum(axis=1) + np.abs(ref))
+    assert res.bounds is not None and res.bounds.shape == (Gd.shape[0],)
+    assert np.all(np.abs(res.bounds - ref) <= 2 * rounding)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("seed", range(3))
+def test_the_hull_call_solves_the_lps_of_the_constrained_columns(kind, seed):
+    """:func:`bs.hull` (split, perturb, solve and bound in one call) gives the bits of
+    :func:`bs.solve` on the constrained columns with the costs ``[Gc; -Gc]``, and the free
+    columns' radii; here with three columns in no constraint put among the others."""
+    A, b, Gd, _ = _instance(kind, seed)
+    rng = np.random.default_rng(seed)
+    r = A.shape[1]
+    G = rng.standard_normal((3, r + 3))
+    free = np.sort(rng.choice(r + 3, 3, replace=False))
+    cols = np.setdiff1d(np.arange(r + 3), free)
+    Afull = np.zeros((A.shape[0], r + 3))
+    Afull[:, cols] = A
+    res = bs.hull(G, Afull, b)
+    ref = bs.solve(A, b, np.vstack([G[:, cols], -G[:, cols]]))
+    assert np.array_equal(res.cols, cols) and res.free == 3
+    assert np.array_equal(res.bounds, ref.bounds)
+    assert np.array_equal(res.converged, ref.converged)
+    np.testing.assert_array_equal(res.rad_free, np.abs(G[:, free]).sum(axis=1))
+
+
+def test_hull_lp_hull_hands_the_unfinished_lps_to_highs_and_takes_no_constraint(monkeypatch):
+    """:meth:`HullLP.hull` with a budget of one pivot: the LPs left unfinished go to HiGHS
+    (counted as fallbacks) and the hull is the one HiGHS gives for every LP, within HiGHS's
+    tolerance; with no constraint row, the box of the generators."""
+    from observers.lp.hull import HullLP
+
+    A, b, Gd, _ = _instance("generic", 1)
+    G = Gd[: Gd.shape[0] // 2]
+    c = np.arange(G.shape[0], dtype=float)
+    lo_ref, hi_ref = HullLP("highs").hull(c, G, A, b)
+    monkeypatch.setattr(ds, "max_iterations", lambda p: 1)
+    lp = HullLP("batched")
+    lo, hi = lp.hull(c, G, A, b)
+    assert lp.fallbacks > 0
+    scale = np.abs(G).sum(axis=1)
+    assert np.all(np.abs(lo - lo_ref) <= 1e-7 * scale)
+    assert np.all(np.abs(hi - hi_ref) <= 1e-7 * scale)
+    lo0, hi0 = HullLP("batched").hull(c, G, np.zeros((0, G.shape[1])), np.zeros(0))
+    assert np.all(hi0 >= c + scale) and np.all(lo0 <= c - scale)
+    np.testing.assert_allclose(hi0 - lo0, 2 * scale, rtol=1e-13)

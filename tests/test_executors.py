@@ -334,7 +334,8 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
     code = ("import sys; import benchmarks.run.workerinit; "
             "from observers.lp import batch_solve_jit; from observers.kernels import step as ks; "
             "print('observers.builtin.czn' in sys.modules, 'highspy' in sys.modules, "
-            "not batch_solve_jit.AVAILABLE or len(batch_solve_jit._solve_jit.signatures) > 0, "
+            "not batch_solve_jit.AVAILABLE or min(len(batch_solve_jit._solve_jit.signatures), "
+            "len(batch_solve_jit._hull_jit.signatures)) > 0, "
             "all(k is None or len(k.signatures) == 1 "
             "for k in (ks.strip_step, ks.propagate_step, ks.predict_linearised, "
             "ks.strip_predicted, ks.propagate_linearised)))")

@@ -3,7 +3,8 @@
 
 Importing this module imports the harness (:mod:`benchmarks.run.runner`), every observer plugin
 (with what they import: HiGHS, scipy.stats, numba, ...) and loads the compiled (numba) simplex
-kernel from its disk cache by solving one tiny hull LP, and the compiled one-step kernels
+kernels from their disk cache by one tiny hull and support (the one-call hull and the batched
+solve of :mod:`observers.lp.batch_solve_jit`), and the compiled one-step kernels
 (:mod:`observers.kernels.step`) by two steps of one observer per kernel on the
 2-state example.  A worker forked from that server
 then pays none of it: without this, each worker spent about 2.5 s of CPU importing the
@@ -36,8 +37,10 @@ def warm() -> None:
     a worker then simply pays them at its first job, as without the preload)."""
     try:
         observers.names()
-        ConZonotope(np.zeros(2), np.array([[1.0, 0.5, 0.2], [0.0, 1.0, 0.3]]),
-                    np.array([[1.0, 1.0, 1.0]]), np.array([0.5])).interval()
+        Z = ConZonotope(np.zeros(2), np.array([[1.0, 0.5, 0.2], [0.0, 1.0, 0.3]]),
+                        np.array([[1.0, 1.0, 1.0]]), np.array([0.5]))
+        Z.interval()  # the one-call hull (batch_solve_jit.hull)
+        Z.support(np.eye(2))  # the batched solve (batch_solve_jit.solve)
         for scenario in KERNEL_SCENARIOS:
             sc = systems.scenario(scenario)
             for name in KERNEL_OBSERVERS:

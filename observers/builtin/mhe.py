@@ -24,7 +24,7 @@ from ..families import LinearModelObserver
 from ..numerics import mhe as nm
 from ..options import Choice, Integer
 from ..registry import create, register
-from ..sets import ConZonotope, EmptySet, HullLP, Interval
+from ..sets import EmptySet, HullLP, Interval
 
 #: observers that may run alongside as the ``inner`` bound of the window's first state
 INNER = ("none", "FRad-A", "FRad-B", "CZN-A", "CZN-B")
@@ -178,6 +178,6 @@ class MHE(LinearModelObserver):
         c, G, A, b = nm.window_conzonotope(
             (self.A, self.B, self.C, start, self._sets[1], self._V_czn),
             self._record.inputs(), self._record.outputs())
-        # arrays built here from finite data (the measurements and hulls are checked)
-        I = ConZonotope.trusted(c, G, A, b, self._solver).interval()
-        return np.asarray(I.lo, float), np.asarray(I.hi, float)
+        # arrays built here from finite data (the measurements and hulls are checked): the
+        # hull of ConZonotope(c, G, A, b).interval(), without building the set
+        return self._solver.hull(c, G, A, b)

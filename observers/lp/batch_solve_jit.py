@@ -35,6 +35,7 @@ dominate.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -224,13 +225,20 @@ def _run(M, MT, b, up, colnorm2, key_mask, z, D, Binv, basis, uB, status, its, m
         updates = 0
 
 
-def _certified(M, b, c, r, mu, z, Binv, uB, status):
+def _certified(M, b, c, r, mu, z, Binv, uB, status, bounds):
     """:meth:`.dual_simplex._BatchLP.certified`: primal feasible bases with a negligible
-    duality gap at ``mu``."""
+    duality gap at ``mu``; ``bounds[k]`` the weak-duality bound of ``mu[k]`` for the costs
+    ``c[k]`` (:func:`observers.lp.hull.dual_bounds`' formula and outward rounding: the slack
+    bounds the rounding of any order of summation)."""
     p, N = M.shape
     K = mu.shape[0]
     good = np.zeros(K, dtype=np.bool_)
     t = np.empty(p)
+    eps = np.finfo(np.float64).eps
+    rowsum = np.zeros(p)
+    for i in range(p):
+        for j in range(r):
+            rowsum[i] += abs(M[i, j])
     for k in range(K):
         for i in range(p):
             s = b[i]
@@ -247,18 +255,29 @@ def _certified(M, b, c, r, mu, z, Binv, uB, status):
                 feasible = False
         gap = 0.0
         size = 0.0
+        t1 = 0.0
+        t2 = 0.0
+        mu_a = 0.0
         for i in range(p):
             size += abs(b[i]) * abs(mu[k, i])
+            t1 += mu[k, i] * b[i]
+            mu_a += abs(mu[k, i]) * rowsum[i]
+        scale_b = size
         for j in range(r):
             s = 0.0
             for i in range(p):
                 s += mu[k, i] * M[i, j]
-            dz = (c[k, j] - s) * z[k, j]
+            d = c[k, j] - s
+            dz = d * z[k, j]
             if dz < 0.0:
                 gap -= dz
             size += abs(c[k, j])
+            t2 += abs(d)
         good[k] = (feasible and status[k] != dual_simplex_jit.UNBOUNDED
                    and 2.0 * gap <= GAP_TOL * size)
+        # size - scale_b is sum |c_j|: the scale of dual_bounds' slack
+        scale = scale_b + (size - scale_b) + mu_a + abs(t1) + t2
+        bounds[k] = t1 + t2 + (p + r + 4) * eps * scale
     return good
 
 
@@ -305,7 +324,8 @@ def _solve_py(A, b, Gd, pert, max_iter, refactor_every):
     _refactor(M, basis, Binv)
     c[:, :r] = Gd  # the exact costs
     mu = _duals(c, basis, Binv)
-    good = _certified(M, b, c, r, mu, z, Binv, uB, status)
+    bounds = np.empty(K)
+    good = _certified(M, b, c, r, mu, z, Binv, uB, status, bounds)
     n_bad = K - int(good.sum())
     if n_bad and n_its < max_iter:  # clean-up with the exact costs
         sub = np.flatnonzero(~good)
@@ -325,11 +345,57 @@ def _solve_py(A, b, Gd, pert, max_iter, refactor_every):
         n_its += its_s.max()
         _refactor(M, bs, Bs)
         mus = _duals(cs, bs, Bs)
-        goods = _certified(M, b, cs, r, mus, zs, Bs, us, ss)
+        bounds_s = np.empty(sub.size)
+        goods = _certified(M, b, cs, r, mus, zs, Bs, us, ss, bounds_s)
         for a in range(sub.size):
             mu[sub[a]] = mus[a]
             good[sub[a]] = goods[a]
-    return mu, good, n_its, work
+            bounds[sub[a]] = bounds_s[a]
+    return mu, good, n_its, work, bounds
+
+
+def _hull_py(G, A, b, stream, max_iter, refactor_every):
+    """The batched hull LPs of ``{c + G xi : A xi = b, |xi| <= 1}`` in the call: the columns
+    in some constraint (``Gc``, ``Ac``), the costs ``[Gc; -Gc]`` perturbed by the factors
+    ``stream`` (:func:`.dual_simplex._jitter`'s prefix, the same products as :func:`solve`),
+    :func:`_solve_py` (compiled); and ``rad_free = sum_j |G_ij|`` over the other columns.
+    Returns the bounds of ``max`` (rows ``0..n-1``) and of ``-min`` (rows ``n..2n-1``),
+    which finished, the lock-step and summed iterations, ``rad_free``, the number of free
+    columns and the coupled columns' indices."""
+    n, R = G.shape
+    p = A.shape[0]
+    cols = np.empty(R, dtype=np.int64)
+    rc = 0
+    rad_free = np.zeros(n)
+    for j in range(R):
+        coupled = False
+        for i in range(p):
+            if A[i, j] != 0.0:
+                coupled = True
+                break
+        if coupled:
+            cols[rc] = j
+            rc += 1
+        else:
+            for i in range(n):
+                rad_free[i] += abs(G[i, j])
+    cols = cols[:rc]
+    K = 2 * n
+    Ac = np.empty((p, rc))
+    Gd = np.empty((K, rc))
+    pert = np.empty((K, rc))
+    for a in range(rc):
+        j = cols[a]
+        for i in range(p):
+            Ac[i, a] = A[i, j]
+        for i in range(n):
+            Gd[i, a] = G[i, j]
+            Gd[n + i, a] = -G[i, j]
+    for k in range(K):
+        for a in range(rc):
+            pert[k, a] = Gd[k, a] * (1.0 + PERTURBATION * stream[k * rc + a])
+    mu, good, its, work, bounds = _solve_jit(Ac, b, Gd, pert, max_iter, refactor_every)
+    return bounds, good, its, work, rad_free, R - rc, cols
 
 
 if AVAILABLE:
@@ -337,8 +403,50 @@ if AVAILABLE:
         numba.njit(cache=True, nogil=True, error_model="numpy")(f) for f in (
             _inverse, _basis_matrix, _crash, _refactor, _duals, _start, _run, _certified))
     _solve_jit = numba.njit(cache=True, nogil=True, error_model="numpy")(_solve_py)
+    _hull_jit = numba.njit(cache=True, nogil=True, error_model="numpy")(_hull_py)
 else:  # pragma: no cover - depends on the installation
-    _solve_jit = None
+    _solve_jit = _hull_jit = None
+
+
+@dataclass(frozen=True)
+class HullResult:
+    """:func:`hull`'s result: ``bounds`` (2n: the maxima of ``G_i xi``, then of ``-G_i xi``,
+    over the constrained columns), which finished, the work, ``rad_free`` (n), the number of
+    free columns and the constrained ones (``cols``)."""
+
+    bounds: np.ndarray
+    converged: np.ndarray
+    iterations: int
+    problem_iterations: int
+    rad_free: np.ndarray
+    free: int
+    cols: np.ndarray
+
+
+def hull(G: np.ndarray, A: np.ndarray, b: np.ndarray, max_iter: int | None = None,
+         seed: int = 0, refactor_every: int | None = None) -> HullResult:
+    """The 2n batched hull LPs of ``{c + G xi : A xi = b, |xi| <= 1}`` (``p >= 1``
+    constraints, at least one column in a constraint), split into constrained and free
+    columns, solved by :func:`solve`'s method and bounded by weak duality, in one compiled
+    call: the numbers of ``solve(A[:, cols], b, [Gc; -Gc])`` and its ``bounds``.  Requires
+    numba (:data:`AVAILABLE`)."""
+    if _hull_jit is None:
+        raise RuntimeError("the compiled batched hull needs numba")
+    G = np.ascontiguousarray(G, dtype=np.float64)
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    (n, R), p = G.shape, A.shape[0]
+    if max_iter is None:
+        max_iter = dual_simplex.max_iterations(p)
+    if refactor_every is None:
+        refactor_every = dual_simplex.REFACTOR_EVERY
+    if 2 * n * (R + p) > 1 << 32:
+        raise ValueError(f"too many LPs or columns for one batch ({2 * n} x {R + p})")
+    stream = _jitter((2 * n, R), seed).reshape(-1)  # a prefix long enough for any split
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        bounds, good, its, work, rad_free, free, cols = _hull_jit(
+            G, A, b, stream, int(max_iter), int(refactor_every))
+    return HullResult(bounds, good, int(its), int(work), rad_free, int(free), cols)
 
 
 def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = None,
@@ -367,5 +475,7 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, max_iter: int | None = N
     t0 = perf_counter()
     pert = Gd * (1.0 + PERTURBATION * _jitter(Gd.shape, seed))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        mu, good, its, work = _solve_jit(A, b, Gd, pert, int(max_iter), int(refactor_every))
-    return DualSimplexResult(mu, good, int(its), int(work), {"solve": perf_counter() - t0})
+        mu, good, its, work, bounds = _solve_jit(A, b, Gd, pert, int(max_iter),
+                                                 int(refactor_every))
+    return DualSimplexResult(mu, good, int(its), int(work), {"solve": perf_counter() - t0},
+                             bounds)

@@ -73,13 +73,16 @@ _INF_KEY = np.array(np.inf).view(np.uint64)[()]
 class DualSimplexResult:
     """Dual points ``mu`` (K x p), which problems reached optimality, the work done
     (lock-step iterations, and iterations summed over the problems) and its seconds by phase
-    (``setup``, ``pivots``, ``refactor``, ``certify``; see :class:`Clock`)."""
+    (``setup``, ``pivots``, ``refactor``, ``certify``; see :class:`Clock`); ``bounds``: the
+    weak-duality bounds of ``mu`` where the solver evaluated them
+    (:func:`observers.lp.hull.dual_bounds`' formula; ``None``: the caller evaluates them)."""
 
     mu: np.ndarray
     converged: np.ndarray
     iterations: int
     problem_iterations: int
     seconds: dict[str, float] = field(default_factory=dict)
+    bounds: np.ndarray | None = None
 
 
 class Clock:

@@ -263,7 +263,7 @@ class HullLP:
         res = (batch_solve_jit.solve if dual_simplex.use_compiled() else dual_simplex.solve)(
             A, b, Gd)
         t0 = perf_counter()
-        bounds = dual_bounds(Gd, A, b, res.mu)
+        bounds = dual_bounds(Gd, A, b, res.mu) if res.bounds is None else res.bounds
         self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})
         self.solves += Gd.shape[0]
         self.iterations += res.problem_iterations
@@ -271,6 +271,50 @@ class HullLP:
             self.fallbacks += 1
             bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
         return bounds
+
+    def hull(self, c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Sound interval hull ``(lo, hi)`` of ``{c + G xi : A xi = b, |xi| <= 1}``: the 2n
+        LPs of :meth:`maximize_many` over the columns in some constraint, the other columns
+        in closed form (``sum_j |G_ij|``), the sums rounded outward.  Where
+        :meth:`maximize_many` would take the compiled batched dual simplex, all of it is one
+        compiled call (:func:`.batch_solve_jit.hull`: the same LPs, the same bounds), HiGHS
+        for the LPs it does not finish.  Raises :class:`EmptySet` where the
+        set is empty."""
+        n, (p, R) = G.shape[0], A.shape
+        K = 2 * n
+        if p == 0:  # no constraint: every column is free
+            bounds, rad_free, free = np.zeros(K), np.abs(G).sum(axis=1), R
+        elif (dual_simplex.use_compiled() and K * (R + p) <= 1 << 32
+                and (self.solver == "batched"
+                     or (self.solver == "auto" and batched_is_cheaper(K, p)))):
+            t0 = perf_counter()
+            res = batch_solve_jit.hull(G, A, b)
+            self._add_seconds({"solve": perf_counter() - t0})
+            self.solves += K
+            self.iterations += res.problem_iterations
+            bounds, rad_free, free = res.bounds, res.rad_free, res.free
+            if not res.converged.all():  # not finished: HiGHS (both bounds are valid)
+                Gc, Ac = G[:, res.cols], A[:, res.cols]
+                for k in np.nonzero(~res.converged)[0]:
+                    self.fallbacks += 1
+                    g = Gc[k] if k < n else -Gc[k - n]
+                    bounds[k] = min(bounds[k], self.maximize(g, Ac, b))
+        else:
+            coupled = np.any(A != 0.0, axis=0)
+            Gc, Ac, Gf = G[:, coupled], A[:, coupled], G[:, ~coupled]
+            bounds = self.maximize_many(np.vstack([Gc, -Gc]), Ac, b)
+            rad_free, free = np.abs(Gf).sum(axis=1), Gf.shape[1]
+        hi, lo = bounds[:n], bounds[n:]
+        # outward rounding of the free generators' sums and of the final sums
+        slack = (free + 4) * _EPS * (np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
+        up = c + (hi + rad_free) + slack
+        down = c - (lo + rad_free) - slack
+        if np.any(down > up):  # both bounds are sound: they cross only for an empty set
+            i = int(np.argmax(down - up))
+            raise EmptySet(f"constrained zonotope is empty (its hull bounds cross in "
+                           f"coordinate {i}: {down[i]:.17g} > {up[i]:.17g})")
+        return down, up
 
     def _sift(self, Gd: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
         """:meth:`maximize_many` by sifting (:mod:`observers.lp.sifting`) over the columns in

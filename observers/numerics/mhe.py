@@ -101,8 +101,14 @@ def box_factors(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     of its centre and radius."""
     c = 0.5 * (lo + hi)
     r = 0.5 * (hi - lo)
-    r = r + 4 * np.finfo(float).eps * (np.abs(lo) + np.abs(hi)) + np.finfo(float).tiny
-    return c, np.diag(r)
+    r = r + _FOUR_EPS * (np.abs(lo) + np.abs(hi)) + _TINY
+    G = np.zeros((r.size, r.size))
+    G.flat[:: r.size + 1] = r
+    return c, G
+
+
+_FOUR_EPS = 4 * np.finfo(float).eps
+_TINY = np.finfo(float).tiny
 
 
 def window_conzonotope(model: tuple, u, y

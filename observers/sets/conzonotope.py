@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import EmptySet, SetError
+from ..errors import SetError
 from ..lp import HullLP, box_feasible
 from . import conzono_ops as ops
 from ._arrays import (
@@ -315,22 +315,7 @@ class ConZonotope(CentreGenerators):
         if self.num_constraints == 0:
             self._hull = Zonotope(self._c, self._G).interval()
             return self._hull
-        Gc, Ac, Gf = self._split_free()
-        rad_free = np.abs(Gf).sum(axis=1)
-        n = self.dim
-        hilo = self._lp().maximize_many(np.vstack([Gc, -Gc]), Ac, self._b)
-        hi, lo = hilo[:n], hilo[n:]
-        # outward rounding of the free generators' sums and of the final sums
-        c = self._c
-        slack = (Gf.shape[1] + 4) * np.finfo(float).eps * (
-            np.abs(c) + np.abs(hi) + np.abs(lo) + rad_free)
-        up = c + (hi + rad_free) + slack
-        down = c - (lo + rad_free) - slack
-        if np.any(down > up):  # both bounds are sound: they cross only for an empty set
-            i = int(np.argmax(down - up))
-            raise EmptySet(f"constrained zonotope is empty (its hull bounds cross in "
-                           f"coordinate {i}: {down[i]:.17g} > {up[i]:.17g})")
-        self._hull = Interval(down, up)
+        self._hull = Interval(*self._lp().hull(self._c, self._G, self._A, self._b))
         return self._hull
 
     def support(self, d) -> float | np.ndarray:
