@@ -186,13 +186,23 @@ def _start(M, c, basis, Binv, z_old, use_old):
     mu = _duals(c, basis, Binv)
     z = np.zeros((K, N))
     D = np.zeros((K, N))
+    sv = np.empty(r)
+    tv = np.empty(r)
     for k in range(K):
+        # mu'M and |mu|'|M| over the columns, each entry summed in row order (row by row:
+        # the loops run along the rows of M, the same sums as column by column)
+        sv[:] = 0.0
+        tv[:] = 0.0
+        for i in range(p):
+            m = mu[k, i]
+            am = abs(m)
+            row = M[i]
+            for j in range(r):
+                sv[j] += m * row[j]
+                tv[j] += am * abs(row[j])
         for j in range(r):
-            s = 0.0
-            t = 0.0
-            for i in range(p):
-                s += mu[k, i] * M[i, j]
-                t += abs(mu[k, i]) * abs(M[i, j])
+            s = sv[j]
+            t = tv[j]
             d = c[k, j] - s
             zj = math.copysign(1.0, d)
             if use_old and abs(d) <= DUAL_TOL * (abs(c[k, j]) + t) and z_old[k, j] != 0.0:
@@ -239,12 +249,15 @@ def _certified(M, b, c, r, mu, z, Binv, uB, status, bounds):
     for i in range(p):
         for j in range(r):
             rowsum[i] += abs(M[i, j])
+    sv = np.empty(r)
     for k in range(K):
         for i in range(p):
             s = b[i]
+            zk = z[k]
+            row = M[i]
             for j in range(N):
-                if z[k, j] != 0.0:
-                    s -= M[i, j] * z[k, j]
+                if zk[j] != 0.0:
+                    s -= row[j] * zk[j]
             t[i] = s
         feasible = True
         for i in range(p):
@@ -263,11 +276,14 @@ def _certified(M, b, c, r, mu, z, Binv, uB, status, bounds):
             t1 += mu[k, i] * b[i]
             mu_a += abs(mu[k, i]) * rowsum[i]
         scale_b = size
+        sv[:] = 0.0  # mu'M over the columns, each entry summed in row order
+        for i in range(p):
+            m = mu[k, i]
+            row = M[i]
+            for j in range(r):
+                sv[j] += m * row[j]
         for j in range(r):
-            s = 0.0
-            for i in range(p):
-                s += mu[k, i] * M[i, j]
-            d = c[k, j] - s
+            d = c[k, j] - sv[j]
             dz = d * z[k, j]
             if dz < 0.0:
                 gap -= dz
