@@ -23,9 +23,16 @@ rounding.  As there, the result is a dual point per problem and a flag; the call
 dual point into a sound bound by weak duality (:func:`observers.lp.hull.dual_bounds`) and
 solves the problems not converged with HiGHS, so this solver decides tightness and speed only.
 
-:class:`observers.lp.hull.HullLP` calls it for its batched hulls where the kernels are
+The call also evaluates those weak-duality bounds itself (``DualSimplexResult.bounds``: the
+formula of :func:`observers.lp.hull.dual_bounds` with its outward rounding, summed in index
+order), and :func:`hull` does the whole interval hull of a constrained zonotope in one call:
+the split into columns in some constraint and free ones, the perturbed costs ``[Gc; -Gc]``,
+the solve and the bounds.
+
+:class:`observers.lp.hull.HullLP` calls them for its batched hulls where the kernels are
 compiled (:func:`.dual_simplex.use_compiled`), :func:`.dual_simplex.solve` otherwise.  The
-tests pair the two on random hulls and on the observers' own.  Measured on the hulls of the
+tests pair the two on random hulls and on the observers' own, and :func:`hull` with
+:func:`solve` on the constrained columns (the same bits).  Measured on the hulls of the
 first 80 steps (per hull, same machine and load): MHE on the 6 tanks (18 rows, 46 columns,
 12 LPs) 581 -> 122 us; CZN-B on the 6 tanks (6 rows, 609 columns) 699 -> 395 us; CZN-A on
 the 6-state vehicle (8 rows, 612 columns) 1282 -> 912 us, where the pivots themselves
