@@ -120,8 +120,12 @@ def propagate(
 
 
 def _fresh(a) -> np.ndarray:
-    """A writable C-ordered float copy of ``a`` (a user's Jacobian may be read-only: passed
-    as it is, it would compile the linearised kernels once more for that array type)."""
+    """``a`` as a writable C-ordered float array, copied only if it is not one (a user's
+    Jacobian may be read-only: passed as it is, it would compile the linearised kernels once
+    more for that array type)."""
+    if (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable):
+        return a
     return np.array(a, dtype=np.float64, order="C")
 
 

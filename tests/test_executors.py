@@ -348,3 +348,31 @@ def test_worker_server_preloads_the_plugins_and_the_compiled_kernel():
         from multiprocessing import forkserver
 
         assert "benchmarks.run.workerinit" in forkserver._forkserver._preload_modules
+
+
+def _leak_and_return(nbytes):
+    """Keep ``nbytes`` in this worker (written: resident) and return at once."""
+    _HELD.append(np.ones(nbytes // 8))
+    return len(_HELD)
+
+
+def test_a_job_that_ends_over_the_memory_limit_between_two_polls_is_memory_not_ok(
+        monkeypatch):
+    """Bug (CI, the Dask run of the misbehaving plugins): a job that gained more than the
+    limit and ended before the parent's next look at its worker was ``ok``, and the next job
+    in that worker was charged the memory it kept (``Test-Leak`` ok, ``Test-Exit`` memory
+    with 2.24 GiB, the leak's 12 x 200 MB).  No poll here during the job: its peak, read
+    when it ends, must catch it, and the next job runs in a fresh worker."""
+    from benchmarks.run import executors
+
+    monkeypatch.setattr(executors, "POLL_S", 600.0)
+    ex = ProcessExecutor(1, memory_limit=300_000_000)
+    try:
+        out = dict(ex.map(_leak_and_return, [500_000_000, 8, 8], keys=["k"] * 3))
+    finally:
+        ex.close()
+    first = out.pop(0)
+    assert first.status == "memory", first
+    assert first.message.startswith("went over the memory limit of 286 MiB (the job's peak "
+                                    "resident memory "), first.message
+    assert out == {1: 1, 2: 2}  # a fresh worker: the 500 MB are not the next jobs'

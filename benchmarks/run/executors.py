@@ -7,9 +7,11 @@ One failed job never stops the others.
 
 Every executor keeps per-job *limits* (:meth:`set_limits`): a *job timeout* in seconds and a
 memory limit in bytes (the resident memory the worker process running the job has gained
-since it became ready for its first job, watched from the parent every :data:`POLL_S` seconds;
-a ``MemoryError`` in the job counts too).  A job over one is stopped from outside (its worker
-ended) and reported as ``timeout`` or ``memory``.  What the worker holds when it is ready is not
+since it became ready for its first job, watched from the parent every :data:`POLL_S` seconds
+and, when the job ends, its peak, so that a job that went over between two looks is caught
+too; a ``MemoryError`` in the job counts as well).  A job over one is stopped from outside
+(its worker ended; a job that ended over the memory limit loses its result) and reported as
+``timeout`` or ``memory``.  What the worker holds when it is ready is not
 the job's: the harness it imported, and the pages it shares with the server it was forked from
 (with a cold numba cache that server compiled every kernel and holds about 1 GB of the
 compiler's memory, which a fork counts as resident).  Three time limits
@@ -121,6 +123,34 @@ def rss_bytes(pid: int) -> int | None:
         return None
 
 
+def _own_memory() -> tuple[int | None, int | None]:  # pragma: no cover - in the worker
+    """This process's resident memory now and its peak (``VmRSS``, ``VmHWM``; None where
+    ``/proc`` does not say)."""
+    now = peak = None
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmRSS:"):
+                    now = int(line.split()[1]) * 1024
+                elif line.startswith("VmHWM:"):
+                    peak = int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return now, peak
+
+
+def _reset_peak() -> int | None:  # pragma: no cover - in the worker
+    """Set this process's peak resident memory to what it holds now (Linux ``clear_refs``,
+    value 5) and return that: the base a job's peak is measured from.  Where the peak cannot
+    be reset, the peak so far (a job is then charged only what goes beyond it)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+    except OSError:
+        return _own_memory()[1]
+    return _own_memory()[0]
+
+
 def job_memory(w: _Worker) -> int | None:
     """Resident bytes worker ``w`` gained since it first started a job (None if unknown)."""
     used = rss_bytes(w.proc.pid)
@@ -129,11 +159,24 @@ def job_memory(w: _Worker) -> int | None:
     return used - (w.base or 0)
 
 
+def _peak_over(w: _Worker, peak: int | None, limit: int | None) -> int | None:
+    """The peak resident memory the job that just ended in ``w`` gained, if over ``limit``
+    (None: within it, or not known).  The peak of a worker only grows and every job before
+    this one ended within the limit (else its worker was ended), so a peak over it is this
+    job's."""
+    if limit is None or peak is None or w.base is None:
+        return None
+    return peak - w.base if peak - w.base > limit else None
+
+
 def _timeout_message(timeout: float) -> str:
     return f"stopped after the budget of {timeout:g} s"
 
 
-def _memory_message(limit: int, used: int | None = None) -> str:
+def _memory_message(limit: int, used: int | None = None, peak: bool = False) -> str:
+    if peak:  # seen when the job ended: its result is not taken
+        return (f"went over the memory limit of {format_bytes(limit)} (the job's peak "
+                f"resident memory {format_bytes(used)}); its result is not taken")
     used_s = f" (the job's resident memory {format_bytes(used)})" if used else ""
     return f"stopped over the memory limit of {format_bytes(limit)}{used_s}"
 
@@ -262,6 +305,7 @@ def _worker_loop(conn, env: dict[str, str],
     # settings read when used, like SETOBS_CACHE_DIR, then follow the parent)
     os.environ.clear()
     os.environ.update(env)
+    base = None
     while True:
         try:
             msg = conn.recv()
@@ -271,7 +315,11 @@ def _worker_loop(conn, env: dict[str, str],
             return
         fn, chunk = msg
         for _, job in chunk:
-            conn.send(("started", None))  # the timeout counts from here (not the worker start)
+            # the timeout counts from here (not the worker start); the first job also sends
+            # the memory the worker holds before any job, from which every job's peak counts
+            if base is None:
+                base = _reset_peak()
+            conn.send(("started", base))
             try:
                 out = ("ok", fn(job))
             except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
@@ -280,10 +328,11 @@ def _worker_loop(conn, env: dict[str, str],
                 out = ("memory", _describe(exc))
             except Exception as exc:
                 out = ("raised", _describe(exc))
+            peak = _own_memory()[1]  # the job's peak: a job may end before a poll sees it
             try:
-                conn.send(out)
+                conn.send((*out, peak))
             except Exception as exc:  # an unpicklable result
-                conn.send(("raised", f"result not transferable: {_describe(exc)}"))
+                conn.send(("raised", f"result not transferable: {_describe(exc)}", peak))
 
 
 class _Worker:
@@ -379,7 +428,8 @@ class ProcessExecutor(_Limited):
         as ``timeout``.
     memory_limit : int, optional
         Bytes of resident memory a worker may gain, from the start of its first job, while it
-        runs a job; a job over it is stopped (its worker ended) and reported as ``memory``.
+        runs a job; a job over it is stopped (its worker ended) and reported as ``memory``,
+        and so is a job whose peak, read when it ended, was over it (its result not taken).
     """
 
     name = "processes"
@@ -444,7 +494,7 @@ class ProcessExecutor(_Limited):
                 for conn in wait(list(busy), timeout=wait_s):
                     w = busy.pop(conn)
                     try:
-                        kind, value = conn.recv()
+                        kind, value, *peak = conn.recv()
                     except (EOFError, OSError):
                         w.proc.join(timeout=5)
                         yield fail(w, "error", "worker process died while running this job "
@@ -452,12 +502,17 @@ class ProcessExecutor(_Limited):
                         continue
                     if kind == "started":
                         w.started = time.monotonic()
-                        if w.base is None and self.memory_limit is not None:
-                            w.base = rss_bytes(w.proc.pid)
+                        if w.base is None:
+                            w.base = value if value is not None else rss_bytes(w.proc.pid)
                         busy[conn] = w
                         continue
                     if kind == "memory":  # the worker may keep what the job took: end it
                         yield fail(w, "memory", value)
+                        continue
+                    over = _peak_over(w, peak[0] if peak else None, self.memory_limit)
+                    if over is not None:  # the job went over between two polls
+                        yield fail(w, "memory", _memory_message(self.memory_limit, over,
+                                                                peak=True))
                         continue
                     index, _ = w.chunk.popleft()
                     w.started = None

@@ -30,6 +30,7 @@ from .hull import (
     dual_bound,
     dual_bounds,
     sifting_is_cheaper,
+    split_free,
 )
 
 __all__ = [
@@ -43,4 +44,5 @@ __all__ = [
     "dual_bounds",
     "new_highs",
     "sifting_is_cheaper",
+    "split_free",
 ]

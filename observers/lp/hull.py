@@ -63,6 +63,15 @@ def dual_bounds(Gd: np.ndarray, A: np.ndarray, b: np.ndarray, Mu: np.ndarray) ->
     return t1 + t2 + slack
 
 
+def split_free(G: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(Gc, Ac, Gf)``: the generators in some constraint with their columns of ``A``, and
+    the generators in none (whose factors range over ``[-1, 1]`` freely)."""
+    coupled = np.any(A != 0.0, axis=0)
+    if coupled.all():
+        return G, A, G[:, :0]
+    return G[:, coupled], A[:, coupled], G[:, ~coupled]
+
+
 def _highs() -> highspy.Highs:
     h = new_highs()
     h.setOptionValue("presolve", "off")  # tiny LPs, re-solved warm: presolve only costs time
@@ -257,7 +266,7 @@ class HullLP:
         if self.solver == "sifting" or (self.solver == "auto" and not batched_is_cheaper(K, p)
                                         and sifting_is_cheaper(K, p, r)):
             return self._sift(Gd, A, b)
-        if self.solver == "auto" and not batched_is_cheaper(K, p):
+        if not self._batched(K, p):
             return np.array([self.maximize(g, A, b) for g in Gd])
         # one compiled call where the kernels are compiled (the same method)
         res = (batch_solve_jit.solve if dual_simplex.use_compiled() else dual_simplex.solve)(
@@ -267,10 +276,26 @@ class HullLP:
         self._add_seconds({**res.seconds, "bounds": perf_counter() - t0})
         self.solves += Gd.shape[0]
         self.iterations += res.problem_iterations
-        for k in np.nonzero(~res.converged)[0]:  # not finished: HiGHS (both bounds are valid)
+        self._highs_where_unfinished(bounds, res.converged, lambda: Gd, A, b)
+        return bounds
+
+    def _batched(self, K: int, p: int) -> bool:
+        """Whether ``K`` LPs with ``p`` constraint rows go to the batched dual simplex (the
+        solver chosen, or ``auto`` where :func:`batched_is_cheaper`)."""
+        return self.solver == "batched" or (self.solver == "auto" and batched_is_cheaper(K, p))
+
+    def _highs_where_unfinished(self, bounds: np.ndarray, converged: np.ndarray,
+                                directions, A: np.ndarray, b: np.ndarray) -> None:
+        """Tighten ``bounds[k]`` by HiGHS for each LP the batched solver did not finish
+        (both bounds are valid: the smaller is kept); ``directions()`` gives the cost rows,
+        built only if some LP needs them."""
+        unfinished = np.nonzero(~converged)[0]
+        if unfinished.size == 0:
+            return
+        Gd = directions()
+        for k in unfinished:
             self.fallbacks += 1
             bounds[k] = min(bounds[k], self.maximize(Gd[k], A, b))
-        return bounds
 
     def hull(self, c: np.ndarray, G: np.ndarray, A: np.ndarray, b: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -286,23 +311,18 @@ class HullLP:
         if p == 0:  # no constraint: every column is free
             bounds, rad_free, free = np.zeros(K), np.abs(G).sum(axis=1), R
         elif (dual_simplex.use_compiled() and K * (R + p) <= 1 << 32
-                and (self.solver == "batched"
-                     or (self.solver == "auto" and batched_is_cheaper(K, p)))):
+                and self._batched(K, p)):
             t0 = perf_counter()
             res = batch_solve_jit.hull(G, A, b)
             self._add_seconds({"solve": perf_counter() - t0})
             self.solves += K
             self.iterations += res.problem_iterations
             bounds, rad_free, free = res.bounds, res.rad_free, res.free
-            if not res.converged.all():  # not finished: HiGHS (both bounds are valid)
-                Gc, Ac = G[:, res.cols], A[:, res.cols]
-                for k in np.nonzero(~res.converged)[0]:
-                    self.fallbacks += 1
-                    g = Gc[k] if k < n else -Gc[k - n]
-                    bounds[k] = min(bounds[k], self.maximize(g, Ac, b))
+            Gc = G[:, res.cols]
+            self._highs_where_unfinished(bounds, res.converged, lambda: np.vstack([Gc, -Gc]),
+                                         A[:, res.cols], b)
         else:
-            coupled = np.any(A != 0.0, axis=0)
-            Gc, Ac, Gf = G[:, coupled], A[:, coupled], G[:, ~coupled]
+            Gc, Ac, Gf = split_free(G, A)
             bounds = self.maximize_many(np.vstack([Gc, -Gc]), Ac, b)
             rad_free, free = np.abs(Gf).sum(axis=1), Gf.shape[1]
         hi, lo = bounds[:n], bounds[n:]

@@ -102,9 +102,7 @@ def box_factors(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     c = 0.5 * (lo + hi)
     r = 0.5 * (hi - lo)
     r = r + _FOUR_EPS * (np.abs(lo) + np.abs(hi)) + _TINY
-    G = np.zeros((r.size, r.size))
-    G.flat[:: r.size + 1] = r
-    return c, G
+    return c, np.diag(r)
 
 
 _FOUR_EPS = 4 * np.finfo(float).eps

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SetError
-from ..lp import HullLP, box_feasible
+from ..lp import HullLP, box_feasible, split_free
 from . import conzono_ops as ops
 from ._arrays import (
     CentreGenerators,
@@ -303,10 +303,7 @@ class ConZonotope(CentreGenerators):
 
     def _split_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Generators in some constraint (with their columns of A) and the others."""
-        coupled = np.any(self._A != 0.0, axis=0)
-        if coupled.all():
-            return self._G, self._A, self._G[:, :0]
-        return self._G[:, coupled], self._A[:, coupled], self._G[:, ~coupled]
+        return split_free(self._G, self._A)
 
     def interval(self) -> Interval:
         """Guaranteed interval hull from 2n LPs sharing one feasible set (cached)."""
