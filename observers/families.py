@@ -123,10 +123,7 @@ def _fresh(a) -> np.ndarray:
     """``a`` as a writable C-ordered float array, copied only if it is not one (a user's
     Jacobian may be read-only: passed as it is, it would compile the linearised kernels once
     more for that array type)."""
-    if (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
-            and a.flags.writeable):
-        return a
-    return np.array(a, dtype=np.float64, order="C")
+    return np.require(a, np.float64, ["C", "W"])
 
 
 def as_zonotope(S, what: str) -> Zonotope:

@@ -319,7 +319,7 @@ def _worker_loop(conn, env: dict[str, str],
             # the memory the worker holds before any job, from which every job's peak counts
             if base is None:
                 base = _reset_peak()
-            conn.send(("started", base))
+            conn.send(("started", base, None))  # every message: (kind, value, peak)
             try:
                 out = ("ok", fn(job))
             except ConfigError as exc:  # bad input: ends the run in the parent (exit 2)
@@ -494,7 +494,7 @@ class ProcessExecutor(_Limited):
                 for conn in wait(list(busy), timeout=wait_s):
                     w = busy.pop(conn)
                     try:
-                        kind, value, *peak = conn.recv()
+                        kind, value, peak = conn.recv()
                     except (EOFError, OSError):
                         w.proc.join(timeout=5)
                         yield fail(w, "error", "worker process died while running this job "
@@ -503,13 +503,13 @@ class ProcessExecutor(_Limited):
                     if kind == "started":
                         w.started = time.monotonic()
                         if w.base is None:
-                            w.base = value if value is not None else rss_bytes(w.proc.pid)
+                            w.base = value
                         busy[conn] = w
                         continue
                     if kind == "memory":  # the worker may keep what the job took: end it
                         yield fail(w, "memory", value)
                         continue
-                    over = _peak_over(w, peak[0] if peak else None, self.memory_limit)
+                    over = _peak_over(w, peak, self.memory_limit)
                     if over is not None:  # the job went over between two polls
                         yield fail(w, "memory", _memory_message(self.memory_limit, over,
                                                                 peak=True))

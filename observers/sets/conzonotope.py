@@ -301,10 +301,6 @@ class ConZonotope(CentreGenerators):
     def _lp(self) -> HullLP:
         return self._solver if self._solver is not None else HullLP()
 
-    def _split_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Generators in some constraint (with their columns of A) and the others."""
-        return split_free(self._G, self._A)
-
     def interval(self) -> Interval:
         """Guaranteed interval hull from 2n LPs sharing one feasible set (cached)."""
         if self._hull is not None:
@@ -322,7 +318,7 @@ class ConZonotope(CentreGenerators):
         if self.num_constraints == 0:
             vals = D.T @ self._c + np.abs(self._G.T @ D).sum(axis=0)
         else:
-            Gc, Ac, Gf = self._split_free()
+            Gc, Ac, Gf = split_free(self._G, self._A)
             lp_vals = self._lp().maximize_many((Gc.T @ D).T, Ac, self._b)
             t0 = D.T @ self._c
             t1 = np.abs(Gf.T @ D).sum(axis=0)
