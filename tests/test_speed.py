@@ -230,3 +230,18 @@ def test_designs_of_labelled_variants_are_computed_under_their_observer(tmp_path
     assert sorted(r[1:3] for r in designs.prewarm([cfg], jobs=1, progress=False)) == [
         ("PRad-B", "ok"), ("PRad-B[tight]", "ok")]
     assert len(list((tmp_path / "cache").glob("*.npz"))) == 2  # two options, two designs
+
+
+def test_hull_profile_rows_have_the_headers_cells():
+    from benchmarks.timing.hull_profile import PHASES, render_hulls
+    from tests.test_freshness import _cells
+
+    ok = {"observer": "CZN-A", "scenario": "tank6-linear", "status": "ok", "step": 3, "n": 6,
+          "p": 8, "r": 40, "solver": "batched", "ms": 1.0, "lps": 12, "iterations": 5.0,
+          "fallbacks": 0, "shares": dict.fromkeys(PHASES, 0.05), "looser": 0.0,
+          "tighter": 0.0}
+    failed = {"observer": "CZN-B", "scenario": "tank6-linear", "status": "error",
+              "message": "step 2: EmptySet"}
+    table = [ln for ln in render_hulls([ok, failed]) if ln.startswith("|")]
+    assert len(table) == 4 and {_cells(ln) for ln in table} == {_cells(table[0])}
+    assert "| batched | 1 | 0.0833 | 5 | 0 | 5 % |" in table[2]
