@@ -318,7 +318,8 @@ def test_every_builtin_option_is_typed_and_its_default_passes(name):
     ("CZN-A", {"max_constraints": True},
      "CZN-A: max_constraints must be a non-negative integer, 'auto' or None, got True"),
     ("CZN-B", {"hull_solver": "cplex"},
-     "CZN-B: hull_solver must be one of 'auto', 'batched', 'highs', 'sifting', got 'cplex'"),
+     "CZN-B: hull_solver must be one of 'auto', 'batched', 'highs', 'sifting', 'sifting-highs', "
+     "got 'cplex'"),
     ("VolMin-A", {"max_subsets": 1e6},
      "VolMin-A: max_subsets must be a positive integer, got 1000000.0"),
     ("ESO-A", {"alpha": 1.0}, "ESO-A: alpha must be a number in (0, 1), got 1.0"),

@@ -1,9 +1,12 @@
-"""Sifting for the hull LPs with many columns (observers.lp.sifting, HullLP(solver="sifting")):
-on random constrained zonotopes with many columns and few rows (with zero, parallel and
-duplicate columns, degenerate costs) its bounds equal the plain HiGHS hull's to 1e-9 of the
-radius and are never below the true maximum (scipy's linprog on the same LP); working sets
-too small to finish still give sound bounds; empty sets raise EmptySet; HullLP("auto") routes
-many-column LPs through it."""
+"""Sifting for the hull LPs with many columns, its restricted LPs by the compiled dual simplex
+(observers.lp.sifting_jit, HullLP(solver="sifting")) or by HiGHS (observers.lp.sifting,
+HullLP(solver="sifting-highs")): on random constrained zonotopes with many columns and few
+rows (with zero, parallel and duplicate columns, degenerate costs) the bounds equal the plain
+HiGHS hull's to 1e-9 of the radius and are never below the true maximum (scipy's linprog on
+the same LP); working sets too small to finish still give sound bounds; empty sets raise
+EmptySet; HullLP("auto") routes many-column LPs through it.  The compiled kernels and the
+same functions run as plain Python give the same bounds; refactorisations and full working
+sets keep them."""
 
 from __future__ import annotations
 
@@ -12,7 +15,7 @@ import pytest
 from scipy.optimize import linprog
 
 from observers.errors import EmptySet
-from observers.lp import sifting
+from observers.lp import dual_simplex, sifting, sifting_jit
 from observers.lp.hull import SIFTING_MIN_COLUMNS, HullLP, dual_bounds, sifting_is_cheaper
 
 
@@ -47,15 +50,25 @@ def _true_max(g: np.ndarray, A: np.ndarray, b: np.ndarray) -> float:
 KINDS = ["generic", "zero-columns", "parallel", "boundary", "unit-columns"]
 
 
+SOLVERS = ["sifting", "sifting-highs"]
+
+
+def _small_steps(monkeypatch, first=1, add=4, rounds=200):
+    """Small first working sets and additions for both sifting solvers: several rounds of
+    sifting per LP."""
+    for module in (sifting, sifting_jit):
+        monkeypatch.setattr(module, "FIRST", first)
+        monkeypatch.setattr(module, "ADD", add)
+        monkeypatch.setattr(module, "MAX_ROUNDS", rounds)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("seed", range(3))
-def test_sifting_hull_equals_plain_hull_and_is_sound(kind, seed, monkeypatch):
-    # small first working sets and additions: several rounds of sifting per LP
-    monkeypatch.setattr(sifting, "FIRST", 1)
-    monkeypatch.setattr(sifting, "ADD", 4)
-    monkeypatch.setattr(sifting, "MAX_ROUNDS", 200)
+def test_sifting_hull_equals_plain_hull_and_is_sound(solver, kind, seed, monkeypatch):
+    _small_steps(monkeypatch)
     A, b, Gd = _instance(kind, seed)
-    sift = HullLP("sifting")
+    sift = HullLP(solver)
     ub = sift.maximize_many(Gd, A, b)
     plain = HullLP("highs").maximize_many(Gd, A, b)
     radius = np.abs(Gd).sum(axis=1)
@@ -66,45 +79,46 @@ def test_sifting_hull_equals_plain_hull_and_is_sound(kind, seed, monkeypatch):
         assert ub[k] >= _true_max(Gd[k], A, b) - 1e-9 * radius[k]
 
 
+@pytest.mark.parametrize("module", [sifting, sifting_jit])
 @pytest.mark.parametrize("seed", range(3))
-def test_unfinished_working_sets_still_give_sound_bounds(seed):
+def test_unfinished_working_sets_still_give_sound_bounds(module, seed):
     A, b, Gd = _instance("generic", seed)
-    res = sifting.solve(A, b, Gd, max_rounds=1)
+    res = module.solve(A, b, Gd, max_rounds=1)
     ub = dual_bounds(Gd, A, b, res.mu)
     for k in range(Gd.shape[0]):
         assert ub[k] >= _true_max(Gd[k], A, b)  # any dual point bounds the maximum
 
 
-def test_unconverged_problems_are_solved_by_highs(monkeypatch):
-    monkeypatch.setattr(sifting, "FIRST", 1)
-    monkeypatch.setattr(sifting, "ADD", 1)
-    monkeypatch.setattr(sifting, "MAX_ROUNDS", 1)
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_unconverged_problems_are_solved_by_highs(solver, monkeypatch):
+    _small_steps(monkeypatch, 1, 1, 1)
     A, b, Gd = _instance("generic", 7)
-    lp = HullLP("sifting")
+    lp = HullLP(solver)
     ub = lp.maximize_many(Gd, A, b)
     assert lp.stats.fallbacks > 0
     plain = HullLP("highs").maximize_many(Gd, A, b)
     np.testing.assert_array_less(np.abs(ub - plain), 1e-9 * np.abs(Gd).sum(axis=1))
 
 
-def test_sifting_reports_empty_sets():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_sifting_reports_empty_sets(solver):
     g = np.random.default_rng(3)
     A = g.normal(size=(4, 300))
     b = A @ g.uniform(-1, 1, 300)
     A[3] = A[2]
     b[3] = b[2] + 1.0  # contradicting copies of a row
     with pytest.raises(EmptySet):
-        HullLP("sifting").maximize_many(g.normal(size=(6, 300)), A, b)
+        HullLP(solver).maximize_many(g.normal(size=(6, 300)), A, b)
     with pytest.raises(EmptySet):  # no variable in any constraint: 0 = b
-        HullLP("sifting").maximize_many(g.normal(size=(6, 300)), np.zeros((2, 300)),
-                                        np.ones(2))
+        HullLP(solver).maximize_many(g.normal(size=(6, 300)), np.zeros((2, 300)), np.ones(2))
 
 
-def test_columns_in_no_constraint_count_in_closed_form():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_columns_in_no_constraint_count_in_closed_form(solver):
     A, b, Gd = _instance("zero-columns", 11)
     cols = sifting.constrained_columns(A)
     assert cols.size == A.shape[1] - A.shape[1] // 3
-    ub = HullLP("sifting").maximize_many(Gd, A, b)
+    ub = HullLP(solver).maximize_many(Gd, A, b)
     free = np.abs(Gd[:, : A.shape[1] // 3]).sum(axis=1)
     rest = HullLP("highs").maximize_many(Gd[:, cols], A[:, cols], b)
     np.testing.assert_array_less(np.abs(ub - (rest + free)), 1e-9 * np.abs(Gd).sum(axis=1))
@@ -112,8 +126,11 @@ def test_columns_in_no_constraint_count_in_closed_form():
 
 def test_auto_routes_many_columns_to_sifting():
     assert sifting_is_cheaper(200, 160, 10240) and sifting_is_cheaper(400, 326, 20489)
-    assert not sifting_is_cheaper(12, 8, 300)  # the vehicle: the batched dual simplex
-    assert not sifting_is_cheaper(200, 400, 5000)  # too few columns per row
+    assert sifting_is_cheaper(60, 42, 3063, compiled=True)  # 30 tanks, steady (measured)
+    assert not sifting_is_cheaper(60, 42, 3063, compiled=False)  # batched, without numba
+    assert not sifting_is_cheaper(12, 8, 612)  # the vehicle: the batched dual simplex
+    assert not sifting_is_cheaper(200, 160, 1260)  # 100 tanks, first steps: HiGHS
+    assert not sifting_is_cheaper(200, 400, 4000)  # too few columns per row
     A, b, Gd = _instance("generic", 5, r=SIFTING_MIN_COLUMNS, nc=6, n=2)
     lp = HullLP("auto")
     ub = lp.maximize_many(Gd, A, b)
@@ -121,3 +138,39 @@ def test_auto_routes_many_columns_to_sifting():
     plain = HullLP("highs").maximize_many(Gd, A, b)
     np.testing.assert_array_less(np.abs(ub - plain), 1e-9 * np.abs(Gd).sum(axis=1))
 
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_compiled_and_plain_python_kernels_give_the_same_bounds(kind, monkeypatch):
+    # the same functions interpreted: the same method, BLAS's rounding aside
+    _small_steps(monkeypatch, 2, 8)
+    A, b, Gd = _instance(kind, 21, r=400, nc=6, n=3)
+    compiled = sifting_jit.solve(A, b, Gd)
+    old = dual_simplex.set_compiled(False)
+    try:
+        plain = sifting_jit.solve(A, b, Gd)
+    finally:
+        dual_simplex.set_compiled(old)
+    assert compiled.converged.all() and plain.converged.all()
+    radius = np.abs(Gd).sum(axis=1)
+    np.testing.assert_array_less(
+        np.abs(dual_bounds(Gd, A, b, compiled.mu) - dual_bounds(Gd, A, b, plain.mu)),
+        1e-12 * radius)
+
+
+def test_refactorisations_and_full_working_sets_keep_the_bounds(monkeypatch):
+    A, b, Gd = _instance("generic", 4, r=1200, nc=24, n=4)
+    plain = HullLP("highs").maximize_many(Gd, A, b)
+    radius = np.abs(Gd).sum(axis=1)
+    _small_steps(monkeypatch, 1, 24)
+    monkeypatch.setattr(sifting_jit, "REFACTOR_EVERY", 3)  # the inverse rebuilt often
+    lp = HullLP("sifting")
+    np.testing.assert_array_less(np.abs(lp.maximize_many(Gd, A, b) - plain), 1e-9 * radius)
+    assert lp.stats.fallbacks == 0
+    # working sets that cannot hold what the LPs need: reported unfinished, solved by HiGHS
+    monkeypatch.setattr(sifting_jit, "CAPACITY", 0)
+    res = sifting_jit.solve(A, b, Gd)
+    assert not res.converged.all() and res.columns <= 12 * A.shape[0]
+    lp = HullLP("sifting")
+    np.testing.assert_array_less(np.abs(lp.maximize_many(Gd, A, b) - plain), 1e-9 * radius)
+    assert lp.stats.fallbacks > 0

@@ -138,7 +138,7 @@ def test_speed_report_compares_with_the_previous_json(tmp_path):
     # most 1
     prof = [ln.split("|") for ln in hull_section.splitlines()
             if ln.startswith("| CZN-A, vehicle6d")]
-    assert [r[6].strip() for r in prof] == ["batched", "highs", "sifting"]
+    assert [r[6].strip() for r in prof] == ["batched", "highs", "sifting", "sifting-highs"]
     n = systems.scenario("vehicle6d-cora").system.n
     for r in json.loads(js.read_text())["hulls"]:
         assert r["status"] == "ok" and r["lps"] == 2 * n and r["looser"] <= 1e-9

@@ -5,9 +5,10 @@ The hull of a constrained zonotope ``{c + G xi : A xi = b, |xi| <= 1}`` is 2n LP
 feasible set (:class:`observers.sets.HullLP`).  For each case of :data:`HULL_CASES` the
 observer is stepped to its steady state without hulls (:func:`.steps.to_steady_state`), and
 the hull of that set is solved ``repeat`` times by each solver strategy of the case (the
-batched dual simplex, warm HiGHS, sifting); the fastest repetition is reported with its work
-counters (LPs, simplex iterations per LP, HiGHS fallbacks) and the share of its time in each
-phase (:attr:`observers.sets.HullLPStats.seconds`: set-up of the batch, pivots,
+batched dual simplex, warm HiGHS, sifting with the compiled restricted LPs and with HiGHS's);
+the fastest repetition is reported with its work counters (LPs, simplex iterations per LP,
+HiGHS fallbacks) and the share of its time in each phase
+(:attr:`observers.sets.HullLPStats.seconds`: one compiled call, set-up of the batch, pivots,
 refactorisations, certification; the start vertex, restricted LPs and pricing of sifting;
 the weak-duality bounds, HiGHS).  Every solver's bounds are sound; the table gives how much
 looser and how much tighter each strategy's bounds are than warm HiGHS's at most, relative
@@ -34,7 +35,7 @@ from .steps import to_steady_state
 
 #: the solver strategies compared (:attr:`observers.sets.HullLP.SOLVERS`); HiGHS is the
 #: reference of the *looser* / *tighter* columns
-SOLVERS = ("batched", "highs", "sifting")
+SOLVERS = ("batched", "highs", "sifting", "sifting-highs")
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ class HullCase:
 HULL_CASES: tuple[HullCase, ...] = (
     HullCase("tank30-linear", "CZN-A"),
     HullCase("tank100-linear", "CZN-A", repeat=1),
-    HullCase("tank200-linear", "CZN-A", repeat=1, solvers=("highs", "sifting")),
+    HullCase("tank200-linear", "CZN-A", repeat=1, solvers=("highs", "sifting", "sifting-highs")),
 )
 #: the phases of :attr:`observers.sets.HullLPStats.seconds`, in the order of the table
 #: (``"solve"``: one compiled call of the batched dual simplex, its phases not split)
@@ -136,14 +137,16 @@ def render_hulls(rows: list[dict[str, Any]]) -> list[str]:
         "(2n LPs over its r generators and p constraints) solved by each strategy of "
         "`HullLP`: *batched*, the batched dual simplex (compiled; every problem pivots in "
         "lock step, the pivot rows of all of them one matrix product); *highs*, one warm "
-        "HiGHS run per direction; *sifting*, working sets of columns "
-        "(`observers/lp/sifting.py`: restricted LPs of about a thousand columns by HiGHS, "
-        "all columns priced by one matrix product per round and chunk of directions). "
+        "HiGHS run per direction; *sifting*, working sets of columns, all columns priced by "
+        "one matrix product per round and chunk of directions, the restricted LPs by the "
+        "compiled dual simplex from the start vertex's basis (`observers/lp/sifting_jit.py`); "
+        "*sifting-highs*, the same with the restricted LPs by HiGHS "
+        "(`observers/lp/sifting.py`). "
         "Fastest of the repetitions; *phases*: share of its time in one compiled call of the "
         "batched dual simplex (not split into its phases), the set-up of the numpy batch "
         "(crash basis, reduced costs), the pivots, the refactorisations, the certification "
-        "of the optimum; sifting's start vertex (one cold HiGHS solve), the HiGHS models of "
-        "the first working sets, the restricted LPs (with the columns added to them), the "
+        "of the optimum; sifting's start vertex (one cold HiGHS solve), the first working "
+        "sets (their HiGHS models), the restricted LPs (with the columns added to them), the "
         "pricing; the weak-duality bounds and HiGHS (LPs a strategy did not finish, or every "
         "LP with *highs*); *iterations per LP* are HiGHS's or the batch's simplex iterations "
         "(sifting: those of its restricted LPs and start). *looser / tighter than HiGHS*: the "

@@ -96,11 +96,12 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         prediction and the update are each followed by the constraint bound and then a lifted
         reduction to at most ``max_generators`` generators, which must be at least
         ``n + max_constraints``.
-    hull_solver : {"auto", "batched", "highs", "sifting"}
+    hull_solver : {"auto", "batched", "highs", "sifting", "sifting-highs"}
         LP solver of the interval hulls and support values of the returned sets
-        (:class:`~observers.sets.HullLP`; ``"auto"``: the batched dual simplex for few
-        constraints, sifting for very many generators per constraint, else HiGHS); the bounds
-        are sound with each of them.
+        (:class:`~observers.sets.HullLP`; ``"auto"``: sifting for many generators per
+        constraint, the batched dual simplex for few constraints, else HiGHS;
+        ``"sifting-highs"``: sifting with HiGHS for the working sets); the bounds are sound
+        with each of them.
     margin : float
         Relative enlargement of the noise set in the exact intersection (default 1e-7).  An
         exact intersection keeps the true state on the boundary of the estimate when the

@@ -11,7 +11,10 @@ A room of its own between the compiled kernels and the set types (``kernels`` <-
   :func:`box_feasible`), every bound evaluated from a dual point by weak duality
   (:func:`dual_bound`, :func:`dual_bounds`), hence sound whatever the solver returns;
 - :mod:`observers.lp.sifting`: the hull LPs with very many columns by sifting, working sets
-  of columns priced against all of them (:func:`observers.lp.sifting.solve`);
+  of columns priced against all of them, the restricted LPs by HiGHS
+  (:func:`observers.lp.sifting.solve`); :mod:`observers.lp.sifting_jit`: the same scheme with
+  the restricted LPs by a compiled dual simplex from one shared basis, which the hulls take
+  where numba is;
 - :mod:`observers.lp.dual_simplex` and :mod:`observers.lp.dual_simplex_jit`: the batched
   bounded dual simplex that solves the 2n hull LPs of one set together, numpy path and
   compiled twin side by side (same pivots); :mod:`observers.lp.batch_solve_jit`: the same

@@ -11,8 +11,9 @@ solver tolerance is never used as a bound.
 Interval hulls and support values of constrained zonotopes solve many such LPs with one
 feasible set; :class:`HullLP` solves them together with a batched dual simplex
 (:mod:`observers.lp.dual_simplex`) where the rows are few, by sifting over working sets of
-columns (:mod:`observers.lp.sifting`) where the columns are very many per row, and falls
-back to HiGHS for any LP that either does not finish.
+columns (:mod:`observers.lp.sifting_jit`, its restricted LPs by a compiled dual simplex)
+where the columns are many per row, and falls back to HiGHS for any LP that either does not
+finish.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ except ImportError as exc:  # pragma: no cover - exercised only on broken instal
     raise ImportError("the 'highspy' package is required for LP-based set operations") from exc
 
 from ..errors import EmptySet, SetError
-from . import batch_solve_jit, dual_simplex, sifting
+from . import batch_solve_jit, dual_simplex, sifting, sifting_jit
 from .highs import new_highs
 
 _EPS = np.finfo(float).eps
@@ -193,15 +194,18 @@ class HullLP:
     :meth:`maximize_many` solves many directions at once: with ``solver="batched"`` by the
     batched dual simplex of :mod:`observers.lp.dual_simplex` (all 2n LPs of an interval
     hull in lock step), with HiGHS for the LPs it does not finish (and to report empty sets);
-    with ``solver="sifting"`` by sifting over working sets of columns
-    (:mod:`observers.lp.sifting`), with HiGHS for the LPs it does not finish; with
-    ``solver="highs"`` one HiGHS run per direction as :meth:`maximize`; ``"auto"`` (default)
-    picks the batched solver where :func:`batched_is_cheaper`, else sifting where
-    :func:`sifting_is_cheaper`, else HiGHS.  Either way each bound is the weak-duality bound
+    with ``solver="sifting"`` by sifting over working sets of columns, the restricted LPs by
+    the compiled dual simplex of :mod:`observers.lp.sifting_jit` (by HiGHS,
+    :mod:`observers.lp.sifting`, where numba is not available; ``"sifting-highs"`` chooses
+    that always), with HiGHS for the LPs it does not finish; with ``solver="highs"`` one
+    HiGHS run per direction as :meth:`maximize`; ``"auto"`` (default) picks sifting where
+    :func:`sifting_is_cheaper`, else the batched solver where :func:`batched_is_cheaper`,
+    else HiGHS.  Either way each bound is the weak-duality bound
     of a dual point on the full problem.
     """
 
-    SOLVERS = ("auto", "batched", "highs", "sifting")
+    #: the solver strategies (see the class docstring)
+    SOLVERS = ("auto", "batched", "highs", "sifting", "sifting-highs")
 
     def __init__(self, solver: str = "auto"):
         if solver not in self.SOLVERS:
@@ -263,8 +267,7 @@ class HullLP:
         K, (p, r) = Gd.shape[0], A.shape
         if p == 0 or self.solver == "highs":
             return np.array([self.maximize(g, A, b) for g in Gd])
-        if self.solver == "sifting" or (self.solver == "auto" and not batched_is_cheaper(K, p)
-                                        and sifting_is_cheaper(K, p, r)):
+        if self._sifted(K, p, r):
             return self._sift(Gd, A, b)
         if not self._batched(K, p):
             return np.array([self.maximize(g, A, b) for g in Gd])
@@ -278,6 +281,12 @@ class HullLP:
         self.iterations += res.problem_iterations
         self._highs_where_unfinished(bounds, res.converged, lambda: Gd, A, b)
         return bounds
+
+    def _sifted(self, K: int, p: int, r: int) -> bool:
+        """Whether ``K`` LPs with ``p`` rows and ``r`` columns are sifted (the solver chosen,
+        or ``auto`` where :func:`sifting_is_cheaper`)."""
+        return self.solver in ("sifting", "sifting-highs") or (
+            self.solver == "auto" and sifting_is_cheaper(K, p, r))
 
     def _batched(self, K: int, p: int) -> bool:
         """Whether ``K`` LPs with ``p`` constraint rows go to the batched dual simplex (the
@@ -311,7 +320,7 @@ class HullLP:
         if p == 0:  # no constraint: every column is free
             bounds, rad_free, free = np.zeros(K), np.abs(G).sum(axis=1), R
         elif (dual_simplex.use_compiled() and K * (R + p) <= 1 << 32
-                and self._batched(K, p)):
+                and not self._sifted(K, p, R) and self._batched(K, p)):
             t0 = perf_counter()
             res = batch_solve_jit.hull(G, A, b)
             self._add_seconds({"solve": perf_counter() - t0})
@@ -347,9 +356,10 @@ class HullLP:
                 raise EmptySet(_EMPTY)
             return dual_bounds(Gd, A, b, np.zeros((Gd.shape[0], A.shape[0])))
         reduced = cols.size < A.shape[1]
+        compiled = self.solver != "sifting-highs" and dual_simplex.use_compiled()
         try:
-            res = sifting.solve(A[:, cols] if reduced else A, b,
-                                Gd[:, cols] if reduced else Gd)
+            res = (sifting_jit if compiled else sifting).solve(
+                A[:, cols] if reduced else A, b, Gd[:, cols] if reduced else Gd)
         except sifting.NoStart:  # HiGHS gave no start vertex: every LP by HiGHS
             return np.array([self.maximize(g, A, b) for g in Gd])
         t0 = perf_counter()
@@ -389,28 +399,44 @@ def batched_is_cheaper(K: int, p: int) -> bool:
 
 
 #: fewest columns, and fewest columns per constraint row, for which the hull LPs are sifted
-#: (measured, see :func:`sifting_is_cheaper`)
-SIFTING_MIN_COLUMNS = 4000
-SIFTING_MIN_RATIO = 20
+#: with the compiled restricted LPs (measured, see :func:`sifting_is_cheaper`)
+SIFTING_MIN_COLUMNS = 2000
+SIFTING_MIN_RATIO = 12
+#: the same for sifting with HiGHS's restricted LPs (without numba)
+HIGHS_SIFTING_MIN_COLUMNS = 4000
+HIGHS_SIFTING_MIN_RATIO = 20
 
 
-def sifting_is_cheaper(K: int, p: int, r: int) -> bool:
-    """Whether sifting (:mod:`observers.lp.sifting`) is expected to beat K warm HiGHS runs on
-    LPs with ``p`` rows and ``r`` columns: for many columns, and many per row.  Each HiGHS
-    iteration prices all ``r`` columns; sifting prices them once per round for a chunk of
-    problems (one matrix product) and iterates over a working set of about a thousand.
-    Measured on the steady CZN-A / CZN-B hulls of the tank benchmarks (the same sets solved
-    both ways, interleaved in one process, medians; warm HiGHS against sifting, per hull):
-    60 tanks (p = 92, r = 6138) 2.2 against 1.5-2.0 s; 100 tanks (p = 160, r = 10240) 3.7 /
-    3.1 against 2.6 / 2.3 s (1.4x; ~90 against ~75 simplex iterations per LP, but each on
-    the dense basis costs about as much as HiGHS's on the full LP); 200 tanks (p = 326,
-    r = 20489) 19.9 / 17.1 against 9.7 / 7.4 s (2.0x / 2.3x; ~190 against ~95 iterations per
-    LP).  Below :data:`SIFTING_MIN_COLUMNS` columns the start (one cold HiGHS solve of the
-    full LP) and the per-problem models do not pay off: on the growing 100-tank sets of the
-    first steps (p = 160, fastest of two, per hull) r = 3060: 537 ms HiGHS against 600 ms
-    sifting, r = 3780: 672 against 621, r = 4680: 937 against 693.
+def sifting_is_cheaper(K: int, p: int, r: int, compiled: bool | None = None) -> bool:
+    """Whether sifting is expected to beat the other solvers on K LPs with ``p`` rows and
+    ``r`` columns: for many columns, and many per row.
+
+    With the compiled restricted LPs (:mod:`observers.lp.sifting_jit`; ``compiled``
+    defaults to :func:`.dual_simplex.use_compiled`) from :data:`SIFTING_MIN_COLUMNS` columns
+    and :data:`SIFTING_MIN_RATIO` per row, whatever the batched solver would do.  Measured
+    on the CZN-A hulls of the tank benchmarks (fastest of two or three, per hull), the
+    steady sets: 30 tanks (p = 42, r = 3063) 66 ms against 104 batched and 390 warm HiGHS;
+    60 tanks (p = 92, r = 6138) 242 ms against 1324 batched and 1840 HiGHS; the growing
+    sets of the first steps: 30 tanks r = 1581 28 against 24 ms batched, r = 2346 48
+    against 55; 100 tanks (p = 160) r = 1260 461 against 360 ms HiGHS, r = 2340 347 against
+    604, r = 3780 282 against 992; the 6-state vehicle and 6 tanks (p = 6-8, r = 100-600)
+    2-6 ms against 0.3-1.7 ms batched.
+
+    With HiGHS's restricted LPs (:mod:`observers.lp.sifting`, without numba) only where the
+    batched solver is not cheaper, from :data:`HIGHS_SIFTING_MIN_COLUMNS` columns and
+    :data:`HIGHS_SIFTING_MIN_RATIO` per row: each HiGHS iteration prices all ``r`` columns,
+    sifting prices them once per round for a chunk of problems and iterates over a working
+    set of about a thousand.  Measured on the steady CZN-A / CZN-B hulls (warm HiGHS against
+    sifting, per hull): 60 tanks 2.2 against 1.5-2.0 s; 100 tanks 3.7 / 3.1 against 2.6 /
+    2.3 s; 200 tanks (p = 326, r = 20489) 19.9 / 17.1 against 9.7 / 7.4 s; on the growing
+    100-tank sets r = 3060: 537 ms HiGHS against 600 ms sifting, r = 4680: 937 against 693.
     """
-    return K >= 2 and r >= SIFTING_MIN_COLUMNS and r >= SIFTING_MIN_RATIO * p
+    if K < 2:
+        return False
+    if dual_simplex.use_compiled() if compiled is None else compiled:
+        return r >= SIFTING_MIN_COLUMNS and r >= SIFTING_MIN_RATIO * p
+    return (not batched_is_cheaper(K, p) and r >= HIGHS_SIFTING_MIN_COLUMNS
+            and r >= HIGHS_SIFTING_MIN_RATIO * p)
 
 
 def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
