@@ -51,6 +51,7 @@ HiGHS sifting of :mod:`.sifting`).
 from __future__ import annotations
 
 from time import perf_counter
+from typing import NamedTuple
 
 import numpy as np
 
@@ -103,15 +104,44 @@ def _sift_down(h, i, n):
     h[i] = x
 
 
-def _refactor(AWT, k, basis, Binv, wts):
+class Chunk(NamedTuple):
+    """The state of a chunk of problems (row ``k`` of every array is problem ``k``), by
+    working-set position ``a``: ``Wc`` the column, ``AWT[k, a]`` its entries, ``nrm2`` its
+    squared norm, ``cW`` its (perturbed) cost, ``zW`` the value of a nonbasic column
+    (``-1``/``+1``; 0 if basic), ``DW`` its dual slack ``|d_a|``, ``isb`` whether it is
+    basic; ``nW`` the working-set sizes; ``basis[k, i]`` the position of row ``i``'s basic
+    column, or ``-1 - i'`` for the logical of row ``i'`` (fixed at 0); ``Binv`` the basis
+    inverses, ``wts`` their squared row norms (the dual steepest-edge weights); ``t = b -``
+    the nonbasic columns times their values (the fixed columns included), so the basic
+    values are ``B^-1 t``; ``inW`` which of all columns are in the working set; ``its`` the
+    pivots and ``upd`` the updates of ``B^-1`` since its last refactorisation."""
+
+    Wc: np.ndarray
+    AWT: np.ndarray
+    nrm2: np.ndarray
+    cW: np.ndarray
+    zW: np.ndarray
+    DW: np.ndarray
+    isb: np.ndarray
+    nW: np.ndarray
+    basis: np.ndarray
+    Binv: np.ndarray
+    wts: np.ndarray
+    t: np.ndarray
+    inW: np.ndarray
+    its: np.ndarray
+    upd: np.ndarray
+
+
+def _refactor(S, k):
     """Recompute ``B^-1`` of problem ``k`` and its steepest-edge weights; ``False`` where the
     basis is singular or the inverse not finite."""
-    p = Binv.shape[1]
+    p = S.Binv.shape[1]
     B = np.zeros((p, p))
     for i in range(p):
-        a = basis[k, i]
+        a = S.basis[k, i]
         if a >= 0:
-            B[:, i] = AWT[k, a]
+            B[:, i] = S.AWT[k, a]
         else:
             B[-1 - a, i] = 1.0
     try:
@@ -124,195 +154,217 @@ def _refactor(AWT, k, basis, Binv, wts):
         s = 0.0
         for j in range(p):
             v = inv[i, j]
-            Binv[k, i, j] = v
+            S.Binv[k, i, j] = v
             s += v * v
-        wts[k, i] = s
+        S.wts[k, i] = s
+    S.upd[k] = 0
     return True
 
 
-def _restricted(k, AWT, nrm2, zW, DW, isb, nW, basis, Binv, wts, t, its, upd, max_iter,
-                refactor_every, primal_tol, pivot_tol):
-    """Dual simplex iterations of problem ``k`` over its working set until its restricted LP
-    is optimal (``OPTIMAL``), fails (``FAILED``) or reaches ``max_iter`` (``RUNNING``).
+def _leaving_row(xB, bk, wk, primal_tol):
+    """``(row, infeasibility)`` of the basic value that leaves: the largest primal
+    infeasibility weighted by the steepest-edge weights (``-1`` if none exceeds
+    ``primal_tol``: the restricted LP is optimal)."""
+    rr = -1
+    best = 0.0
+    delta = 0.0
+    for i in range(xB.shape[0]):
+        v = abs(xB[i]) - (1.0 if bk[i] >= 0 else 0.0)
+        if v > primal_tol:
+            score = v * v / wk[i]
+            if score > best:
+                best = score
+                rr = i
+                delta = v
+    return rr, delta
 
-    State by working-set position ``a``: ``AWT[k, a]`` the column, ``nrm2`` its squared norm,
-    ``zW`` the value of a nonbasic column (``-1``/``+1``; 0 if basic), ``DW`` its dual slack
-    ``|d_a|``, ``isb`` whether it is basic.  ``basis[k, i]`` is the position of row ``i``'s
-    basic column, or ``-1 - i'`` for the logical of row ``i'`` (fixed at 0).  ``t = b - (the
-    nonbasic columns times their values, the fixed columns included)``, so the basic values
-    are ``B^-1 t``."""
-    p = Binv.shape[1]
-    nw = nW[k]
-    AW = AWT[k, :nw]
-    Bk, bk, wk, tk = Binv[k], basis[k], wts[k], t[k]
-    zk, Dk, ib, nk = zW[k], DW[k], isb[k], nrm2[k]
+
+def _ratio_test(alpha, ib, zk, Dk, sgn, delta, keys, flips):
+    """Bound-flipping ratio test over the nonbasic positions: ``(entering, breakpoints
+    passed)`` (``-1`` if none).  ``alpha`` enters as ``rho' a`` and leaves as ``w_a = -sgn
+    alpha_a z_a`` (0 for basic positions); candidates ``w_a > 0`` are ordered by keys holding
+    the high bits of the ratio ``D_a / w_a`` (non-negative floats order like their bit
+    patterns) and the position in the low bits, in a binary heap (usually only a few of
+    them are passed); the passed ones are ``flips[:passed]``."""
+    nw = alpha.shape[0]
+    bits = 1
+    while (1 << bits) < nw:
+        bits += 1
+    low = np.uint64((1 << bits) - 1)
+    high = ~low
+    ratio = np.empty(1)
+    rbits = ratio.view(np.uint64)
+    nc = 0
+    for a in range(nw):
+        if ib[a]:
+            alpha[a] = 0.0
+            continue
+        w = -sgn * alpha[a] * zk[a]
+        alpha[a] = w
+        if w > 0.0:
+            ratio[0] = Dk[a] / w
+            keys[nc] = (rbits[0] & high) | np.uint64(a)
+            nc += 1
+    for i in range(nc // 2 - 1, -1, -1):
+        _sift_down(keys, i, nc)
+    passed = 0.0
+    npass = 0
+    while nc > 0:
+        kq = keys[0]
+        nc -= 1
+        keys[0] = keys[nc]
+        _sift_down(keys, 0, nc)
+        a = np.int64(kq & low)
+        passed += alpha[a]
+        if passed >= 0.5 * delta:  # slope lost per breakpoint: 2 w_a
+            return a, npass
+        flips[npass] = a
+        npass += 1
+    return -1, npass
+
+
+def _pivot(S, k, rr, aq, sgn, alpha, flips, npass, rho):
+    """Problem ``k``'s dual step and pivot: the dual slacks move along ``alpha`` (the ``w``
+    of :func:`_ratio_test`), the passed breakpoints flip to their other bound, position
+    ``aq`` enters row ``rr`` (whose variable leaves at its bound on side ``sgn``); ``B^-1``
+    and its steepest-edge weights are updated (Forrest and Goldfarb), ``rho`` being row
+    ``rr`` of the old inverse."""
+    p = S.Binv.shape[1]
+    nw = alpha.shape[0]
+    AW, Bk, bk, wk, tk = S.AWT[k], S.Binv[k], S.basis[k], S.wts[k], S.t[k]
+    zk, Dk, ib = S.zW[k], S.DW[k], S.isb[k]
+    tq = Dk[aq] / alpha[aq]
+    for a in range(nw):
+        if not ib[a]:
+            Dk[a] = abs(Dk[a] - tq * alpha[a])
+    for f in range(npass):
+        a = flips[f]
+        za = zk[a]
+        col = AW[a]
+        for i in range(p):
+            tk[i] += 2.0 * col[i] * za
+        zk[a] = -za
+    la = bk[rr]
+    col = AW[aq]
+    zq = zk[aq]
+    for i in range(p):
+        tk[i] += col[i] * zq
+    if la >= 0:
+        cl = AW[la]
+        for i in range(p):
+            tk[i] -= cl[i] * sgn
+        zk[la] = sgn
+        Dk[la] = tq
+        ib[la] = False
+    ib[aq] = True
+    zk[aq] = 0.0
+    Dk[aq] = 0.0
+    bk[rr] = aq
+    colq = Bk @ col
+    tau = Bk @ rho
+    piv = colq[rr]
+    wrr = wk[rr]
+    for i in range(p):
+        if i != rr:
+            f = colq[i] / piv
+            if f != 0.0:
+                wk[i] = max(wk[i] - 2.0 * f * tau[i] + f * f * wrr, 1e-12 * wk[i])
+                for j in range(p):
+                    Bk[i, j] -= f * rho[j]
+    wk[rr] = wrr / (piv * piv)
+    for j in range(p):
+        Bk[rr, j] = rho[j] / piv
+    S.upd[k] += 1
+
+
+def _restricted(S, k, budget, refactor_every, primal_tol, pivot_tol):
+    """Dual simplex iterations of problem ``k`` of the chunk ``S`` (:class:`Chunk`) over its
+    working set until its restricted LP is optimal (``OPTIMAL``), fails (``FAILED``: no
+    entering column, a tiny pivot element, a singular basis) or its pivots reach ``budget``
+    (``RUNNING``)."""
+    p = S.Binv.shape[1]
+    nw = S.nW[k]
+    AW = S.AWT[k, :nw]
+    Bk = S.Binv[k]
     alpha = np.empty(nw)
     keys = np.empty(nw, np.uint64)
     flips = np.empty(nw, np.int64)
     rho = np.empty(p)
-    ratio = np.empty(1)
-    rbits = ratio.view(np.uint64)
-    bits = 1
-    while (1 << bits) < AWT.shape[1]:
-        bits += 1
-    low = np.uint64((1 << bits) - 1)
-    high = ~low
-    while its[k] < max_iter:
-        if upd[k] >= refactor_every:
-            if not _refactor(AWT, k, basis, Binv, wts):
-                return FAILED
-            upd[k] = 0
-        xB = Bk @ tk
-        rr = -1
-        best = 0.0
-        delta = 0.0
-        for i in range(p):
-            v = abs(xB[i]) - (1.0 if bk[i] >= 0 else 0.0)
-            if v > primal_tol:
-                score = v * v / wk[i]
-                if score > best:
-                    best = score
-                    rr = i
-                    delta = v
+    while S.its[k] < budget:
+        if S.upd[k] >= refactor_every and not _refactor(S, k):
+            return FAILED
+        xB = Bk @ S.t[k]
+        rr, delta = _leaving_row(xB, S.basis[k], S.wts[k], primal_tol)
         if rr < 0:
             return OPTIMAL
-        its[k] += 1
+        S.its[k] += 1
         sgn = 1.0 if xB[rr] > 0.0 else -1.0  # above the upper bound: leaves at it
         for i in range(p):
             rho[i] = Bk[rr, i]
         alpha[:] = AW @ rho
-        # ratio test with bound flipping: candidates w_a = -sgn alpha_a z_a > 0, ordered by
-        # keys holding the high bits of the ratio D_a / w_a (non-negative floats order like
-        # their bit patterns) and the position a in the low bits
-        nc = 0
-        for a in range(nw):
-            if ib[a]:
-                alpha[a] = 0.0
-                continue
-            w = -sgn * alpha[a] * zk[a]
-            alpha[a] = w
-            if w > 0.0:
-                ratio[0] = Dk[a] / w
-                keys[nc] = (rbits[0] & high) | np.uint64(a)
-                nc += 1
-        for i in range(nc // 2 - 1, -1, -1):
-            _sift_down(keys, i, nc)
-        passed = 0.0
-        aq = -1
-        npass = 0
-        while nc > 0:
-            kq = keys[0]
-            nc -= 1
-            keys[0] = keys[nc]
-            _sift_down(keys, 0, nc)
-            a = np.int64(kq & low)
-            passed += alpha[a]
-            if passed >= 0.5 * delta:  # slope lost per breakpoint: 2 w_a
-                aq = a
-                break
-            flips[npass] = a
-            npass += 1
-        if aq < 0 or alpha[aq] * alpha[aq] < pivot_tol * pivot_tol * wk[rr] * nk[aq]:
+        aq, npass = _ratio_test(alpha, S.isb[k, :nw], S.zW[k, :nw], S.DW[k, :nw], sgn, delta,
+                                keys, flips)
+        if aq < 0 or alpha[aq] ** 2 < pivot_tol ** 2 * S.wts[k, rr] * S.nrm2[k, aq]:
             return FAILED  # dual unbounded (cannot be: the restricted LP is feasible) or trouble
-        tq = Dk[aq] / alpha[aq]
-        for a in range(nw):
-            if not ib[a]:
-                Dk[a] = abs(Dk[a] - tq * alpha[a])
-        for f in range(npass):
-            a = flips[f]
-            za = zk[a]
-            col = AW[a]
-            for i in range(p):
-                tk[i] += 2.0 * col[i] * za
-            zk[a] = -za
-        la = bk[rr]
-        col = AW[aq]
-        zq = zk[aq]
-        for i in range(p):
-            tk[i] += col[i] * zq
-        if la >= 0:
-            cl = AW[la]
-            for i in range(p):
-                tk[i] -= cl[i] * sgn
-            zk[la] = sgn
-            Dk[la] = tq
-            ib[la] = False
-        ib[aq] = True
-        zk[aq] = 0.0
-        Dk[aq] = 0.0
-        bk[rr] = aq
-        # update B^-1 and the steepest-edge weights (tau = B^-1 rho' of the old inverse)
-        colq = Bk @ col
-        tau = Bk @ rho
-        piv = colq[rr]
-        wrr = wk[rr]
-        for i in range(p):
-            if i != rr:
-                f = colq[i] / piv
-                if f != 0.0:
-                    wi = wk[i] - 2.0 * f * tau[i] + f * f * wrr
-                    wk[i] = max(wi, 1e-12 * wk[i])
-                    for j in range(p):
-                        Bk[i, j] -= f * rho[j]
-        wk[rr] = wrr / (piv * piv)
-        for j in range(p):
-            Bk[rr, j] = rho[j] / piv
-        upd[k] += 1
+        _pivot(S, k, rr, aq, sgn, alpha, flips, npass, rho)
     return RUNNING
 
 
-def _grow(k, new, AT, xi0, cost, dp, Wc, AWT, nrm2, cW, zW, DW, isb, nW, t):
+def _grow(S, k, new, AT, xi0, cost, dp):
     """Add the fixed columns ``new`` to problem ``k``'s working set, each nonbasic at the bound
     its reduced cost ``dp`` wants (moving its contribution in ``t``); ``False`` if the working
     set is full."""
-    p = AWT.shape[2]
-    cap = Wc.shape[1]
-    tk = t[k]
+    p = S.AWT.shape[2]
+    cap = S.Wc.shape[1]
+    tk = S.t[k]
     for j in new:
-        a = nW[k]
+        a = S.nW[k]
         if a == cap:
             return False
         col = AT[j]
-        Wc[k, a] = j
+        S.Wc[k, a] = j
         s = 0.0
         for i in range(p):
-            AWT[k, a, i] = col[i]
+            S.AWT[k, a, i] = col[i]
             s += col[i] * col[i]
-        nrm2[k, a] = s
-        cW[k, a] = cost[j]
+        S.nrm2[k, a] = s
+        S.cW[k, a] = cost[j]
         z = 1.0 if dp[j] >= 0.0 else -1.0
         dz = z - xi0[j]
         if dz != 0.0:
             for i in range(p):
                 tk[i] -= col[i] * dz
-        zW[k, a] = z
-        DW[k, a] = abs(dp[j])
-        isb[k, a] = False
-        nW[k] = a + 1
+        S.zW[k, a] = z
+        S.DW[k, a] = abs(dp[j])
+        S.isb[k, a] = False
+        S.inW[k, j] = True
+        S.nW[k] = a + 1
     return True
 
 
-def _duals(rows, basis, cW, Binv):
+def _duals(S, rows):
     """``y_k = B_k^-T c_B`` of the problems ``rows`` (one row each; the costs of the basic
     working-set positions, 0 for logicals)."""
-    n, p = rows.shape[0], Binv.shape[1]
+    n, p = rows.shape[0], S.Binv.shape[1]
     Y = np.empty((n, p))
     cB = np.empty(p)
     for i in range(n):
         k = rows[i]
         for j in range(p):
-            a = basis[k, j]
-            cB[j] = cW[k, a] if a >= 0 else 0.0
-        Y[i] = Binv[k].T @ cB
+            a = S.basis[k, j]
+            cB[j] = S.cW[k, a] if a >= 0 else 0.0
+        Y[i] = S.Binv[k].T @ cB
     return Y
 
 
-def _price(Dp, xi0, inW, rows, limits, m, picked, counts):
+def _price(S, Dp, xi0, rows, limits, picked, counts):
     """For each problem ``rows[i]`` with reduced costs ``Dp[i]``: the gap terms
     ``|d_j| - d_j xi0_j`` of the columns outside its working set; ``True`` where they add up
-    to at most ``limits[i]`` (finished), else the (at most) ``m`` columns with the largest
-    terms in ``picked[i, :counts[i]]`` (ties to the lower index, in column order)."""
+    to at most ``limits[i]`` (finished), else the (at most) ``m`` (``picked``'s width)
+    columns with the largest terms in ``picked[i, :counts[i]]`` (ties to the lower index, in
+    column order)."""
     n, r = Dp.shape
+    m = picked.shape[1]
     fin = np.zeros(n, np.bool_)
     T = np.empty(r)
     idx = np.empty(r, np.int64)
@@ -322,7 +374,7 @@ def _price(Dp, xi0, inW, rows, limits, m, picked, counts):
         total = 0.0
         c = 0
         for j in range(r):
-            if inW[k, j]:
+            if S.inW[k, j]:
                 continue
             v = abs(d[j]) - d[j] * xi0[j]
             if v > 0.0:
@@ -330,29 +382,35 @@ def _price(Dp, xi0, inW, rows, limits, m, picked, counts):
                 T[c] = v
                 idx[c] = j
                 c += 1
+        counts[i] = 0
         if total <= limits[i]:
             fin[i] = True
-            counts[i] = 0
-            continue
-        if c <= m:
+        elif c <= m:
             picked[i, :c] = idx[:c]
             counts[i] = c
-            continue
-        kth = np.partition(T[:c], c - m)[c - m]  # the m-th largest term
-        n_pick = 0
-        for e in range(c):
-            if T[e] > kth:
-                picked[i, n_pick] = idx[e]
-                n_pick += 1
-        for e in range(c):
-            if n_pick == m:
-                break
-            if T[e] == kth:
-                picked[i, n_pick] = idx[e]
-                n_pick += 1
-        picked[i, :n_pick] = np.sort(picked[i, :n_pick])
-        counts[i] = n_pick
+        else:
+            counts[i] = _largest(T[:c], idx[:c], m, picked[i])
     return fin
+
+
+def _largest(T, idx, m, out):
+    """Write the ``idx`` of the ``m`` largest of ``T`` to ``out`` in increasing order (ties
+    to the earlier entry); returns ``m``."""
+    c = T.shape[0]
+    kth = np.partition(T, c - m)[c - m]  # the m-th largest term
+    n_pick = 0
+    for e in range(c):
+        if T[e] > kth:
+            out[n_pick] = idx[e]
+            n_pick += 1
+    for e in range(c):
+        if n_pick == m:
+            break
+        if T[e] == kth:
+            out[n_pick] = idx[e]
+            n_pick += 1
+    out[:n_pick] = np.sort(out[:n_pick])
+    return n_pick
 
 
 def _top(T: np.ndarray, m: int) -> np.ndarray:
@@ -368,16 +426,17 @@ def _top(T: np.ndarray, m: int) -> np.ndarray:
     return np.sort(np.concatenate([above, ties]))
 
 
-#: the kernels run as plain Python (the same pivots, for tests and installations without
-#: numba) ...
+#: the kernels as plain Python (the same pivots, for tests and installations without numba)
 _PYTHON = {"restricted": _restricted, "grow": _grow, "price": _price, "duals": _duals}
-#: ... and compiled (the module's names rebound to the compiled functions, which call each
-#: other compiled)
-if AVAILABLE:
+if AVAILABLE:  # the module's names rebound to the compiled functions, which call each other
     _sift_down = njit(_sift_down)
     _refactor = njit(_refactor)
+    _leaving_row = njit(_leaving_row)
+    _ratio_test = njit(_ratio_test)
+    _pivot = njit(_pivot)
     _restricted = njit(_restricted, error_model="numpy")
     _grow = njit(_grow)
+    _largest = njit(_largest)
     _price = njit(_price)
     _duals = njit(_duals)
 
@@ -412,11 +471,114 @@ def start_basis(A: np.ndarray, st: Start) -> tuple[np.ndarray, np.ndarray] | Non
     return B0, Binv
 
 
+class _Start(NamedTuple):
+    """What every chunk starts from: the start vertex ``xi0``, its basis ``B0`` (columns of
+    ``[A, I]``) with inverse ``Binv0`` and weights ``w0``, its basic structurals ``basic`` (in
+    column order: the first working-set positions) and the basis as positions ``pos0``,
+    ``t0 = b - A xi0`` without the basic columns, and the working-set capacity ``cap``."""
+
+    xi0: np.ndarray
+    B0: np.ndarray
+    Binv0: np.ndarray
+    w0: np.ndarray
+    basic: np.ndarray
+    pos0: np.ndarray
+    t0: np.ndarray
+    cap: int
+
+
+def _prepare(A: np.ndarray, b: np.ndarray, st: Start) -> _Start:
+    """The :class:`_Start` of the vertex ``st`` (raises :class:`.sifting.NoStart` if its basis
+    is not a basis of the constraints)."""
+    p, r = A.shape
+    basis0 = start_basis(A, st)
+    if basis0 is None:
+        raise sifting.NoStart("the start vertex's basis is not a basis of the constraints")
+    B0, Binv0 = basis0
+    basic = np.sort(B0[B0 < r])
+    xi_n = st.xi.copy()
+    xi_n[basic] = 0.0  # basic values live in B^-1 t
+    pos0 = np.where(B0 < r, np.searchsorted(basic, B0), -1 - (B0 - r))
+    return _Start(st.xi, B0, Binv0, np.einsum("ij,ij->i", Binv0, Binv0), basic, pos0,
+                  b - A @ xi_n, int(min(r, max(CAPACITY, 12 * p))))
+
+
+def _new_chunk(A: np.ndarray, AT: np.ndarray, P: np.ndarray, s0: _Start, AWT: np.ndarray,
+               grow) -> Chunk:
+    """The chunk of problems with perturbed costs ``P``: each at the start basis, its working
+    set the start's basic columns and the :data:`FIRST` columns whose gap terms are largest
+    against the start basis's duals (``AWT``: the buffer of the working sets' columns)."""
+    Kc, r = P.shape
+    cap, m, basic = s0.cap, s0.basic.size, s0.basic
+    S = Chunk(Wc=np.zeros((Kc, cap), np.int64), AWT=AWT, nrm2=np.zeros((Kc, cap)),
+              cW=np.zeros((Kc, cap)), zW=np.zeros((Kc, cap)), DW=np.zeros((Kc, cap)),
+              isb=np.zeros((Kc, cap), bool), nW=np.full(Kc, m, np.int64),
+              basis=np.tile(s0.pos0, (Kc, 1)), Binv=np.tile(s0.Binv0, (Kc, 1, 1)),
+              wts=np.tile(s0.w0, (Kc, 1)), t=np.tile(s0.t0, (Kc, 1)),
+              inW=np.zeros((Kc, r), bool), its=np.zeros(Kc, np.int64),
+              upd=np.zeros(Kc, np.int64))
+    S.Wc[:, :m] = basic
+    AWT[:, :m] = AT[basic]
+    S.nrm2[:, :m] = np.einsum("ij,ij->i", AT[basic], AT[basic])
+    S.cW[:, :m] = P[:, basic]
+    S.isb[:, :m] = True
+    S.inW[:, basic] = True
+    Y = np.where(s0.B0 < r, P[:, np.minimum(s0.B0, r - 1)], 0.0) @ s0.Binv0
+    Dp = P - Y @ A
+    T = np.maximum(np.abs(Dp) - Dp * s0.xi0, 0.0)
+    T[:, basic] = 0.0
+    for k in range(Kc):
+        grow(S, k, _top(T[k], FIRST), AT, s0.xi0, P[k], Dp[k])
+    return S
+
+
+def _sift_chunk(A, AT, G, P, s0, S, radius, opts, kernels, seconds):
+    """Sift the chunk ``S`` (costs ``G``, perturbed ``P``) until every problem is finished
+    or failed or the rounds run out: ``(converged, rounds)``; ``opts = (gap_tol,
+    max_rounds)``."""
+    restricted, grow, price, duals = kernels
+    gap_tol, max_rounds = opts
+    Kc, p = G.shape[0], A.shape[0]
+    budget = max_iterations(p)
+    conv = np.zeros(Kc, bool)
+    status = np.full(Kc, RUNNING)
+    picked = np.zeros((Kc, ADD), np.int64)
+    counts = np.zeros(Kc, np.int64)
+    active, rounds = np.arange(Kc), 0
+    while active.size and rounds < max_rounds:
+        rounds += 1
+        t0 = perf_counter()
+        for k in active:  # each round's restricted LP with its own iteration budget
+            status[k] = restricted(S, k, S.its[k] + budget, REFACTOR_EVERY, PRIMAL_TOL,
+                                   PIVOT_TOL)
+        t1 = perf_counter()
+        seconds["restricted"] += t1 - t0
+        ok = active[status[active] == OPTIMAL]
+        if not ok.size:
+            break
+        # price every column against the restricted duals of the problems at an optimum
+        Dp = P[ok] - duals(S, ok) @ A
+        fin = price(S, Dp, s0.xi0, ok, gap_tol * radius[ok], picked, counts)
+        conv[ok[fin]] = True
+        t2 = perf_counter()
+        seconds["pricing"] += t2 - t1
+        for i in np.flatnonzero(~fin):
+            k = ok[i]
+            if not grow(S, k, picked[i, :counts[i]], AT, s0.xi0, P[k], Dp[i]):
+                status[k] = FAILED
+        seconds["restricted"] += perf_counter() - t2
+        active = ok[~fin]
+        active = active[status[active] != FAILED]
+    return conv, rounds
+
+
 def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, st: Start | None = None,
           gap_tol: float | None = None, max_rounds: int | None = None) -> SiftResult:
     """Dual points of ``max Gd[k]' xi  s.t.  A xi = b, |xi| <= 1`` for every row ``k`` (see
     the module docstring); ``st`` is a start vertex (:func:`.sifting.start` of the first
-    row's cost if not given).
+    row's cost if not given); ``gap_tol`` and ``max_rounds`` default to :data:`GAP_TOL` and
+    :data:`MAX_ROUNDS`.  The problems are sifted in chunks of :data:`CHUNK` (one pricing
+    product per round and chunk).
 
     Raises
     ------
@@ -428,112 +590,33 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, st: Start | None = None,
     A = np.ascontiguousarray(A, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     Gd = np.atleast_2d(np.asarray(Gd, dtype=np.float64))
-    K, (p, r) = Gd.shape[0], A.shape
-    restricted, grow, price, duals = _kernels()
-    gap_tol = GAP_TOL if gap_tol is None else gap_tol
-    max_rounds = MAX_ROUNDS if max_rounds is None else max_rounds
+    K, p = Gd.shape[0], A.shape[0]
+    kernels = _kernels()
+    opts = (GAP_TOL if gap_tol is None else gap_tol,
+            MAX_ROUNDS if max_rounds is None else max_rounds)
     seconds = {"start": 0.0, "models": 0.0, "restricted": 0.0, "pricing": 0.0}
     t0 = perf_counter()
     st = sifting.start(A, b, Gd[0]) if st is None else st
-    basis0 = start_basis(A, st)
-    if basis0 is None:
-        raise sifting.NoStart("the start vertex's basis is not a basis of the constraints")
-    B0, Binv0 = basis0
+    s0 = _prepare(A, b, st)
     AT = np.ascontiguousarray(A.T)
-    xi0 = st.xi.copy()
-    basic = B0[B0 < r]
-    xi0[basic] = 0.0  # basic values live in B^-1 t
-    t_start = b - A @ xi0
-    xi0[basic] = st.xi[basic]
     pert = Gd * (1.0 + PERTURBATION * _jitter(Gd.shape, 0))
-    w0 = np.einsum("ij,ij->i", Binv0, Binv0)
-    # positions 0..m-1 of every working set: the start's basic structurals, in column order
-    basic_sorted = np.sort(basic)
-    pos0 = np.where(B0 < r, np.searchsorted(basic_sorted, B0), -1 - (B0 - r))
-    cap = int(min(r, max(CAPACITY, 12 * p)))
-    max_iter = max_iterations(p)
     seconds["start"] = perf_counter() - t0
-    mu = np.zeros((K, p))
-    conv = np.zeros(K, bool)
-    rounds_all, iterations, sizes = 0, st.iterations, []
+    mu, conv = np.zeros((K, p)), np.zeros(K, bool)
+    rounds, iterations, sizes = 0, st.iterations, []
     radius = np.abs(Gd).sum(axis=1)
-    m = basic_sorted.size
-    AWT_all = np.empty((min(K, CHUNK), cap, p))  # the working sets' columns, chunk by chunk
+    AWT = np.empty((min(K, CHUNK), s0.cap, p))  # the working sets' columns, chunk by chunk
     for lo in range(0, K, CHUNK):
+        sl = slice(lo, min(K, lo + CHUNK))
         t0 = perf_counter()
-        G, P = Gd[lo:lo + CHUNK], pert[lo:lo + CHUNK]
-        Kc = G.shape[0]
-        Wc = np.zeros((Kc, cap), np.int64)
-        AWT = AWT_all[:Kc]
-        nrm2 = np.zeros((Kc, cap))
-        cW = np.zeros((Kc, cap))
-        zW = np.zeros((Kc, cap))
-        DW = np.zeros((Kc, cap))
-        isb = np.zeros((Kc, cap), bool)
-        Wc[:, :m] = basic_sorted
-        AWT[:, :m] = AT[basic_sorted]
-        nrm2[:, :m] = np.einsum("ij,ij->i", AT[basic_sorted], AT[basic_sorted])
-        cW[:, :m] = P[:, basic_sorted]
-        isb[:, :m] = True
-        nW = np.full(Kc, m, np.int64)
-        basis = np.tile(pos0, (Kc, 1))
-        Binv = np.tile(Binv0, (Kc, 1, 1))
-        wts = np.tile(w0, (Kc, 1))
-        t = np.tile(t_start, (Kc, 1))
-        inW = np.zeros((Kc, r), bool)
-        inW[:, basic_sorted] = True
-        its = np.zeros(Kc, np.int64)
-        upd = np.zeros(Kc, np.int64)
-        status = np.full(Kc, RUNNING)
-        picked = np.zeros((Kc, ADD), np.int64)
-        counts = np.zeros(Kc, np.int64)
-        # the first working sets: the columns pricing worst against the start basis's duals
-        Y = np.where(B0 < r, P[:, np.minimum(B0, r - 1)], 0.0) @ Binv0
-        Dp = P - Y @ A
-        T = np.maximum(np.abs(Dp) - Dp * xi0, 0.0)
-        T[:, basic_sorted] = 0.0
-        for k in range(Kc):
-            new = _top(T[k], FIRST)
-            inW[k, new] = True
-            grow(k, new, AT, xi0, P[k], Dp[k], Wc, AWT, nrm2, cW, zW, DW, isb, nW, t)
+        S = _new_chunk(A, AT, pert[sl], s0, AWT[:sl.stop - lo], kernels[1])
         seconds["models"] += perf_counter() - t0
-        active = np.arange(Kc)
-        rounds = 0
-        while active.size and rounds < max_rounds:
-            rounds += 1
-            t0 = perf_counter()
-            for k in active:  # each round's restricted LP with its own iteration budget
-                status[k] = restricted(k, AWT, nrm2, zW, DW, isb, nW, basis, Binv, wts, t,
-                                        its, upd, its[k] + max_iter, REFACTOR_EVERY,
-                                        PRIMAL_TOL, PIVOT_TOL)
-            t1 = perf_counter()
-            seconds["restricted"] += t1 - t0
-            ok = active[status[active] == OPTIMAL]
-            if not ok.size:
-                break
-            # price every column against the restricted duals of the problems at an optimum
-            Y = duals(ok, basis, cW, Binv)
-            Dp = P[ok] - Y @ A
-            fin = price(Dp, xi0, inW, ok, gap_tol * radius[lo + ok], ADD, picked, counts)
-            conv[lo + ok[fin]] = True
-            t2 = perf_counter()
-            seconds["pricing"] += t2 - t1
-            for i in np.flatnonzero(~fin):
-                k = ok[i]
-                new = picked[i, :counts[i]]
-                inW[k, new] = True
-                if not grow(k, new, AT, xi0, P[k], Dp[i], Wc, AWT, nrm2, cW, zW, DW, isb,
-                             nW, t):
-                    status[k] = FAILED
-            seconds["restricted"] += perf_counter() - t2
-            active = ok[~fin]
-            active = active[status[active] != FAILED]
-        rounds_all = max(rounds_all, rounds)
-        iterations += int(its.sum())
-        sizes += nW.tolist()
+        conv[sl], r_ = _sift_chunk(A, AT, Gd[sl], pert[sl], s0, S, radius[sl], opts, kernels,
+                                   seconds)
+        rounds, iterations = max(rounds, r_), iterations + int(S.its.sum())
+        sizes += S.nW.tolist()
         # the duals of the exact costs on the final bases
-        cols = np.take_along_axis(Wc, np.maximum(basis, 0), axis=1)
-        gB = np.where(basis >= 0, np.take_along_axis(G, cols, axis=1), 0.0)
-        mu[lo:lo + Kc] = np.einsum("kji,kj->ki", Binv, gB)
-    return SiftResult(mu, conv, rounds_all, iterations, float(np.mean(sizes)) if K else 0.0,
+        cols = np.take_along_axis(S.Wc, np.maximum(S.basis, 0), axis=1)
+        gB = np.where(S.basis >= 0, np.take_along_axis(Gd[sl], cols, axis=1), 0.0)
+        mu[sl] = np.einsum("kji,kj->ki", S.Binv, gB)
+    return SiftResult(mu, conv, rounds, iterations, float(np.mean(sizes)) if K else 0.0,
                       seconds)
