@@ -39,8 +39,14 @@ The costs are perturbed as in :mod:`.dual_simplex` (relative 1e-11, the same fac
 stalling; the returned duals are those of the exact costs on the final bases.  A problem is
 reported as not converged (the caller solves it in full) if its restricted LP fails
 numerically (no entering column, a tiny pivot element, a singular refactorisation), if its
-working set would exceed its capacity, or after the iteration budget
-(:func:`.dual_simplex.max_iterations`) or :data:`MAX_ROUNDS` pricing rounds.
+working set would exceed its capacity, when a round's restricted LP exceeds the iteration
+budget (:func:`.dual_simplex.max_iterations`), or after :data:`MAX_ROUNDS` pricing rounds.
+
+Measured on the steady CZN-A hulls (per hull, 2026-12-06): 30 tanks (42 rows, 3063 columns,
+60 LPs) 66 ms against 104 ms by the batched dual simplex; 60 tanks (92 rows, 6138 columns)
+242 ms against 1324 ms batched and 1189 ms by sifting with HiGHS; 100 tanks (160 rows,
+10,240 columns) 0.68 s against 2.9 s, 18 pivots per LP against HiGHS's 88; 200 tanks (326
+rows, 20,489 columns) 4.3 s against 9.0 s.
 
 The kernels are plain Python in numba's subset: compiled where numba is available
 (:data:`observers.kernels.switch.AVAILABLE`), and the same functions run interpreted
