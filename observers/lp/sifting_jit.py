@@ -87,10 +87,10 @@ ADD = 160
 CHUNK = 16
 #: the basis inverse is recomputed from scratch after this many updates
 REFACTOR_EVERY = 50
-#: columns a working set may hold (at least ``20 p``; a problem that would need more is
+#: columns a working set may hold (at least ``12 p``; a problem that would need more is
 #: reported as not converged)
 CAPACITY = 4000
-#: status of a problem after :func:`restricted`
+#: status of a problem after :func:`_restricted`
 RUNNING, OPTIMAL, FAILED = 0, 1, 2
 
 
