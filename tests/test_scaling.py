@@ -91,3 +91,24 @@ def test_a_run_projected_over_budget_in_the_study_names_its_step():
     (row,) = df.itertuples(index=False)
     assert row.status == "timeout" and "stopped after step" in row.message, row.message
     assert "over the budget of 20 s" in row.message
+
+
+def test_a_run_stopped_by_its_budget_names_what_its_steps_cost():
+    # a hand-made study: CZN-A ran at n = 6 (1 + 2 ms), was stopped by its budget at n = 12
+    # after steps of 20 ms + 600 ms (the hull the larger part); a run stopped from outside
+    # (no times) keeps the bare cell
+    import pandas as pd
+    df = pd.DataFrame([
+        scaling._row("linear", 6, "CZN-A", "ok", step_ms=1.0, hull_ms=2.0, total_ms=3.0,
+                     rel_rms=1.0),
+        scaling._row("linear", 12, "CZN-A", "timeout", "stopped after step 4 of 40",
+                     step_ms=20.0, hull_ms=600.0),
+        scaling._row("linear", 6, "FRad-A", "timeout", "stopped after the budget of 30 s"),
+    ])
+    table = "\n".join(scaling._size_table(df, "linear", (6, 12), "time"))
+    assert "| CZN-A | 1 + 2 | timeout (20 + 600) |" in table
+    assert "| FRad-A | timeout | n/a |" in table
+    notes = "\n".join(scaling.failures(df))
+    assert ("stopped after step 4 of 40; per step over the steps run: `step()` 20 ms + "
+            "interval hull 600 ms (medians), most of it the interval hull") in notes
+    assert notes.count("per step over the steps run") == 1

@@ -16,12 +16,13 @@ import pytest
 
 import systems
 from benchmarks.cli import main
+from benchmarks.errors import ConfigError
 from benchmarks.report import freshness
 from benchmarks.timing import speed
 from benchmarks.timing.exact_cost import ExactCase
 from benchmarks.timing.hull_profile import HullCase
 from benchmarks.timing.step_profile import StepCase
-from benchmarks.timing.steps import first_steps
+from benchmarks.timing.steps import TimingPlan, first_steps, time_observers
 from observers.families import strip_update
 from observers.numerics.frad import alamo_frad_gain, alamo_frad_strips
 from observers.sets import get_reduction
@@ -107,6 +108,17 @@ def test_time_steps_option_and_its_bad_value(capsys):
     assert fields[1] == "ok" and int(fields[6]) == 10
     assert main(["time", "FRad-A", "--scenario", "vehicle2d-cora", "--steps", "0"]) == 2
     assert capsys.readouterr().err.startswith("error: --steps must be at least 1")
+
+
+def test_a_cases_options_reach_the_observers_it_times():
+    # MHE's window is an option of the speed case (window 5 in the table): a window out of
+    # its range is refused by name, an accepted one times
+    plan = TimingPlan(repeat=1, steps=8, warmup=2)
+    with pytest.raises(ConfigError, match="MHE: window must be an integer in"):
+        time_observers(["MHE"], "vehicle2d-cora", plan, own={"window": 0})
+    _, _, (row,) = time_observers(["MHE"], "vehicle2d-cora", plan, own={"window": 2})
+    assert row.status == "ok" and row.timed_steps == 6
+    assert all(c.options == (("window", 5),) for c in speed.CASES if c.observers == ("MHE",))
 
 
 def test_speed_report_compares_with_the_previous_json(tmp_path):

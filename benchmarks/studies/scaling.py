@@ -222,6 +222,22 @@ def _result_cell(r, value: str) -> str:
     return {"timeout": "timeout", "not run": "not run"}.get(r.status, r.status)
 
 
+def _split(r) -> bool:
+    """Whether row ``r`` has a measured ``step()`` and hull time (a run stopped by its
+    budget has them for the steps it ran; a run stopped from outside has none)."""
+    return bool(np.isfinite(r.step_ms) and np.isfinite(r.hull_ms))
+
+
+def stop_cost(r) -> str:
+    """What a run stopped by its budget spent per step (medians over the steps it ran), and
+    which of ``step()`` and the interval hull is the larger part ("" if not measured)."""
+    if r.status != "timeout" or not _split(r):
+        return ""
+    larger = "the interval hull" if r.hull_ms > r.step_ms else "`step()`"
+    return (f"; per step over the steps run: `step()` {fmt(r.step_ms, 3)} ms + interval hull "
+            f"{fmt(r.hull_ms, 3)} ms (medians), most of it {larger}")
+
+
 def _size_table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
     """Markdown lines: one row per observer, one column per size, of ``what`` (time, design or
     rms)."""
@@ -238,6 +254,9 @@ def _size_table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
             r = next(r.itertuples(index=False))
             if what == "time":
                 value = f"{fmt(r.step_ms, 3)} + {fmt(r.hull_ms, 3)}"
+                if r.status == "timeout" and _split(r):  # the steps it ran, before it stopped
+                    cells.append(f"timeout ({value})")
+                    continue
             elif what == "design":
                 value = fmt(r.design_s, 3) + (" (cached)" if r.design_cached else "")
             else:
@@ -258,7 +277,9 @@ def failures(g: pd.DataFrame) -> list[str]:
         h = bad[bad["observer"] == name]
         for status, k in h.groupby("status", sort=False):
             sizes = ", ".join(str(n) for n in k["n"])
-            out.append(f"- {name}, {status} at n = {sizes}: {k['message'].iloc[0]}")
+            first = next(k.itertuples(index=False))
+            out.append(f"- {name}, {status} at n = {sizes}: {first.message}"
+                       + stop_cost(first))
     return out + [""]
 
 
@@ -323,7 +344,8 @@ def report(df: pd.DataFrame, fig: Path, out: Path, run: StudyRun) -> str:
                       f"`{r['status']}` at every size, e.g. {r['observer']}: {r['message']}", ""]
             continue
         parts += [f"## {variant} n-tank", "", "Per-step time, `step()` + interval hull (ms, "
-                  "medians):", ""] + _size_table(df, variant, sizes, "time") + [
+                  "medians; after `timeout`, over the steps the run did before it stopped):",
+                  ""] + _size_table(df, variant, sizes, "time") + [
             "", "Offline design time (s):", ""] + _size_table(df, variant, sizes, "design") + [
             "", "Relative RMS radius (mean over the states, against the best observer at the "
             "same n):", ""] + _size_table(df, variant, sizes, "rms") + [""]

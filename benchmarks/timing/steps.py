@@ -496,7 +496,8 @@ class TimingPlan:
     hulls: bool = True
 
 
-def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPlan()
+def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPlan(),
+                   own: dict[str, Any] | None = None
                    ) -> tuple[Scenario, int, list[TimingRow]]:
     """Time every observer of ``names`` on ``scenario`` (see the module docstring).
 
@@ -508,6 +509,9 @@ def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPla
         Scenario name (``python -m benchmarks list scenarios``).
     plan : TimingPlan
         Runs, warm-up, steps, steady state or fast forward (default: :class:`TimingPlan`).
+    own : dict, optional
+        Options of every observer timed, over the scenario's defaults (e.g. ``{"window":
+        5}``; see :func:`benchmarks.run.config.merge_options`).
 
     Returns
     -------
@@ -531,11 +535,11 @@ def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPla
     sc = first_steps(systems.scenario(scenario), plan.steps)
     warmup = resolve_warmup(sc, plan.warmup)
     if plan.fast_forward > 0:
-        rows = [time_observer_fast_forward(name, sc, merge_options(name, sc),
+        rows = [time_observer_fast_forward(name, sc, merge_options(name, sc, own=own),
                                            plan.fast_forward, plan.hulls)
                 for name in names]
     else:
-        rows = [time_observer(name, sc, merge_options(name, sc), plan.repeat, warmup,
+        rows = [time_observer(name, sc, merge_options(name, sc, own=own), plan.repeat, warmup,
                               plan.steady)
                 for name in names]
     return sc, warmup, rows
