@@ -104,11 +104,18 @@ def test_a_run_stopped_by_its_budget_names_what_its_steps_cost():
         scaling._row("linear", 12, "CZN-A", "timeout", "stopped after step 4 of 40",
                      step_ms=20.0, hull_ms=600.0),
         scaling._row("linear", 6, "FRad-A", "timeout", "stopped after the budget of 30 s"),
+        scaling._row("linear", 12, "FRad-A", "timeout", "stopped after step 2 of 40"),
     ])
     table = "\n".join(scaling._size_table(df, "linear", (6, 12), "time"))
     assert "| CZN-A | 1 + 2 | timeout (20 + 600) |" in table
-    assert "| FRad-A | timeout | n/a |" in table
-    notes = "\n".join(scaling.failures(df))
+    assert "| FRad-A | timeout | timeout |" in table
+    notes = "\n".join(scaling.failures(df, steps=40))
     assert ("stopped after step 4 of 40; per step over the steps run: `step()` 20 ms + "
             "interval hull 600 ms (medians), most of it the interval hull") in notes
     assert notes.count("per step over the steps run") == 1
+    # stopped at step 2 of 40: within the 4 warm-up steps (40 // 10) the medians leave out
+    assert ("stopped after the budget of 30 s\n" in notes
+            or notes.endswith("stopped after the budget of 30 s"))
+    assert scaling.stop_cost(df.iloc[3], 40) == (
+        "; `step()` and interval hull not timed apart: it stopped within the first 4 steps, "
+        "which the medians leave out")

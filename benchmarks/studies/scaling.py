@@ -51,7 +51,7 @@ from ..io import (
     atomic_write_text,
     environment,
 )
-from ..metrics import add_relative_rms
+from ..metrics import add_relative_rms, warmup_steps
 from ..report import figures, freshness
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
@@ -228,11 +228,17 @@ def _split(r) -> bool:
     return bool(np.isfinite(r.step_ms) and np.isfinite(r.hull_ms))
 
 
-def stop_cost(r) -> str:
-    """What a run stopped by its budget spent per step (medians over the steps it ran), and
-    which of ``step()`` and the interval hull is the larger part ("" if not measured)."""
-    if r.status != "timeout" or not _split(r):
+def stop_cost(r, steps: int = STEPS) -> str:
+    """What a run of ``steps`` steps stopped by its budget spent per step (medians over the
+    steps it ran after the warm-up), and which of ``step()`` and the interval hull is the
+    larger part; where it stopped within the warm-up, that it could not be split ("" for
+    other statuses)."""
+    if r.status != "timeout":
         return ""
+    if not _split(r):  # stopped by its projection within the warm-up steps, or from outside
+        return ("; `step()` and interval hull not timed apart: it stopped within the first "
+                f"{warmup_steps(steps)} steps, which the medians leave out"
+                if str(r.message).startswith("stopped after step") else "")
     larger = "the interval hull" if r.hull_ms > r.step_ms else "`step()`"
     return (f"; per step over the steps run: `step()` {fmt(r.step_ms, 3)} ms + interval hull "
             f"{fmt(r.hull_ms, 3)} ms (medians), most of it {larger}")
@@ -266,9 +272,10 @@ def _size_table(df: pd.DataFrame, variant: str, sizes, what: str) -> list[str]:
     return markdown_table(head, rows).splitlines()
 
 
-def failures(g: pd.DataFrame) -> list[str]:
+def failures(g: pd.DataFrame, steps: int = STEPS) -> list[str]:
     """Markdown list: per observer, each status other than ok with its sizes and the message
-    (of the smallest size)."""
+    (of the smallest size; for a run of ``steps`` steps stopped by its budget, what its steps
+    cost, :func:`stop_cost`)."""
     bad = g[g["status"] != "ok"]
     if not len(bad):
         return []
@@ -279,7 +286,7 @@ def failures(g: pd.DataFrame) -> list[str]:
             sizes = ", ".join(str(n) for n in k["n"])
             first = next(k.itertuples(index=False))
             out.append(f"- {name}, {status} at n = {sizes}: {first.message}"
-                       + stop_cost(first))
+                       + stop_cost(first, steps))
     return out + [""]
 
 
@@ -349,7 +356,7 @@ def report(df: pd.DataFrame, fig: Path, out: Path, run: StudyRun) -> str:
             "", "Offline design time (s):", ""] + _size_table(df, variant, sizes, "design") + [
             "", "Relative RMS radius (mean over the states, against the best observer at the "
             "same n):", ""] + _size_table(df, variant, sizes, "rms") + [""]
-        parts += failures(g)
+        parts += failures(g, steps)
     parts += ["---", ", ".join(f"{k} {v}" for k, v in env.items()), "",
               *citation_lines("scaling"), ""]
     return "\n".join(parts)
