@@ -4,6 +4,7 @@ stale when a measured row moves, and a real run under a second kernel of this CP
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -63,6 +64,20 @@ def test_spread_beside_a_cell_of_its_own_table_only(tmp_path):
     # another configuration on the same scenario never borrows the measurement
     assert spread.spread_note("FRad-C[pca-cora]", "tank", 0, "other", table=table) is None
     assert spread.spread_note("FRad-C[pca-cora]", "tank", 0, None, table=table) is None
+
+
+def test_the_indexed_cells_are_the_rows_of_the_committed_kernel_table():
+    # every cell of every configuration, looked up in the index, is what filtering the
+    # table's rows gives: the largest spread, inf where another kernel's status differs
+    frame = pd.read_csv(spread.KERNEL_SPREAD)
+    keys = ["config", "observer", "scenario", "state"]
+    assert len(frame) > 1000
+    for key, rows in frame.groupby(keys, sort=False):
+        got = spread.measured_cell_spread(key[1], key[2], key[3], key[0])
+        differs = rows["status_other"].dropna().astype(str).str.len().gt(0).any()
+        want = math.inf if differs else float(pd.to_numeric(rows["spread"]).max())
+        assert got == want or (math.isnan(got) and math.isnan(want)), key
+    assert spread.measured_cell_spread("no-such-observer", "tank", 0, "arch2021_table3") is None
 
 
 def test_study_is_stale_when_a_measured_row_moves(tmp_path):

@@ -75,17 +75,51 @@ def measured_cell_spread(observer: str, scenario: str, state: int, config: str |
     as labelled in its table, a variant ``NAME[tag]`` included) measured by the kernel study;
     ``None`` where it has no such cell (another configuration's cells are never borrowed) and
     ``inf`` where the status differs between kernels."""
-    frame = _golden(Path(table))
-    if frame is None or "spread" not in frame.columns or config is None:
+    cells = _cells(Path(table))
+    if cells is None or config is None:
         return None
-    rows = frame[(frame["config"] == config) & (frame["observer"] == observer)
-                 & (frame["scenario"] == scenario) & (frame["state"] == state)]
-    if rows.empty:
+    return cells.get((config, observer, scenario, state))
+
+
+#: the index of each table read by :func:`_golden`, by the identity of its frame (a new read
+#: of the file, after ``_golden.cache_clear()``, is a new frame and gets a new index)
+_INDEXES: dict[int, tuple[pd.DataFrame, dict[tuple, float]]] = {}
+
+
+def _cells(table: Path) -> dict[tuple, float] | None:
+    """The kernel study's table as ``{(config, observer, scenario, state): spread}``: the
+    largest spread of the key's rows (NaN if none is a number), ``inf`` where a row records
+    another status under another kernel; ``None`` without a readable table.  Indexed once
+    per read: a report renders thousands of cells."""
+    frame = _golden(table)
+    if frame is None or "spread" not in frame.columns:
         return None
-    other = rows["status_other"].dropna().astype(str)
-    if other.str.len().gt(0).any():
-        return math.inf
-    return float(pd.to_numeric(rows["spread"], errors="coerce").max())
+    held = _INDEXES.get(id(frame))
+    if held is None or held[0] is not frame:
+        if len(_INDEXES) >= 32:  # as many as _golden keeps
+            _INDEXES.clear()
+        held = _INDEXES[id(frame)] = (frame, _index(frame))
+    return held[1]
+
+
+def _index(frame: pd.DataFrame) -> dict[tuple, float]:
+    """The dictionary of :func:`_cells` for one read of the kernel study's table."""
+    spread = pd.to_numeric(frame["spread"], errors="coerce").to_numpy(float)
+    other = frame["status_other"] if "status_other" in frame.columns else pd.Series(
+        [math.nan] * len(frame))
+    differs = (other.notna() & (other.astype(str).str.len() > 0)).to_numpy(bool)
+    keys = zip(frame["config"], frame["observer"], frame["scenario"], frame["state"],
+               strict=True)
+    out: dict[tuple, float] = {}
+    for key, s, d in zip(keys, spread, differs, strict=True):
+        old = out.get(key, math.nan)
+        if d or math.isinf(old):
+            out[key] = math.inf
+        elif not math.isnan(s) and not s <= old:  # the largest number; NaN only if none
+            out[key] = s
+        else:
+            out[key] = old
+    return out
 
 
 def row_spread_note(observer: str, scenario: str, states: int, config: str | None = None,
