@@ -10,6 +10,8 @@ RESULTS ?= results
 # per-step times are undisturbed (parallel ones are marked "(parallel)" in the reports;
 # reports/speed.md is always timed serially)
 JOBS ?= $(shell getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
+# pytest-xdist workers of `make test` (one per core; TEST_JOBS=0 runs the suite in one process)
+TEST_JOBS ?= $(JOBS)
 # single-threaded BLAS: faster and far less noisy on the small matrices of the observers
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
@@ -39,9 +41,9 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)  ## create .venv and install the project with its test, dask and docs extras
 
-test: $(STAMP)  ## run ruff and the test suite, which builds the docs with -W and runs their examples (CI runs this, then make check)
+test: $(STAMP)  ## run ruff and the test suite (TEST_JOBS workers, default one per core), which builds the docs with -W and runs their examples (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal
 
 docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_build/html/index.html
 	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
