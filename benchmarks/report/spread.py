@@ -22,6 +22,7 @@ import functools
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .freshness import ROOT
@@ -104,22 +105,13 @@ def _cells(table: Path) -> dict[tuple, float] | None:
 
 def _index(frame: pd.DataFrame) -> dict[tuple, float]:
     """The dictionary of :func:`_cells` for one read of the kernel study's table."""
-    spread = pd.to_numeric(frame["spread"], errors="coerce").to_numpy(float)
-    other = frame["status_other"] if "status_other" in frame.columns else pd.Series(
-        [math.nan] * len(frame))
-    differs = (other.notna() & (other.astype(str).str.len() > 0)).to_numpy(bool)
-    keys = zip(frame["config"], frame["observer"], frame["scenario"], frame["state"],
-               strict=True)
-    out: dict[tuple, float] = {}
-    for key, s, d in zip(keys, spread, differs, strict=True):
-        old = out.get(key, math.nan)
-        if d or math.isinf(old):
-            out[key] = math.inf
-        elif not math.isnan(s) and not s <= old:  # the largest number; NaN only if none
-            out[key] = s
-        else:
-            out[key] = old
-    return out
+    other = frame.get("status_other", pd.Series(math.nan, index=frame.index))
+    cells = frame.assign(spread=pd.to_numeric(frame["spread"], errors="coerce"),
+                         differs=other.notna() & (other.astype(str).str.len() > 0)).groupby(
+        ["config", "observer", "scenario", "state"], sort=False).agg(
+        spread=("spread", "max"), differs=("differs", "any"))
+    return dict(zip(cells.index, np.where(cells["differs"], math.inf, cells["spread"]),
+                    strict=True))
 
 
 def row_spread_note(observer: str, scenario: str, states: int, config: str | None = None,
