@@ -205,6 +205,9 @@ class BenchResult(tuple):
         One line per kind of failure (the lines ``run`` prints on stderr); empty when ok.
     ok : bool
         Whether the exit code is :data:`EXIT_OK`.
+    meta : dict
+        The run's description (configuration, scenarios, executor, versions: what
+        ``meta.json`` holds), empty where none was given.
 
     Examples
     --------
@@ -218,8 +221,10 @@ class BenchResult(tuple):
     True
     """
 
-    def __new__(cls, runs: pd.DataFrame, summary: pd.DataFrame) -> BenchResult:
+    def __new__(cls, runs: pd.DataFrame, summary: pd.DataFrame,
+                meta: dict | None = None) -> BenchResult:
         self = super().__new__(cls, (runs, summary))
+        self.meta = meta or {}
         self.exit_code, self.problems = exit_code(summary)
         self.meaning = EXIT_MEANINGS[self.exit_code]
         return self

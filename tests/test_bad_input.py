@@ -21,7 +21,7 @@ import observers
 import systems
 from benchmarks import load_config
 from benchmarks.cli import main
-from benchmarks.run.runner import run_observer
+from benchmarks.run.rows import run_observer
 from observers import registry
 from observers.builtin.frad import FRadA
 from observers.errors import DesignFailed

@@ -450,7 +450,7 @@ def test_one_writer_per_cache_entry(tmp_path, monkeypatch):
     import threading
     import time
 
-    from benchmarks.run.floor import compute_floor
+    from benchmarks.run.floors import compute_floor
 
     monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
     sc = systems.scenario("vehicle2d-cora")

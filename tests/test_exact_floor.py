@@ -18,7 +18,8 @@ import yaml
 
 import systems
 from benchmarks.cli import main
-from benchmarks.run.floor import EXACT, INNER, compute_floor, floor_columns
+from benchmarks.run.floor import EXACT, INNER, floor_columns
+from benchmarks.run.floors import compute_floor
 from benchmarks.verdicts import EXIT_VIOLATION, NO, YES
 from observers import registry
 

@@ -369,3 +369,41 @@ def test_report_table_cells_use_the_one_formatter():
 if __name__ == "__main__":  # pragma: no cover - a tool for a reader
     found = cycles(import_graph())
     print("\n".join(" -> ".join(c) for c in found) or "no module-level import cycle")
+
+
+#: what orchestrates a run, reports or gates it: in no stored row's code
+ORCHESTRATION = ("benchmarks.run.runner", "benchmarks.run.executors", "benchmarks.run.progress",
+                 "benchmarks.run.config", "benchmarks.run.floors", "benchmarks.run.designs",
+                 "benchmarks.run.workerinit", "benchmarks.run.describe", "benchmarks.io",
+                 "benchmarks.cli")
+ORCHESTRATION_WINGS = ("benchmarks.store", "benchmarks.gate", "benchmarks.report",
+                       "benchmarks.timing", "benchmarks.studies")
+
+
+def _row_closures():
+    from benchmarks.store.fingerprint import HARNESS, INNER_FLOOR
+    from benchmarks.store.graph import ModuleGraph
+
+    graph = ModuleGraph(ROOT)
+    return graph, {root: graph.closure(root) for root in (*HARNESS, INNER_FLOOR)}
+
+
+def test_orchestration_is_in_no_rows_closure():
+    """A row is a pure function of its job: the runner, the executors, Dask, progress bars,
+    input/output, the store, the gate and the reports are outside the code of every row, so
+    an edit there stales none (the issue: every row's closure held 62 modules, the executors
+    and the falsifier among them)."""
+    _, closures = _row_closures()
+    for root, closure in closures.items():
+        inside = sorted(m for m in closure if m in ORCHESTRATION
+                        or m.startswith(ORCHESTRATION_WINGS))
+        assert not inside, f"{root} depends on orchestration: {inside}"
+
+
+def test_the_falsifier_is_in_the_nonlinear_rows_closure_only():
+    from benchmarks.store.fingerprint import HARNESS, INNER_FLOOR
+
+    _, closures = _row_closures()
+    for root in HARNESS:
+        assert not any(m.startswith("benchmarks.run.falsifier") for m in closures[root]), root
+    assert "benchmarks.run.falsifier.search" in closures[INNER_FLOOR]

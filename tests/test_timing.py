@@ -149,7 +149,7 @@ def test_steady_from_finds_where_the_set_size_stops_changing():
 
 
 def test_steady_timing_starts_where_the_zonotope_reaches_its_order(capsys):
-    from benchmarks.run.config import merge_options
+    from benchmarks.run.rows import merge_options
     from benchmarks.timing.steps import set_size, time_observer
 
     sc = systems.scenario("vehicle2d-cora")
@@ -174,7 +174,7 @@ def test_fast_forward_times_the_steps_after_the_steady_state():
     timed from there: the first timed step is the first after MIN_STEADY_STEPS steps of
     one size, exactly ``timed`` steps are timed, each with its hull."""
     import observers
-    from benchmarks.run.config import merge_options
+    from benchmarks.run.rows import merge_options
     from benchmarks.timing.steps import (
         MIN_STEADY_STEPS,
         set_size,

@@ -444,7 +444,8 @@ def test_a_record_that_contradicts_the_model_blames_the_data_not_the_observers(t
 
 def test_the_exact_floor_finds_the_shipped_records_consistent():
     import systems
-    from benchmarks.run.floor import EXACT, compute_floor
+    from benchmarks.run.floor import EXACT
+    from benchmarks.run.floors import compute_floor
 
     for name in ("alamo2d", "vehicle2d-cora"):
         sc = systems.scenario(name)

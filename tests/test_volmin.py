@@ -10,7 +10,7 @@ import pytest
 import observers
 import systems
 from benchmarks.metrics import rms_radius
-from benchmarks.run.runner import run_observer
+from benchmarks.run.rows import run_observer
 from observers.families import strip_update
 from observers.numerics.volmin import ZERO_PROJECTION, bravo_scores, bravo_update, volume_lp_gain
 

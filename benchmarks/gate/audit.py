@@ -65,19 +65,12 @@ import systems
 from systems import ModelError, Scenario
 
 from ..errors import ConfigError
-from ..run.config import merge_options
 from ..run.executors import run_tasks
-from ..run.floor import (
-    EXACT,
-    RecordFloor,
-    compute_floor,
-    floor_columns,
-    misses_floor,
-    observer_floor,
-)
+from ..run.floor import EXACT, RecordFloor, floor_columns, misses_floor, observer_floor
+from ..run.floors import compute_floor
 from ..run.membership import MembershipTester
 from ..run.progress import progress_bar
-from ..run.runner import run_observer
+from ..run.rows import merge_options, run_observer
 
 AUDIT_SCENARIOS = ("vehicle2d-sim", "vehicle6d-sim", "tank6-linear", "alamo2d-sim",
                    "tank6-nonlinear", "vanderpol-sim")

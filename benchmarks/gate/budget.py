@@ -46,7 +46,8 @@ from ..errors import ConfigError
 from ..io import atomic_write_json, environment
 from ..run.config import BenchConfig
 from ..run.executors import JobFailure, ProcessExecutor, SerialExecutor
-from ..run.runner import Job, is_project_module
+from ..run.rows import Job
+from ..run.runner import is_project_module
 
 #: the job costs, in the baseline folder
 COST_FILE = "cost.json"

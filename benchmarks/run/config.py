@@ -49,6 +49,7 @@ import observers
 from systems import Scenario, available_memory
 
 from ..errors import ConfigError
+from .rows import merge_options
 from .shipped import resolve_config
 from .specs import build_scenario
 
@@ -177,28 +178,6 @@ class BenchConfig:
         own = (self.labelled[observer][1] if observer in self.labelled
                else self.observer_options.get(observer, {}))
         return merge_options(self.observer_of(observer), scenario, self.options, own)
-
-
-def merge_options(name: str, scenario: Scenario, options: dict[str, Any] | None = None,
-                  own: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The options observer ``name`` runs with on ``scenario``.
-
-    Scenario defaults < ``options`` (the config's, for every observer) < ``own`` (the
-    observer's own options and sweep variant), restricted to the options the observer accepts
-    for the scenario and global ones (all of ``own``: an unknown one is the observer's error to
-    report); scenario defaults only for the options listed in the observer's
-    ``SCENARIO_OPTIONS``; observers with a ``training`` option also get the scenario's offline
-    experiment.
-    """
-    info = observers.get(name)
-    accepted = info.option_defaults()
-    from_scenario = accepted if info.scenario_options is None else info.scenario_options
-    merged = {k: v for k, v in scenario.options.items() if k in from_scenario}
-    merged.update({k: v for k, v in (options or {}).items() if k in accepted})
-    merged.update(own or {})
-    if "training" in accepted and "training" not in merged and scenario.training is not None:
-        merged["training"] = scenario.training  # offline data for data-driven observers
-    return merged
 
 
 def _yaml_error(path: Path, exc: yaml.YAMLError) -> ConfigError:

@@ -24,7 +24,7 @@ from ..errors import ConfigError
 from .config import load_config
 from .executors import run_tasks
 from .progress import progress_bar
-from .runner import design_observer
+from .rows import design_observer
 
 #: one design: (config path, scenario index in the config, observer name)
 Task = tuple[str, int, str]

@@ -21,7 +21,7 @@ of the harness, not to be confused:
   (default :data:`.config.DEFAULT_TIMEOUT`);
 * the regression gate's *job budgets* (:mod:`benchmarks.gate.budget`): a job timeout per job,
   derived from the job's recorded cost, which ``check`` sets here job by job;
-* the *projected stop* of a run (``observers.run(..., budget=...)``, :func:`.runner.execute_job`
+* the *projected stop* of a run (``observers.run(..., budget=...)``, :func:`.rows.execute_job`
   ``budget``): the observer's run itself ends early once its steps project it past the
   budget; only the scaling study passes it (its job timeout), ``run`` and ``check`` do not,
   so that a slow row there runs to its job timeout as before.

@@ -12,14 +12,17 @@ it:
   against the floor of its registry entry (:attr:`observers.ObserverInfo.floor`) unless the
   configuration says otherwise (``floors: {NAME: predicted}``);
 * **nonlinear records**: no exact set exists, so the falsifier
-  (:mod:`benchmarks.run.falsifier`) searches verified consistent trajectories that make each
-  state as large or as small as possible at :data:`FALSIFIER_STEPS` steps spread from
-  :data:`FALSIFIER_FIRST` of the record on; the extremes form an *inner* box of the filtered
-  consistent set (also inside the predicted one).
+  (:mod:`benchmarks.run.falsifier`, run by :func:`.floor_inner.inner_floor`) searches verified
+  consistent trajectories that make each state as large or as small as possible at
+  :data:`.floor_inner.FALSIFIER_STEPS` steps spread from :data:`.floor_inner.FALSIFIER_FIRST`
+  of the record on; the extremes form an *inner* box of the filtered consistent set (also
+  inside the predicted one).
 
 A run computes the floor of every scenario instance before the observers' jobs, by its
-executor (:func:`compute_floors`: one :class:`FloorTask` per instance, run by
-:func:`floor_task` in this process or a worker).
+executor (:func:`.floors.compute_floors`: one :class:`.floors.FloorTask` per instance, run by
+:func:`.floors.floor_task` in this process or a worker).  This module holds the exact floor and
+what every row does with a floor; the falsifier's floor is :mod:`.floor_inner`, so that only
+the rows of nonlinear records depend on the falsifier's code.
 
 Per observer row (:func:`floor_columns`):
 
@@ -48,11 +51,9 @@ row of it says so (status ``inconsistent``), whatever its sets.
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -63,11 +64,7 @@ from systems import ModelError, Scenario
 
 from ..metrics import steady_start
 from ..verdicts import NA, NO, YES
-from .executors import JobFailure
-from .specs import scenario_key, scenario_of
 
-#: steps the falsifier searches on a nonlinear record, spread from this share of it on
-FALSIFIER_STEPS, FALSIFIER_FIRST = 10, 0.2
 #: an observer's hull covers the exact hull if it misses it by at most this share of the exact
 #: radius (plus the scenario's containment tolerance): the agreement of the exact hulls with
 #: an independent LP formulation is checked to this bound
@@ -122,36 +119,22 @@ class RecordFloor:
         return lo, hi
 
 
-def compute_floor(sc: Scenario, enabled: bool = True,
-                  budget: int | None = None) -> RecordFloor:
-    """The floor of ``sc``'s record (see the module docstring); never raises for a record it
-    cannot handle (``kind = "none"`` with the reason).  ``budget``: the falsifier's budget of
-    simplex iterations on a nonlinear record (``SearchOptions.max_simplex_iterations``;
-    None: none); the steps it leaves unsearched have no floor, and ``message`` says so."""
-    if not enabled:
-        return RecordFloor("none", message="not computed (exact: false in the configuration)")
+def guarded(compute: Callable[[float], RecordFloor]) -> RecordFloor:
+    """``compute(t0)`` with the failures of a record turned into floors: no state fits it
+    (``kind = "empty"``), or no floor can be computed for it (``"none"``, with the reason)."""
     t0 = time.perf_counter()
-    system = sc.system
     try:
-        if getattr(system, "is_linear", False):
-            return _exact(sc, t0)
-        from .falsifier import SearchOptions, falsify, spread_steps
-
-        steps = spread_steps(sc.N, FALSIFIER_STEPS, first=int(FALSIFIER_FIRST * sc.N))
-        res = falsify(system, sc, steps, options=SearchOptions(
-            keep_trajectories=False, max_simplex_iterations=budget))
-        done = res.stats["steps_searched"]
-        note = (f"falsifier budget of {budget} simplex iterations spent: {done} of "
-                f"{len(res.steps)} steps searched" if res.stats["budget_spent"] else "")
-        if done == 0:
-            return RecordFloor("none", message=f"no floor: {note}",
-                               seconds=time.perf_counter() - t0)
-        return RecordFloor(INNER, {"filtered": res.inner_lo}, {"filtered": res.inner_hi},
-                           steps=res.steps, message=note, seconds=time.perf_counter() - t0)
+        return compute(t0)
     except SetError as exc:  # EmptySet: no state fits the record
         return RecordFloor("empty", message=str(exc), seconds=time.perf_counter() - t0)
     except (Unsupported, ModelError, ObserverError) as exc:
         return RecordFloor("none", message=f"no floor: {exc}", seconds=time.perf_counter() - t0)
+
+
+def exact_floor(sc: Scenario) -> RecordFloor:
+    """The exact floor of a linear record (see the module docstring); never raises for a
+    record it cannot handle."""
+    return guarded(lambda t0: _exact(sc, t0))
 
 
 def _exact(sc: Scenario, t0: float) -> RecordFloor:
@@ -173,40 +156,6 @@ def _exact(sc: Scenario, t0: float) -> RecordFloor:
                        {"filtered": h["filt_hi"], "predicted": h["pred_hi"]},
                        seconds=time.perf_counter() - t0, step_seconds=step,
                        unchecked=unchecked)
-
-
-@dataclass(frozen=True)
-class FloorTask:
-    """The accuracy floor of one scenario instance (:func:`compute_floor`), run by the
-    executor before the observers' jobs (picklable like a job)."""
-
-    spec: dict
-    base: str | None
-    enabled: bool = True
-    scenario: Scenario | None = dataclasses.field(default=None, compare=False, repr=False)
-
-
-def floor_task(task: FloorTask) -> RecordFloor:
-    """Compute the floor of ``task``'s scenario (in this process or a worker)."""
-    return compute_floor(scenario_of(task), task.enabled)
-
-
-def compute_floors(executor: Any, jobs: Sequence[Any], enabled: bool = True
-                   ) -> dict[str, RecordFloor]:
-    """The floor of every scenario instance of ``jobs`` (each with ``spec``, ``base`` and an
-    optional built ``scenario``), by the executor (the exact reference of a long record takes
-    minutes: the instances run in parallel with ``--jobs``; its cache makes a second run
-    free); keyed by :func:`.specs.scenario_key`; ``enabled``: the configuration's ``exact``."""
-    keys = list(dict.fromkeys(scenario_key(j) for j in jobs))
-    first = {scenario_key(j): j for j in reversed(jobs)}
-    tasks = [FloorTask(first[k].spec, first[k].base, enabled,
-                       first[k].scenario if executor.name == "serial" else None) for k in keys]
-    floors: dict[str, RecordFloor] = {}
-    for i, out in executor.map(floor_task, tasks, keys=keys):
-        if isinstance(out, JobFailure):
-            out = RecordFloor("none", message=f"no floor: {out.status}: {out.message}")
-        floors[keys[i]] = out
-    return floors
 
 
 def observer_floor(name: str, overrides: dict[str, str] | None = None) -> str:

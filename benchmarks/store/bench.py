@@ -30,7 +30,7 @@ from ..errors import ConfigError
 from ..io import atomic_write_text
 from ..report.markdown import render_report
 from ..run.config import BenchConfig, load_config
-from ..run.floor import FloorTask, floor_task
+from ..run.floors import FloorTask, floor_task
 from ..run.runner import is_project_module, make_jobs, run_config
 from ..run.specs import scenario_key
 from .fingerprint import Fingerprint, Fingerprinter, changes, job_key
@@ -134,16 +134,10 @@ def run_stale(p: Plan, executor, out: Path, progress: bool | None = None):
         raise ConfigError(f"{p.cfg.name}: the code changed while its rows ran ({key}: {why}); "
                           "nothing stored, run `make bench` again")
     run_id, run = new_run(ROOT, {"name": executor.name, "workers": executor.workers})
-    new = RunRows(result.summary, {k: p.prints[k] for k in ran}, run_id, run, _run_meta(out))
+    described = {k: result.meta[k] for k in ("config", "scenarios")}
+    new = RunRows(result.summary, {k: p.prints[k] for k in ran}, run_id, run, described)
     merged = merge(p.store, new, p.order)
     return merged, result
-
-
-def _run_meta(out: Path) -> dict:
-    """``config`` and ``scenarios`` of the run just written to ``out`` (its ``meta.json``,
-    written by :func:`~benchmarks.run.runner.run_config`: one description of a run)."""
-    meta = json.loads((out / "meta.json").read_text(encoding="utf-8"))
-    return {"config": meta["config"], "scenarios": meta["scenarios"]}
 
 
 def render(store: Store, out: Path) -> str:

@@ -4,10 +4,14 @@ A row of ``results/<config>/summary.csv`` (one observer, or labelled variant, on
 instance; one line per state) is produced by
 
 - the code of its computation: the closure (:class:`.graph.ModuleGraph`) of the observer's
-  plugin module, of the observers an option names (``MHE``'s inner observer), of the exact
-  reference when the configuration computes floors, and of the harness that runs the job and
-  makes the row (``benchmarks.run.runner``: containment checks, metrics, the floor, the scenario
-  built from its entry, the models of ``systems``);
+  plugin module, of the observers an option names (``MHE``'s inner observer), of the module
+  that makes one job's rows (``benchmarks.run.rows``: the design and run, containment checks,
+  metrics, the floor columns, the scenario built from its entry, the models of ``systems``),
+  and, when the configuration computes floors, of the floor of its record: the exact reference
+  (``Exact``'s plugin) for a linear record, the falsifier's inner box
+  (``benchmarks.run.floor_inner``) for a nonlinear one.  What orchestrates a run (the runner,
+  the executors, Dask, progress bars, input/output, the store, the gate, the reports) is in no
+  row's closure: an edit there changes no row (``tests/test_layering.py``);
 - the data shipped with the models (every file under ``systems/data/``) and the user's records
   named by the scenario entry;
 - its entry in the configuration: the scenario entry (seed included), the options, the
@@ -29,10 +33,13 @@ from typing import Any
 import observers
 
 from ..run.floor import observer_floor
+from ..run.specs import scenario_of
 from .graph import ROOT, ModuleGraph
 
 #: the harness modules every row is computed by (their closures are derived from the code)
-HARNESS = ("benchmarks.run.runner",)
+HARNESS = ("benchmarks.run.rows",)
+#: the module of the floor of a nonlinear record (in the closure of those rows only)
+INNER_FLOOR = "benchmarks.run.floor_inner"
 #: folders whose every file is data of the models
 DATA_DIRS = ("systems/data",)
 #: length of a stored digest (hex digits)
@@ -155,10 +162,12 @@ class Fingerprinter:
         return out
 
     def roots(self, job, exact: bool) -> list[str]:
-        """The modules whose closures make the job's code."""
+        """The modules whose closures make the job's code (the floor's by the linearity of
+        the job's system, as :func:`benchmarks.run.floors.compute_floor` chooses it)."""
         names = [job.module, *HARNESS]
         if exact:
-            names.append(observers.get("Exact").cls.__module__)
+            linear = getattr(scenario_of(job).system, "is_linear", False)
+            names.append(observers.get("Exact").cls.__module__ if linear else INNER_FLOOR)
         known = set(observers.names())
         for value in {**job.options, **job.observer_options}.values():
             if isinstance(value, str) and value in known:  # an observer named by an option

@@ -50,7 +50,8 @@ from ..metrics import memory_columns, warmup_steps
 from ..report import figures, freshness
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
-from ..run.floor import GAP_UPPER, compute_floor, floor_columns, observer_floor
+from ..run.floor import GAP_UPPER, floor_columns, observer_floor
+from ..run.floors import compute_floor
 from ..timing.steps import first_steps, kalman_step_times
 
 #: total time budget of a run of the study (seconds)

@@ -38,10 +38,10 @@ from ..metrics import rms_radius
 from ..report import figures
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
-from ..run.config import merge_options
 from ..run.executors import run_tasks
-from ..run.floor import compute_floor, floor_columns, observer_floor
-from ..run.runner import run_observer
+from ..run.floor import floor_columns, observer_floor
+from ..run.floors import compute_floor
+from ..run.rows import merge_options, run_observer
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: the records of the grid (the simulated versions of the papers' 6-tank and 6-D vehicle)

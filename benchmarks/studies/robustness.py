@@ -49,10 +49,11 @@ from ..report import figures
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
 from ..report.paper import paper_rows
-from ..run.config import merge_options
 from ..run.executors import run_tasks
-from ..run.floor import FALSIFIER_STEPS, compute_floor, floor_columns, observer_floor
-from ..run.runner import run_observer
+from ..run.floor import floor_columns, observer_floor
+from ..run.floor_inner import FALSIFIER_STEPS
+from ..run.floors import compute_floor
+from ..run.rows import merge_options, run_observer
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: realisations per scenario (the audit's first ones)

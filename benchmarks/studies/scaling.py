@@ -56,7 +56,7 @@ from ..report import figures, freshness
 from ..report.citation import citation_lines
 from ..report.numbers import MISSING, fmt, markdown_table
 from ..run.executors import JobFailure, ProcessExecutor
-from ..run.runner import Job, design_observer, execute_job
+from ..run.rows import Job, design_observer, execute_job
 from ..run.specs import build_scenario
 
 SIZES = (6, 12, 30, 60, 100, 200)

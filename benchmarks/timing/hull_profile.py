@@ -28,9 +28,8 @@ import systems
 from observers.sets import HullLP
 
 from ..report.numbers import fmt
-from ..run.config import merge_options
 from ..run.progress import announced
-from ..run.runner import design_observer
+from ..run.rows import design_observer, merge_options
 from .steps import to_steady_state
 
 #: the solver strategies compared (:attr:`observers.sets.HullLP.SOLVERS`); HiGHS is the

@@ -23,9 +23,8 @@ import numpy as np
 import systems
 
 from ..report.numbers import fmt
-from ..run.config import merge_options
 from ..run.progress import announced
-from ..run.runner import design_observer
+from ..run.rows import design_observer, merge_options
 from .steps import to_steady_state
 
 

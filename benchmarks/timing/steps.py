@@ -45,8 +45,7 @@ from ..errors import ConfigError
 from ..io import environment
 from ..metrics import warmup_steps
 from ..report.numbers import fmt, text_table
-from ..run.config import merge_options
-from ..run.runner import design_observer
+from ..run.rows import design_observer, merge_options
 
 DEFAULT_REPEAT = 5
 #: how the reference Kalman filter is built (printed with the table and stored in the JSON)
@@ -291,7 +290,7 @@ def time_observer(name: str, sc: Scenario, options: dict, repeat: int, warmup: i
     sc : Scenario
         Scenario with the system and the record.
     options : dict
-        Observer options (as :func:`benchmarks.run.config.merge_options` gives them).
+        Observer options (as :func:`benchmarks.run.rows.merge_options` gives them).
     repeat : int
         Runs over the record (at least 1).
     warmup : int
@@ -511,7 +510,7 @@ def time_observers(names: list[str], scenario: str, plan: TimingPlan = TimingPla
         Runs, warm-up, steps, steady state or fast forward (default: :class:`TimingPlan`).
     own : dict, optional
         Options of every observer timed, over the scenario's defaults (e.g. ``{"window":
-        5}``; see :func:`benchmarks.run.config.merge_options`).
+        5}``; see :func:`benchmarks.run.rows.merge_options`).
 
     Returns
     -------
