@@ -18,7 +18,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence check baseline history audit audit-short speed scaling frontier noise-grid robustness kernels clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence release check baseline history audit audit-short speed scaling frontier noise-grid robustness kernels clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -62,15 +62,16 @@ bench-cold: $(STAMP)  ## every row of every published config from an empty desig
 	SETOBS_CACHE_DIR=$(abspath $(RESULTS))/.cold-cache $(PY) -m benchmarks bench --cold --jobs $(JOBS) --no-progress
 	$(PY) -m benchmarks index reports --committed
 
-reports: $(STAMP)  ## render every committed report from its result store, in seconds (no run; changes no byte when nothing changed)
+reports: $(STAMP)  ## render every committed report from its result store and the dated block of every study and timing report, in seconds (no run; changes no byte when nothing changed)
 	$(PY) -m benchmarks reports
 	$(PY) -m benchmarks index reports --committed
 
-stale: $(STAMP)  ## name the stored rows and committed reports a change made stale (no run; exit 1 if any)
+stale: $(STAMP)  ## name the stored rows and committed reports a change made stale (no run; exit 1 if any), then the dated reports whose rows older code measured (no exit status)
 	$(PY) -m benchmarks stale
 
-speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json)
+speed: $(STAMP)  ## time the speed table -> reports/speed.md (compared with reports/speed.json), a dated report
 	$(PY) -m benchmarks speed
+	$(PY) -m benchmarks stale --record reports/speed.md
 
 bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the first run): results/quick/run/index.html (HTML report) and report.md
 	$(PY) -m benchmarks run $(CONFIGS_QUICK) --out $(RESULTS)/quick/run
@@ -78,9 +79,11 @@ bench-quick: $(STAMP)  ## a small subset (about 1 min of CPU warm, 2 min on the 
 
 scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.md (budgeted)
 	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
+	$(PY) -m benchmarks stale --record reports/scaling.md
 
 kernels: $(STAMP)  ## the paper tables re-run under every other OpenBLAS kernel of this CPU, each accuracy cell's spread against the committed stores -> reports/kernels.md, results/kernels/ (after make bench)
 	$(PY) -m benchmarks.studies.kernels --jobs $(JOBS) --out reports/kernels.md --results $(RESULTS)
+	$(PY) -m benchmarks stale --record reports/kernels.md
 	$(PY) -m benchmarks reports
 	$(PY) -m benchmarks index reports --committed
 
@@ -94,8 +97,9 @@ robustness: $(STAMP)  ## rankings over the audit's realisations (20 per scenario
 
 frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)
 	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier
+	$(PY) -m benchmarks stale --record reports/frontier.md
 
-check: $(STAMP)  ## CI gate: no stale stored row or report (setobs-bench stale), regression subset vs results/baseline/
+check: $(STAMP)  ## CI gate: no stale stored row or report of the first tier (setobs-bench stale), regression subset vs results/baseline/
 	$(PY) -m benchmarks check --reports reports
 
 baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)
@@ -105,7 +109,15 @@ datadriven: $(STAMP)  ## the data-driven study (Alanwar et al. 2022) -> reports/
 	$(PY) -m benchmarks.studies.alanwar2022 --out reports/datadriven.md
 	$(PY) -m benchmarks stale --record reports/datadriven.md
 
-evidence: bench kernels audit datadriven speed scaling frontier noise-grid robustness  ## everything committed: the stale rows, the audit, the data-driven study and the timing reports
+evidence: bench kernels audit datadriven speed scaling frontier noise-grid robustness  ## measure everything again: the stale rows, the audit, the data-driven study and the timing reports
+
+BUMP ?= patch
+release: bench  ## make bench, then measure again every dated report with a changed row (the studies, the audit, the timing reports), bump the version (BUMP=patch|minor|major) and tag it; the CHANGELOG entry lists what was re-measured
+	@targets="$$($(PY) -m benchmarks release --plan)"; echo "release: re-measuring: $${targets:-nothing}"; \
+		[ -z "$$targets" ] || $(MAKE) $$targets
+	$(PY) -m benchmarks reports
+	$(PY) -m benchmarks stale --all
+	$(PY) -m benchmarks release --bump $(BUMP)
 
 history: $(STAMP)  ## accuracy of the golden summaries over the git history -> results/history/index.html
 	$(PY) -m benchmarks history
@@ -113,6 +125,7 @@ history: $(STAMP)  ## accuracy of the golden summaries over the git history -> r
 AUDIT_REALISATIONS ?= 20
 audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenario, default 20): only the stale pairs of results/soundness/ run; -> reports/soundness.md
 	$(PY) -m benchmarks audit --realisations $(AUDIT_REALISATIONS)
+	$(PY) -m benchmarks stale --record reports/soundness.md
 
 audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
 	$(PY) -m benchmarks audit --short --no-progress

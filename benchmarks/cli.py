@@ -22,7 +22,7 @@ from systems import scenario_names
 
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
-from .gate import audit, blas, history, policy, regression
+from .gate import audit, blas, dated, history, policy, regression, release
 from .io import (
     atomic_write_json,
     blas_corename,
@@ -169,16 +169,25 @@ def _cmd_reports(args) -> int:
 
 def _cmd_stale(args) -> int:
     if args.record:
-        digest = store_stale.record_study(args.record)
-        print(f"recorded {args.record} as produced from this tree (fingerprint {digest})")
+        rec = dated.record(args.record)
+        dated.refresh(Path(args.record).resolve().parent)  # its dated block says so
+        print(f"recorded {args.record} as measured by {rec['version']} at commit "
+              f"{rec['commit'] or '?'}")
         return 0
     lines = policy.stale(args.configs or None)
     for line in lines:
         print(line)
+    later = [] if args.configs else policy.changed_since()
+    for line in later:
+        print(line)
     if lines:
         print(f"{len(lines)} stale (`make bench` re-runs the rows, `make reports` renders the "
               "reports)", file=sys.stderr)
-    return 1 if lines else 0
+    if later:
+        print(f"{len(later)} dated report(s) with rows measured by older code (second tier: "
+              "no landing waits for them; `make release` measures them again)",
+              file=sys.stderr)
+    return 1 if lines or (args.all and later) else 0
 
 
 def _print(outcome: policy.Outcome) -> int:
@@ -362,6 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
     _add_reports(sub)
     _add_stale(sub)
+    _add_release(sub)
     _add_report(sub)
     _add_index(sub)
     _add_history(sub)
@@ -453,16 +463,45 @@ def _add_reports(sub) -> None:
     rr.set_defaults(func=_cmd_reports)
 
 
+def _cmd_release(args) -> int:
+    if args.plan:
+        print(" ".join(release.plan()))
+        return 0
+    new = release.bump(args.bump)
+    print(f"released {new} (commit and tag v{new})")
+    return 0
+
+
+def _add_release(sub) -> None:
+    """The ``release`` sub-command (what ``make release`` calls)."""
+    rl = sub.add_parser("release", help="the steps of `make release`: the make targets of "
+                                        "the dated reports to measure again, or the bump",
+                        description=release.__doc__.splitlines()[0])
+    what = rl.add_mutually_exclusive_group(required=True)
+    what.add_argument("--plan", action="store_true",
+                      help="print the make targets of the dated reports with rows measured "
+                           "by older code")
+    what.add_argument("--bump", choices=release.PARTS,
+                      help="bump this part of the version, open its CHANGELOG entry, commit "
+                           "and tag (refused while a dated report is measured by older code)")
+    rl.set_defaults(func=_cmd_release)
+
+
 def _add_stale(sub) -> None:
     """The ``stale`` sub-command."""
     st = sub.add_parser("stale", help="name the stored rows and committed reports that are "
                                       "out of date (no run; exit 1 if any)",
                         description=store_stale.__doc__.splitlines()[0])
     st.add_argument("configs", nargs="*", metavar="CONFIG",
-                    help="shipped configuration names (default: all, and the studies)")
+                    help="shipped configuration names (default: all, and the dated reports)")
+    st.add_argument("--all", action="store_true",
+                    help="also exit 1 if a dated report (a study, the audit, a timing "
+                         "report) has rows measured by older code (what `make release` "
+                         "requires)")
     st.add_argument("--record", metavar="REPORT",
-                    help="record that the study report REPORT (reports/soundness.md, "
-                         "reports/datadriven.md) was just produced from this tree")
+                    help="record that the dated report REPORT (e.g. reports/robustness.md) "
+                         "was just measured by this tree: its version, commit, date and "
+                         "the fingerprint of each row")
     st.set_defaults(func=_cmd_stale)
 
 

@@ -18,6 +18,7 @@ import observers
 
 from ..errors import ConfigError
 from ..io import atomic_write_text
+from ..report.dated_block import keep_block
 from ..store.fingerprint import Fingerprint, Fingerprinter, row_key
 from ..store.graph import ROOT
 from ..store.stale import Line
@@ -155,7 +156,8 @@ def stale_lines(root: Path = ROOT, fingerprinter: Fingerprinter | None = None,
     out += [Line("row", STORE.name, f"{k.split('|')[1]} on {k.split('|')[0]}: no longer "
                                     "audited") for k in p.dropped]
     report = (reports if reports is not None else root / REPORT.parent) / REPORT.name
-    if not report.is_file() or report.read_text(encoding="utf-8") != render(stored):
+    if not report.is_file() or (text := report.read_text(encoding="utf-8")) != keep_block(
+            text, render(stored)):
         out.append(Line("report", STORE.name, f"{REPORT} differs from its store rendered now "
                                               "(`make reports` renders it)"))
     return out
@@ -169,7 +171,10 @@ def rerender(results: Path, reports: Path) -> bool:
         return False
     out = reports / REPORT.name
     text = render(store)
-    if out.is_file() and out.read_text(encoding="utf-8") == text:
-        return False
+    if out.is_file():
+        old = out.read_text(encoding="utf-8")
+        text = keep_block(old, text)  # its dated block: benchmarks.gate.dated
+        if old == text:
+            return False
     atomic_write_text(out, text)
     return True

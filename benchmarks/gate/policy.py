@@ -39,7 +39,7 @@ from ..store import bench as store_bench
 from ..store import stale as store_stale
 from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
-from . import audit_report, audit_store, blas, budget, regression
+from . import audit_report, audit_store, blas, budget, dated, regression
 
 #: scenarios of the short soundness audit that a tighter observer must pass
 PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
@@ -135,21 +135,49 @@ def check(config: str | Path, baseline: str | Path, options: CheckOptions = Chec
 
 def render_all(results: Path, reports: Path) -> list[Path]:
     """``make reports``: render every committed report from its store (the configurations',
-    :func:`benchmarks.store.bench.render_all`, and the audit's); the files rewritten."""
+    :func:`benchmarks.store.bench.render_all`, and the audit's) and the dated block of every
+    report of the second tier (:func:`.dated.refresh`); the files rewritten."""
     changed = store_bench.render_all(results, reports)
     if audit_store.rerender(results, reports):
         changed.append(reports / audit_store.REPORT.name)
+    changed += [p for p in dated.refresh(reports) if p not in changed]
     return changed
 
 
 def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
-    """``setobs-bench stale``: every stale row and report (:mod:`benchmarks.store.stale`) and,
-    without ``names``, the soundness audit's (:func:`.audit_store.stale_lines`)."""
+    """``setobs-bench stale``: the first tier, what every landing keeps current: every stale
+    row and report of the configurations (:mod:`benchmarks.store.stale`) and, without
+    ``names``, every dated block of a second-tier report that says less than the code now
+    does (``make reports`` renders it again)."""
     fingerprinter = store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
     found = store_stale.find_stale(names, reports=reports, fingerprinter=fingerprinter)
     if not names:
-        found += audit_store.stale_lines(fingerprinter=fingerprinter, reports=reports)
+        folder = Path(reports) if reports is not None else store_stale.ROOT / "reports"
+        found += [store_stale.Line("report", name, f"reports/{name}.md: its dated block is "
+                                   "out of date (`make reports` renders it)")
+                  for name in dated.outdated_blocks(folder, fingerprinter=fingerprinter)]
+        found += [line for line in audit_store.stale_lines(
+            fingerprinter=fingerprinter, reports=reports) if line.kind != "row"]
     return found
+
+
+def changed_since(reports: Path | None = None) -> list[str]:
+    """The second tier: one line per dated report with rows the code has changed since it
+    was measured (:func:`.dated.changed_rows`); never a reason to block a landing."""
+    fingerprinter = store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
+    folder = Path(reports) if reports is not None else store_stale.ROOT / "reports"
+    out = []
+    for name in dated.dated_reports(folder):
+        rows = dated.changed_rows(name, fingerprinter)
+        if rows is None:
+            out.append(f"DATED {name}: no record of its rows")
+        elif rows:
+            shown = ", ".join(list(rows)[:4]) + (f" and {len(rows) - 4} more"
+                                                 if len(rows) > 4 else "")
+            target = dated.DATED[name].target if name in dated.DATED else dated.STORED[name]
+            out.append(f"DATED {name}: {len(rows)} row(s) changed since measured: {shown} "
+                       f"(`make {target}`)")
+    return out
 
 
 def _check_regression(res: Outcome, config, baseline, opts: CheckOptions) -> int:

@@ -1,65 +1,35 @@
 """What is out of date, without running anything: ``setobs-bench stale``.
 
+Freshness has two tiers.  The first, checked here, is what every landing keeps current:
+
 - **Rows.**  For every shipped configuration, the fingerprint of each job
   (:mod:`.fingerprint`) against its stored row in ``results/<name>/``: a row is stale if its
   fingerprint differs (the line says which module, data file or configuration entry changed),
   missing if the store has none, and gone if the configuration no longer has it.
 - **Reports of configurations.**  ``reports/<name>.md`` is rendered from the store again in
   memory and compared byte for byte: out of date if the renderer or the store changed since.
-- **The soundness audit** is a store of its own (:mod:`benchmarks.gate.audit_store`, checked
-  by :func:`benchmarks.gate.policy.stale`, which adds its lines to these).
-- **Studies** (``reports/datadriven.md``, ``noise_grid.md``, ``robustness.md``): one
-  fingerprint per report, over the closure of the study's module and of the observers it runs,
-  recorded in ``results/reports.json`` by ``setobs-bench stale --record REPORT`` right after
-  the report is regenerated (``make datadriven``, ``make noise-grid``, ``make robustness`` do
-  it).
-- **The kernel study** (``reports/kernels.md``, :mod:`benchmarks.studies.kernels`) measures
-  the committed rows of the paper tables themselves: each of its cells keeps the fingerprint
-  of the stored row it measured, and the study is stale for every row whose stored fingerprint
-  moved since (``make kernels`` measures again).
-- **Measurements** (``reports/speed.md``, ``scaling.md``, ``frontier.md``) describe a machine,
-  not the code: they carry their commit and machine and are never stale here; ``make speed``,
-  ``make scaling`` and ``make frontier`` measure again.
+
+The second tier are the dated measurements (the studies, the soundness audit, the kernel study
+and the timing reports, :mod:`benchmarks.gate.dated`): each says the version and commit that
+measured it and which of its rows the code has changed since; they never block a landing.
+:func:`kernel_changes` gives the rows of the kernel study (``reports/kernels.md``,
+:mod:`benchmarks.studies.kernels`), which keeps the fingerprint of every stored row it
+measured.
 """
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-import observers
-
 from ..errors import ConfigError
-from ..io import json_text, read_json_object, read_table
+from ..io import read_table
 from ..run.config import load_config
 from ..run.shipped import shipped_configs
 from .bench import REPORTS, RESULTS, plan, render
-from .fingerprint import Fingerprinter, canonical, short
+from .fingerprint import Fingerprinter
 from .graph import ROOT, ModuleGraph
 from .store import load_store
-
-#: reports that measure a machine: never stale for the code
-MEASUREMENTS = ("speed", "scaling", "frontier")
-#: study reports: the module that writes each and the observers it runs (by name, through the
-#: registry, so not among its imports); the soundness audit is a store of its own
-#: (:mod:`benchmarks.gate.audit_store`)
-#: the observers the studies over every guaranteed observer run (and the exact reference of
-#: their floors)
-_GUARANTEED = ("Exact", "VolMin-B", "FRad-A", "FRad-B", "PRad-A", "PRad-B", "PRad-C-I",
-               "PRad-C-II", "PRad-D", "CZN-A", "CZN-B", "CZN-MV", "ESO-A", "ESO-B", "FRad-C",
-               "PRad-E", "Nom-G", "ESO-C", "ESO-D", "Hinf-G", "CZN-DC", "CZN-FO", "CZN-PR",
-               "DD-CZ-A1", "DD-CZ-A2", "DD-Z-A1", "DD-Z-A2", "ESMF", "INT-CP", "MHE", "ROPO",
-               "ZB-A", "VolMin-A", "MHE-PR")
-STUDIES = {"datadriven": ("benchmarks.studies.alanwar2022",
-                          ("DD-Z-A1", "DD-Z-A2", "DD-CZ-A1", "DD-CZ-A2", "KF-N4SID")),
-           "noise_grid": ("benchmarks.studies.noise_grid", _GUARANTEED),
-           "robustness": ("benchmarks.studies.robustness", _GUARANTEED)}
-#: the make target that regenerates (and records) each study report
-STUDY_TARGETS = {"datadriven": "datadriven", "noise_grid": "noise-grid",
-                 "robustness": "robustness"}
-#: where the fingerprints of the study reports are recorded
-STUDY_RECORD = Path("results") / "reports.json"
 
 
 @dataclass(frozen=True)
@@ -107,81 +77,16 @@ def stale_config(name: str, path: Path, fingerprinter: Fingerprinter, root: Path
     return out
 
 
-def study_fingerprint(name: str, fingerprinter: Fingerprinter) -> dict:
-    """``{"digest": ..., "code": {...}, "data": ...}`` of a study report now."""
-    graph = fingerprinter.graph
-    module, names = STUDIES[name]
-    roots = [module, *sorted({observers.get(n).cls.__module__ for n in names})]
-    modules = set().union(*(graph.closure(r) for r in roots))
-    code = {m: short(graph.modules[m].digest) for m in sorted(modules)}
-    data = short(hashlib.sha256(canonical(fingerprinter.data_digests()).encode()).hexdigest())
-    digest = short(hashlib.sha256(canonical([code, data]).encode()).hexdigest())
-    return {"digest": digest, "code": code, "data": data}
-
-
-def _read_record(root: Path) -> dict:
-    path = root / STUDY_RECORD
-    if not path.is_file():
-        return {}
-    return read_json_object(path, fix="restore it with git")
-
-
-def record_study(report: str | Path, root: Path = ROOT) -> str:
-    """Record that the study report ``report`` was just produced from the current tree."""
-    name = Path(report).stem
-    if name not in STUDIES:
-        raise ConfigError(f"stale --record: {report} is not a study report (known: "
-                          f"{', '.join(f'reports/{s}.md' for s in STUDIES)}; the audit's "
-                          "report is rendered from its store)")
-    rec = _read_record(root)
-    rec[name] = study_fingerprint(name, Fingerprinter(ModuleGraph(root)))
-    path = root / STUDY_RECORD
-    path.parent.mkdir(parents=True, exist_ok=True)
-    from ..io import atomic_write_text
-    atomic_write_text(path, json_text(dict(sorted(rec.items()))))
-    return rec[name]["digest"]
-
-
-def stale_studies(fingerprinter: Fingerprinter, root: Path = ROOT,
-                  reports: Path | None = None) -> list[Line]:
-    """The study reports whose recorded fingerprint differs from the tree's."""
-    rec = _read_record(root)
-    reports = reports if reports is not None else root / REPORTS
-    out = []
-    for name in STUDIES:
-        if not (reports / f"{name}.md").is_file():
-            continue
-        now = study_fingerprint(name, fingerprinter)
-        old = rec.get(name)
-        if old is None:
-            out.append(Line("report", name, f"reports/{name}.md has no recorded fingerprint "
-                                            f"in {STUDY_RECORD}"))
-        elif old.get("digest") != now["digest"]:
-            changed = sorted(m for m in set(old.get("code", {})) | set(now["code"])
-                             if old.get("code", {}).get(m) != now["code"].get(m))
-            what = ", ".join(fingerprinter.graph.source_path(m) if m in
-                             fingerprinter.graph.modules else m for m in changed[:3])
-            more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
-            why = f"code changed: {what}{more}" if changed else "data changed"
-            out.append(Line("report", name,
-                            f"reports/{name}.md: {why} (`make {STUDY_TARGETS[name]}`)"))
-    return out
-
-
-def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
-    """The rows whose stored fingerprint differs from the one the kernel study measured
-    (:mod:`benchmarks.studies.kernels`), and the tables it measures but never measured."""
-
+def kernel_changes(root: Path = ROOT) -> list[str]:
+    """The rows of the kernel study (``OBSERVER on SCENARIO (CONFIG)``) whose stored
+    fingerprint differs from the one it measured, and the tables it measures but never
+    measured (``CONFIG (not measured)``)."""
     from ..report.spread import KERNEL_CONFIGS as CONFIGS
     from ..report.spread import KERNEL_TABLE as TABLE
 
-    reports = reports if reports is not None else root / REPORTS
-    if not (reports / "kernels.md").is_file():
-        return []
     path = root / TABLE
     if not path.is_file():
-        return [Line("report", "kernels", f"reports/kernels.md has no table {TABLE} "
-                                          "(`make kernels`)")]
+        return [f"{c} (not measured)" for c in CONFIGS]
     measured = read_table(path)
     out = []
     for config in CONFIGS:
@@ -191,27 +96,22 @@ def stale_kernels(root: Path = ROOT, reports: Path | None = None) -> list[Line]:
         here = read_table(summary)
         m = measured[measured["config"] == config]
         if m.empty:
-            out.append(Line("report", "kernels", f"{config} not measured under the other "
-                                                 "OpenBLAS kernels (`make kernels`)"))
+            out.append(f"{config} (not measured)")
             continue
         now = dict(zip(zip(here["scenario"], here["observer"], strict=True),
                        here["fingerprint"], strict=True))
         then = dict(zip(zip(m["scenario"], m["observer"], strict=True), m["fingerprint"],
                         strict=True))
-        moved = sorted(k for k in now if then.get(k) != now[k])
-        if moved:
-            shown = ", ".join(f"{o} on {s}" for s, o in moved[:3])
-            more = f" and {len(moved) - 3} more" if len(moved) > 3 else ""
-            out.append(Line("report", "kernels", f"{config}: {shown}{more} changed since "
-                                                 "measured (`make kernels`)"))
+        out += [f"{o} on {s} ({config})" for s, o in sorted(k for k in now
+                                                             if then.get(k) != now[k])]
     return out
 
 
 def find_stale(names: list[str] | None = None, root: Path = ROOT, reports: Path | None = None,
                fingerprinter: Fingerprinter | None = None) -> list[Line]:
     """Every stale row, store and report of the shipped configurations ``names`` (default
-    all: the published ones) and of the study reports; ``reports``: the folder of the
-    committed reports (default ``ROOT/reports``)."""
+    all: the published ones); ``reports``: the folder of the committed reports (default
+    ``ROOT/reports``)."""
     shipped = shipped_configs()
     if names:
         unknown = [n for n in names if n not in shipped]
@@ -228,7 +128,4 @@ def find_stale(names: list[str] | None = None, root: Path = ROOT, reports: Path 
                               or (root / RESULTS / name / "meta.json").is_file()):
             continue  # not published (a sweep): no store, no report
         out += stale_config(name, path, fingerprinter, root, reports)
-    if not names:
-        out += stale_studies(fingerprinter, root, reports)
-        out += stale_kernels(root, reports)
     return out
