@@ -4,7 +4,7 @@ measured (:func:`benchmarks.gate.fidelity.measure`; this module only renders the
 A summary per table (how many average cells are within their tolerance, the claims and the
 cells that fail the gate), then per table every cell: ours, published, the deviation, the
 tolerance, the claim (``within``, ``explained``, ``open``) and what the stores measure, and the
-reason of every explained or open cell.
+reason of every explained or open cell, and what to cite (:mod:`.citation`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from typing import Any
 
 import pandas as pd
 
+from .citation import citation_lines
 from .numbers import Num, fmt, markdown_table
 
 TITLE = "# Fidelity: our committed numbers against the published tables"
@@ -155,4 +156,5 @@ def render(cells: pd.DataFrame, tables: Mapping[str, Any]) -> str:
         reasons = _reasons(g)
         if reasons:
             parts += ["Not reproduced:", "", *reasons, ""]
+    parts += ["\n".join(citation_lines("fidelity", (src.paper for src in tables.values())))]
     return "\n".join(parts).rstrip("\n") + "\n"
