@@ -6,9 +6,9 @@ soundness audit, :mod:`benchmarks.store.stale` finds stale rows and reports); th
 that turn their findings into an exit code are here, in one place:
 
 * ``check`` fails (1) on a stale committed report, on a published cell claimed ``within`` in
-  ``benchmarks/gate/fidelity.yaml`` whose committed value left its tolerance (:mod:`.fidelity`:
-  one line per cell; checked with the stale reports, before the run), on a regression subset
-  configuration that
+  ``benchmarks/gate/fidelity.yaml`` whose committed value left its tolerance
+  (:mod:`benchmarks.gate.fidelity`: one line per cell; checked with the stale reports, before
+  the run), on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
   in the baseline is listed, and fails only with ``strict``, or if it crashed, was stopped or is
   unsound: then the last line names it; a job stopped by its time budget, :mod:`.budget`, is
@@ -148,7 +148,7 @@ FIDELITY_FIX = ("fix the row, or change its claim in benchmarks/gate/fidelity.ya
 
 def check_fidelity(res: Outcome, results: Path | None = None,
                    claims: Path | None = None) -> tuple[int, pd.DataFrame]:
-    """The fidelity gate (:mod:`.fidelity`) on the committed stores (default
+    """The fidelity gate (:mod:`benchmarks.gate.fidelity`) on the committed stores (default
     ``ROOT/results``) and the claims (default the shipped file): one warning per cell claimed
     ``within`` that is not; returns their number and the measured cells."""
     results = results if results is not None else store_stale.ROOT / store_bench.RESULTS
@@ -181,7 +181,7 @@ def fidelity_gate(results: Path | None = None, claims: Path | None = None) -> Ou
 def render_all(results: Path, reports: Path) -> list[Path]:
     """``make reports``: render every committed report from its store (the configurations',
     :func:`benchmarks.store.bench.render_all`, the audit's, and ``fidelity.md`` from the
-    claims and the stores, :mod:`.fidelity`); the files rewritten."""
+    claims and the stores, :mod:`benchmarks.gate.fidelity`); the files rewritten."""
     changed = store_bench.render_all(results, reports)
     if audit_store.rerender(results, reports):
         changed.append(reports / audit_store.REPORT.name)
