@@ -18,7 +18,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale datadriven evidence release check baseline history audit audit-short speed scaling frontier noise-grid robustness kernels clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale fidelity datadriven evidence release check baseline history audit audit-short speed scaling frontier noise-grid robustness kernels clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -28,8 +28,8 @@ help:  ## list the targets
 	@echo "code: observers/ (kernels/ <- lp/ <- sets/ <- family loops, plugins builtin/X.py + numerics/X.py),"
 	@echo "systems/ (models, scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner ->"
 	@echo "executors), report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph,"
-	@echo "fingerprint, store, bench, stale), gate/ (regression, budget, blas, policy, audit, audit_store,"
-	@echo "history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, robustness, kernels, alanwar2022);"
+	@echo "fingerprint, store, bench, stale), gate/ (regression, fidelity, budget, blas, policy, audit,"
+	@echo "audit_store, history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, robustness, kernels, alanwar2022);"
 	@echo "cli.py parses and prints"
 
 $(STAMP): pyproject.toml
@@ -99,7 +99,10 @@ frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the com
 	$(PY) -m benchmarks.studies.frontier --out reports/frontier.md --results $(RESULTS)/frontier
 	$(PY) -m benchmarks stale --record reports/frontier.md
 
-check: $(STAMP)  ## CI gate: no stale stored row or report of the first tier (setobs-bench stale), regression subset vs results/baseline/
+fidelity: $(STAMP)  ## the committed stores against the published tables (benchmarks/gate/fidelity.yaml; no run; exit 1 if a cell claimed within tolerance is not; part of make check)
+	$(PY) -m benchmarks fidelity
+
+check: $(STAMP)  ## CI gate: no stale stored row or report of the first tier (setobs-bench stale), every published cell claimed within tolerance is (fidelity), regression subset vs results/baseline/
 	$(PY) -m benchmarks check --reports reports
 
 baseline: $(STAMP)  ## rewrite the golden files in results/baseline/ (measures BLAS kernel sensitivity; commit them)

@@ -1,5 +1,6 @@
 """Command line: ``setobs-bench`` (or ``python -m benchmarks``) with the sub-commands
-``run, report, index, history, list, check, baseline, audit, time, speed, designs``.
+``run, bench, reports, stale, report, index, history, list, check, fidelity, baseline, audit,
+time, speed, designs``.
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2 (nothing is
 written); a regression (``check``) or a containment violation of a guaranteed observer
@@ -207,6 +208,11 @@ def _cmd_check(args) -> int:
     return _print(policy.check(args.config, args.baseline, options, reports=args.reports))
 
 
+def _cmd_fidelity(args) -> int:
+    return _print(policy.fidelity_gate(Path(args.results) if args.results else None,
+                                       Path(args.claims) if args.claims else None))
+
+
 def _cmd_baseline(args) -> int:
     if not args.update:
         return _print(policy.show_baseline(args.baseline))
@@ -378,6 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_list(sub)
     subset = _subset_options()
     _add_check(sub, subset)
+    _add_fidelity(sub)
     _add_baseline(sub, subset)
     _add_audit(sub)
     _add_time(sub)
@@ -580,11 +587,28 @@ def _add_check(sub, subset: argparse.ArgumentParser) -> None:
     ch.add_argument("--reports", metavar="DIR",
                     help="also fail if a stored row or a committed report is stale "
                          "(`setobs-bench stale`: row fingerprints against the code, reports "
-                         "against their stores; make check: reports)")
+                         "against their stores; make check: reports) or a published cell "
+                         "claimed within tolerance is not (`setobs-bench fidelity`)")
     ch.add_argument("--strict", action="store_true",
                     help="fail on installed third-party plugins that are not in the baseline "
                          "(default: list them)")
     ch.set_defaults(func=_cmd_check)
+
+
+def _add_fidelity(sub) -> None:
+    """The ``fidelity`` sub-command."""
+    fi = sub.add_parser("fidelity", help="compare the committed stores with the published "
+                                         "tables (no run; exit 1 if a cell claimed within "
+                                         "tolerance is not)",
+                        description="The fidelity gate of make check alone: every published "
+                                    "cell of benchmarks/gate/fidelity.yaml against the "
+                                    "committed result stores; one line per cell claimed "
+                                    "within tolerance that is not.")
+    fi.add_argument("--results", metavar="DIR",
+                    help="folder of the result stores (default: the project's results/)")
+    fi.add_argument("--claims", metavar="FILE",
+                    help="claims file (default benchmarks/gate/fidelity.yaml)")
+    fi.set_defaults(func=_cmd_fidelity)
 
 
 def _add_baseline(sub, subset: argparse.ArgumentParser) -> None:

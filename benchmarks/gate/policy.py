@@ -5,7 +5,10 @@ The mechanisms live beside this module (:mod:`.regression` compares golden files
 soundness audit, :mod:`benchmarks.store.stale` finds stale rows and reports); the rules
 that turn their findings into an exit code are here, in one place:
 
-* ``check`` fails (1) on a stale committed report, on a regression subset configuration that
+* ``check`` fails (1) on a stale committed report, on a published cell claimed ``within`` in
+  ``benchmarks/gate/fidelity.yaml`` whose committed value left its tolerance
+  (:mod:`benchmarks.gate.fidelity`: one line per cell; checked with the stale reports, before
+  the run), on a regression subset configuration that
   changed since the baseline, and on any value outside its tolerance (a third-party plugin not
   in the baseline is listed, and fails only with ``strict``, or if it crashed, was stopped or is
   unsound: then the last line names it; a job stopped by its time budget, :mod:`.budget`, is
@@ -39,7 +42,7 @@ from ..store import bench as store_bench
 from ..store import stale as store_stale
 from ..verdicts import SOUNDNESS_COLUMNS
 from . import audit as soundness
-from . import audit_report, audit_store, blas, budget, dated, regression
+from . import audit_report, audit_store, blas, budget, dated, fidelity, regression
 
 #: scenarios of the short soundness audit that a tighter observer must pass
 PROOF_SCENARIOS: tuple[str, ...] = soundness.AUDIT_SCENARIOS
@@ -124,22 +127,67 @@ def check(config: str | Path, baseline: str | Path, options: CheckOptions = Chec
     found = stale(reports=Path(reports)) if reports else []
     if found:  # cheap (no run): reported first, and the regression subset still runs
         res.warn("\n".join(map(str, found)))
+    unfaithful = check_fidelity(res)[0] if reports else 0
     res.code = _check_regression(res, config, baseline, options)
     if found:
         res.warn(f"check FAILED: {len(found)} stale row(s) or report(s) (listed above): "
                  "`make bench` / `make audit` re-run the rows, `make reports` renders the "
                  "reports (timing reports are never stale)")
         res.code = 1
+    if unfaithful:
+        res.warn(f"check FAILED: {unfaithful} published cell(s) claimed within tolerance are "
+                 f"not (listed above; {fidelity.REPORT_NAME}, {FIDELITY_FIX})")
+        res.code = 1
+    return res
+
+
+#: what to do about a failing fidelity cell
+FIDELITY_FIX = ("fix the row, or change its claim in benchmarks/gate/fidelity.yaml with the "
+                "measured reason")
+
+
+def check_fidelity(res: Outcome, results: Path | None = None,
+                   claims: Path | None = None) -> tuple[int, pd.DataFrame]:
+    """The fidelity gate (:mod:`benchmarks.gate.fidelity`) on the committed stores (default
+    ``ROOT/results``) and the claims (default the shipped file): one warning per cell claimed
+    ``within`` that is not; returns their number and the measured cells."""
+    results = results if results is not None else store_stale.ROOT / store_bench.RESULTS
+    cells = fidelity.measure(results, claims if claims is not None else fidelity.CLAIMS_FILE)
+    lines = fidelity.failures(cells)
+    for line in lines:
+        res.warn(line)
+    return len(lines), cells
+
+
+def fidelity_gate(results: Path | None = None, claims: Path | None = None) -> Outcome:
+    """``fidelity``: the fidelity gate alone (no run): exit 1 when a published cell claimed
+    ``within`` left its tolerance, one line per cell; the count of average cells within
+    tolerance per table, and a note on the explained or open cells that are within now."""
+    res = Outcome()
+    bad, cells = check_fidelity(res, results, claims)
+    res.say(fidelity.summary(cells))
+    better = fidelity.now_within(cells)
+    if len(better):
+        res.say(f"note: {len(better)} explained or open cell(s) are within their tolerance "
+                "now (reports/fidelity.md: within now): "
+                + ", ".join(f"{r.table} {r.row} {r.cell}" for r in better.itertuples()))
+    if bad:
+        res.warn(f"fidelity FAILED: {bad} published cell(s) claimed within tolerance are not "
+                 f"({FIDELITY_FIX})")
+        res.code = 1
     return res
 
 
 def render_all(results: Path, reports: Path) -> list[Path]:
     """``make reports``: render every committed report from its store (the configurations',
-    :func:`benchmarks.store.bench.render_all`, and the audit's) and the dated block of every
+    :func:`benchmarks.store.bench.render_all`, the audit's, and ``fidelity.md`` from the
+    claims and the stores, :mod:`benchmarks.gate.fidelity`) and the dated block of every
     report of the second tier (:func:`.dated.refresh`); the files rewritten."""
     changed = store_bench.render_all(results, reports)
     if audit_store.rerender(results, reports):
         changed.append(reports / audit_store.REPORT.name)
+    if fidelity.rerender(results, reports):
+        changed.append(reports / fidelity.REPORT_NAME)
     changed += [p for p in dated.refresh(reports) if p not in changed]
     return changed
 
@@ -158,6 +206,8 @@ def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
                   for name in dated.outdated_blocks(folder, fingerprinter=fingerprinter)]
         found += [line for line in audit_store.stale_lines(
             fingerprinter=fingerprinter, reports=reports) if line.kind != "row"]
+        line = fidelity.stale_line(store_stale.ROOT / store_bench.RESULTS, folder)
+        found += [store_stale.Line("report", "fidelity", line)] if line else []
     return found
 
 
