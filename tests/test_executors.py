@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing as mp
+import os
+import socket
 import time
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -16,6 +19,7 @@ from benchmarks.cli import main
 from benchmarks.errors import ConfigError
 from benchmarks.metrics import TIMING_COLUMNS
 from benchmarks.run.executors import (
+    LOCAL_HTTP,
     JobFailure,
     ProcessExecutor,
     SerialExecutor,
@@ -47,7 +51,7 @@ def cluster():
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
             distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                      host="127.0.0.1", dashboard_address=None,
-                                     silence_logs=40) as c:
+                                     scheduler_kwargs=LOCAL_HTTP, silence_logs=40) as c:
         yield c
 
 
@@ -376,3 +380,42 @@ def test_a_job_that_ends_over_the_memory_limit_between_two_polls_is_memory_not_o
     assert first.message.startswith("went over the memory limit of 286 MiB (the job's peak "
                                     "resident memory "), first.message
     assert out == {1: 1, 2: 2}  # a fresh worker: the 500 MB are not the next jobs'
+
+
+def test_two_local_dask_clusters_at_once_take_free_loopback_ports_without_a_warning():
+    """Noticed in the parallel tests: the second of two LocalClusters at once found the
+    scheduler's HTTP port 8787 taken and moved off it with a UserWarning.  Each now asks for
+    a free port of the loopback interface (even when something else holds 8787)."""
+    pytest.importorskip("distributed")
+    from benchmarks.run.executors import DaskExecutor
+
+    with socket.socket() as held:  # 8787 taken, as by another cluster
+        try:
+            held.bind(("127.0.0.1", 8787))
+            held.listen()
+        except OSError:  # already taken by something else: the same situation
+            pass
+        executors = []
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                executors = [DaskExecutor(jobs=1), DaskExecutor(jobs=1)]
+            servers = [ex.cluster.scheduler.http_server for ex in executors]
+            assert all(srv.address == "127.0.0.1" and srv.port != 8787 for srv in servers)
+            assert servers[0].port != servers[1].port
+        finally:
+            for ex in executors:
+                ex.close()
+
+
+def test_a_worker_with_no_memory_base_charges_no_memory():
+    """A worker whose "started" message carried no base (no ``/proc``): its job's memory is
+    not known (no base of 0 that would charge the job the worker's whole resident memory)."""
+    from benchmarks.run.executors import _Worker, job_memory
+
+    w = _Worker.__new__(_Worker)
+    w.proc, w.base = type("P", (), {"pid": os.getpid()})(), None
+    assert job_memory(w) is None
+    if os.path.exists(f"/proc/{os.getpid()}/statm"):
+        w.base = 0
+        assert job_memory(w) > 0  # with a base, this process's resident memory is read

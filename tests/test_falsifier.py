@@ -359,3 +359,44 @@ def test_an_output_function_and_a_non_box_noise_set_give_the_same_inner_box():
         for traj in res.lo_trajectories[s] + res.hi_trajectories[s]:
             check = verify(other, sc.u, sc.y, traj)
             assert check.consistent and check.nu.shape == (k + 1, 2 * sc.system.ny)
+
+
+def test_extra_starts_are_distinct_trajectories_and_each_step_has_its_own_directions(
+        monkeypatch):
+    """Review of the start points (issue 58): the pool of a step's verified trajectories was
+    kept once per *object*, so runs that ended at the same trajectory (on rego2d-nonlinear the
+    maxima of x1 and x2 at step 20) each stood in it, and the objectives were re-run from
+    their own optima; and one generator served every step, so the directions of a step
+    depended on the steps searched before it."""
+    from benchmarks.run.falsifier import search as fs
+
+    sc = systems.scenario("rego2d-nonlinear", seed=0)
+    runs = []
+    run = fs.Search.run
+
+    def logged(self, start, c):
+        out = run(self, start, c)
+        runs.append((self.k, start, c.copy(), out))
+        return out
+
+    monkeypatch.setattr(fs.Search, "run", logged)
+    opts = SearchOptions(starts=3, keep_trajectories=False)
+    both = falsify(sc.system, sc, [10, 20], options=opts)
+    for k in (10, 20):
+        mine = [r for r in runs if r[0] == k]
+        first = {}  # objective -> the optimum of its run from the anchor
+        for _, start, c, out in mine:
+            key = tuple(c)
+            if key in first:  # a re-run: from another trajectory than the anchor's and its own
+                assert not fs.same_trajectory(start, mine[0][1])
+                assert not fs.same_trajectory(start, first[key])
+            else:
+                first[key] = out
+        starts = [(tuple(c), start) for _, start, c, _ in mine]
+        for a in range(len(starts)):  # no objective run twice from one trajectory
+            for b in range(a):
+                assert not (starts[a][0] == starts[b][0]
+                            and fs.same_trajectory(starts[a][1], starts[b][1]))
+    alone = falsify(sc.system, sc, [20], options=opts)
+    np.testing.assert_array_equal(alone.inner_lo[0], both.inner_lo[1])
+    np.testing.assert_array_equal(alone.inner_hi[0], both.inner_hi[1])

@@ -15,7 +15,7 @@ import pytest
 from scipy.optimize import linprog
 
 from observers.errors import EmptySet
-from observers.lp import dual_simplex, sifting, sifting_jit
+from observers.lp import dual_simplex, dual_simplex_jit, sifting, sifting_jit
 from observers.lp.hull import SIFTING_MIN_COLUMNS, HullLP, dual_bounds, sifting_is_cheaper
 
 
@@ -174,3 +174,52 @@ def test_refactorisations_and_full_working_sets_keep_the_bounds(monkeypatch):
     lp = HullLP("sifting")
     np.testing.assert_array_less(np.abs(lp.maximize_many(Gd, A, b) - plain), 1e-9 * radius)
     assert lp.stats.fallbacks > 0
+
+
+def _keys(ratios: np.ndarray, mask: int) -> np.ndarray:
+    """Ratio-test keys: the high bits of each (non-negative) ratio, its index in ``mask``."""
+    bits = np.asarray(ratios, dtype=np.float64).view(np.uint64)
+    return (bits & ~np.uint64(mask)) | np.arange(len(ratios), dtype=np.uint64)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_breakpoint_pass_is_one_shared_function(compiled):
+    # sifting's restricted LPs pass the breakpoints with the dual simplex's own pass (no heap
+    # of their own), so both take the same pivots
+    assert not hasattr(sifting_jit, "_sift_down")
+    assert sifting_jit._pass_breakpoints is dual_simplex_jit._pass_breakpoints
+    run = (dual_simplex_jit._pass_breakpoints if compiled
+           else dual_simplex_jit._pass_breakpoints.py_func if dual_simplex_jit.AVAILABLE
+           else dual_simplex_jit._pass_breakpoints)
+    # by hand: ratios 3, 1, 2 (the order 1, 2, 0), w = 0.5, 1, 2 and delta = 2.5, so half the
+    # slope is 1.25: column 1 is passed (1 < 1.25), column 2 enters (1 + 2 >= 1.25)
+    w, flips = np.array([0.5, 1.0, 2.0]), np.full(3, -7, np.int64)
+    q, passed = run(_keys(np.array([3.0, 1.0, 2.0]), 3), 3, np.uint64(3), w, 2.5, flips)
+    assert (q, passed, flips[0]) == (2, 1, 1)
+    # delta = 8 (half: 4 > 0.5 + 1 + 2): every breakpoint is passed, none enters
+    q, passed = run(_keys(np.array([3.0, 1.0, 2.0]), 3), 3, np.uint64(3), w, 8.0, flips)
+    assert (q, passed, list(flips)) == (-1, 3, [1, 2, 0])
+    # equal ratios: the lower index first (the index is the key's low bits)
+    q, passed = run(_keys(np.array([1.0, 1.0, 1.0]), 3), 3, np.uint64(3), w, 2.0, flips)
+    assert (q, passed, flips[0]) == (1, 1, 0)
+
+
+def test_first_working_sets_take_the_largest_gap_terms_ties_to_the_lower_column():
+    # one constraint sum(xi) = 0, start cost (5, 1, 4, 2, 0): the start vertex is
+    # xi0 = (1, -1, 1, 0, -1) (the two largest costs up, the two smallest down), column 3
+    # basic.  Costs c = (-1, 1, -1, 0, 3): duals y = c_3 = 0, d = c, gap terms
+    # |d_j| - d_j xi0_j = (2, 2, 2, -, 6).  With FIRST = 2 the first set is the basic column,
+    # column 4 (6) and of the tied columns 0, 1, 2 the lowest, column 0.
+    A, b = np.ones((1, 5)), np.zeros(1)
+    st = sifting.start(A, b, np.array([5.0, 1.0, 4.0, 2.0, 0.0]))
+    s0 = sifting_jit._prepare(A, b, st)
+    assert np.array_equal(st.xi, [1.0, -1.0, 1.0, 0.0, -1.0]) and list(s0.basic) == [3]
+    old = sifting_jit.FIRST
+    try:
+        sifting_jit.FIRST = 2
+        S = sifting_jit._new_chunk(A, np.ascontiguousarray(A.T),
+                                   np.array([[-1.0, 1.0, -1.0, 0.0, 3.0]]), s0,
+                                   np.empty((1, s0.cap, 1)), sifting_jit._kernels())
+    finally:
+        sifting_jit.FIRST = old
+    assert S.Wc[0, :S.nW[0]].tolist() == [3, 0, 4]  # the basic column first, then in order

@@ -83,6 +83,10 @@ from ..errors import ConfigError
 
 EXECUTORS = ("serial", "processes", "dask")
 _KILLED = object()  # a Dask task whose worker died
+#: the scheduler options of a local Dask cluster: its HTTP server (which it starts even with
+#: the dashboard off, on port 8787 by default, moving off it with a UserWarning where that is
+#: taken) on a free port of the loopback interface
+LOCAL_HTTP = {"dashboard_address": "127.0.0.1:0"}
 #: the modules a local worker imports before its first job (the forkserver's preload, or a
 #: spawned worker's first step): named, not imported here, so that the executors do not
 #: depend on the harness they run (:mod:`benchmarks.run.workerinit` imports it)
@@ -154,9 +158,9 @@ def _reset_peak() -> int | None:  # pragma: no cover - in the worker
 def job_memory(w: _Worker) -> int | None:
     """Resident bytes worker ``w`` gained since it first started a job (None if unknown)."""
     used = rss_bytes(w.proc.pid)
-    if used is None:
+    if used is None or w.base is None:
         return None
-    return used - (w.base or 0)
+    return used - w.base
 
 
 def _peak_over(w: _Worker, peak: int | None, limit: int | None) -> int | None:
@@ -500,10 +504,9 @@ class ProcessExecutor(_Limited):
                         yield fail(w, "error", "worker process died while running this job "
                                                f"({_exit_reason(w.proc.exitcode)})")
                         continue
-                    if kind == "started":
+                    if kind == "started":  # value: the worker's base (one value per worker)
                         w.started = time.monotonic()
-                        if w.base is None:
-                            w.base = value
+                        w.base = value
                         busy[conn] = w
                         continue
                     if kind == "memory":  # the worker may keep what the job took: end it
@@ -606,8 +609,10 @@ class DaskExecutor(_Limited):
             # and a task whose worker died is not retried on another one: reported at once
             # (non-daemonic workers: each task runs its job in a child process, with the limits)
             # no HTTP routes (dashboard, /health, /metrics, /info): the HTTP server each Dask
-            # node starts anyway then serves nothing; workers ignore Ctrl-C (the parent
-            # handles it and closes the cluster: no page of worker tracebacks)
+            # node starts anyway then serves nothing, the scheduler's on a free loopback port
+            # (LOCAL_HTTP: two clusters at once, e.g. parallel tests, do not both want 8787);
+            # workers ignore Ctrl-C (the parent handles it and closes the cluster: no page of
+            # worker tracebacks)
             with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                                   "distributed.scheduler.worker-saturation": 1.0,
                                   "distributed.worker.daemon": False,
@@ -615,7 +620,8 @@ class DaskExecutor(_Limited):
                                   "distributed.worker.http.routes": []}), _no_sigint():
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
-                    host="127.0.0.1", dashboard_address=None, silence_logs=50)
+                    host="127.0.0.1", dashboard_address=None, scheduler_kwargs=LOCAL_HTTP,
+                    silence_logs=50)
             self.client = Client(self.cluster)
         else:
             try:

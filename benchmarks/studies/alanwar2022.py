@@ -187,7 +187,7 @@ def other_scenarios() -> list[str]:
             if "tuning" in extra:
                 obs_name += " (paper tuning)"
             res = observers.run(obs, sc.u, sc.y)
-            rms = np.sqrt(np.mean(res.radius ** 2, axis=0))
+            rms = rms_radius(res.radius)
             miss = sum(not S.contains(x, sc.tolerance) for S, x in zip(res.sets, sc.x_true,
                                                                       strict=False))
             rows.append(f"| {name} | {obs_name} | {', '.join(fmt(r, 3) for r in rms)} | "

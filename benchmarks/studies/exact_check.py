@@ -24,6 +24,8 @@ import observers
 import systems
 from observers.numerics.exact_reference import dense_hulls, explicit_hulls
 
+from ..metrics import rms_radius
+
 #: acceptance bound of the deviation from the independent formulation, relative to the radius
 RTOL = 1e-6
 _KEYS = ("pred_lo", "pred_hi", "filt_lo", "filt_hi")
@@ -72,7 +74,7 @@ def ratios(sc, hulls: dict[str, np.ndarray], names: list[str]) -> dict[str, str]
         key = "pred" if info.floor == "predicted" else "filt"
         r_ex = 0.5 * (hulls[f"{key}_hi"] - hulls[f"{key}_lo"])[first:]
         r_ob = res.radius[first:]
-        q = np.sqrt(np.mean(r_ob**2, axis=0)) / np.sqrt(np.mean(r_ex**2, axis=0))
+        q = rms_radius(r_ob) / rms_radius(r_ex)
         out[name] = f"{q.mean():.3g} (states {q.min():.3g}-{q.max():.3g}, {info.floor})"
     return out
 

@@ -131,26 +131,8 @@ def _iterate_py(M, MT, b, up, colnorm2, key_mask, primal_tol, pivot_tol, refacto
                 nc += wj > 0.0
             its[k] += 1  # counted before the ratio test decides, as in the numpy path
             work += 1
-            # pass the breakpoints in increasing order (a binary heap: usually only a prefix
-            # of them is passed) while the slope stays negative
-            _heapify(keys, nc)
-            passed = 0.0
-            found = False
-            kq = np.uint64(0)
-            q = np.int64(-1)
-            npass = 0
-            while nc > 0:
-                kq = keys[0]
-                nc -= 1
-                keys[0] = keys[nc]
-                _sift_down(keys, 0, nc)
-                q = np.int64(kq & key_mask)
-                passed += w[q]
-                if passed >= 0.5 * delta:  # slope lost per breakpoint: 2 w_j
-                    found = True
-                    break
-                flips[npass] = q
-                npass += 1
+            q, npass = _pass_breakpoints(keys, nc, key_mask, w, delta, flips)
+            found = q >= 0
             if found:
                 wq = w[q]
                 found = wq * wq >= pivot_tol * pivot_tol * wrr * colnorm2[q]
@@ -220,9 +202,46 @@ def _heapify(h, n):
         _sift_down(h, i, n)
 
 
+def _pop_min(h, n):
+    """Remove the least entry of the min-heap ``h[:n]`` and return it (the heap is then
+    ``h[:n - 1]``)."""
+    x = h[0]
+    h[0] = h[n - 1]
+    _sift_down(h, 0, n - 1)
+    return x
+
+
+def _pass_breakpoints(keys, nc, mask, w, delta, flips):
+    """The breakpoint pass of the bound-flipping ratio test (Fourer), shared by this module's
+    dual simplex and the restricted LPs of :mod:`.sifting_jit`: ``(entering, passed)``.
+
+    ``keys[:nc]`` are the candidates ``w_j > 0``, each the high bits of its ratio
+    ``D_j / w_j`` (non-negative floats order like their bit patterns) with its index ``j`` in
+    the bits ``mask``; they are passed in increasing order (a binary heap: usually only a
+    prefix of them is passed) while the slope, ``delta`` less ``2 w_j`` per breakpoint
+    passed, stays positive.  The entering index is the breakpoint at which it no longer does
+    (``-1`` if none: the dual is unbounded); the ``passed`` breakpoints before it are
+    ``flips[:passed]`` (they flip to their other bound).  ``keys`` is reordered.
+    """
+    _heapify(keys, nc)
+    total = 0.0
+    npass = 0
+    while nc > 0:
+        j = np.int64(_pop_min(keys, nc) & mask)
+        nc -= 1
+        total += w[j]
+        if total >= 0.5 * delta:  # slope lost per breakpoint: 2 w_j
+            return j, npass
+        flips[npass] = j
+        npass += 1
+    return np.int64(-1), npass
+
+
 if AVAILABLE:
     _sift_down = numba.njit(cache=True, nogil=True)(_sift_down)
     _heapify = numba.njit(cache=True, nogil=True)(_heapify)
+    _pop_min = numba.njit(cache=True, nogil=True)(_pop_min)
+    _pass_breakpoints = numba.njit(cache=True, nogil=True)(_pass_breakpoints)
     iterate = numba.njit(cache=True, error_model="numpy", nogil=True)(_iterate_py)
 else:  # pragma: no cover - depends on the installation
     iterate = None

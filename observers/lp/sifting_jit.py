@@ -71,6 +71,7 @@ from .dual_simplex import (
     max_iterations,
     use_compiled,
 )
+from .dual_simplex_jit import _pass_breakpoints
 from .sifting import SiftResult, Start
 
 #: a problem is finished when the columns outside its working set add at most this times
@@ -92,22 +93,6 @@ REFACTOR_EVERY = 50
 CAPACITY = 4000
 #: status of a problem after :func:`_restricted`
 RUNNING, OPTIMAL, FAILED = 0, 1, 2
-
-
-def _sift_down(h, i, n):
-    """Restore the min-heap order of ``h[:n]`` below position ``i``."""
-    x = h[i]
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            break
-        if c + 1 < n and h[c + 1] < h[c]:
-            c += 1
-        if h[c] >= x:
-            break
-        h[i] = h[c]
-        i = c
-    h[i] = x
 
 
 class Chunk(NamedTuple):
@@ -191,7 +176,8 @@ def _ratio_test(alpha, ib, zk, Dk, sgn, delta, keys, flips):
     alpha_a z_a`` (0 for basic positions); candidates ``w_a > 0`` are ordered by keys holding
     the high bits of the ratio ``D_a / w_a`` (non-negative floats order like their bit
     patterns) and the position in the low bits, in a binary heap (usually only a few of
-    them are passed); the passed ones are ``flips[:passed]``."""
+    them are passed: :func:`.dual_simplex_jit._pass_breakpoints`, the dual simplex's own
+    pass); the passed ones are ``flips[:passed]``."""
     nw = alpha.shape[0]
     bits = 1
     while (1 << bits) < nw:
@@ -211,22 +197,7 @@ def _ratio_test(alpha, ib, zk, Dk, sgn, delta, keys, flips):
             ratio[0] = Dk[a] / w
             keys[nc] = (rbits[0] & high) | np.uint64(a)
             nc += 1
-    for i in range(nc // 2 - 1, -1, -1):
-        _sift_down(keys, i, nc)
-    passed = 0.0
-    npass = 0
-    while nc > 0:
-        kq = keys[0]
-        nc -= 1
-        keys[0] = keys[nc]
-        _sift_down(keys, 0, nc)
-        a = np.int64(kq & low)
-        passed += alpha[a]
-        if passed >= 0.5 * delta:  # slope lost per breakpoint: 2 w_a
-            return a, npass
-        flips[npass] = a
-        npass += 1
-    return -1, npass
+    return _pass_breakpoints(keys, nc, low, alpha, delta, flips)
 
 
 def _pivot(S, k, rr, aq, sgn, alpha, flips, npass, rho):
@@ -419,23 +390,9 @@ def _largest(T, idx, m, out):
     return n_pick
 
 
-def _top(T: np.ndarray, m: int) -> np.ndarray:
-    """Indices of the (at most) ``m`` largest positive entries of ``T``, ties to the lower
-    index (deterministic)."""
-    pos = np.flatnonzero(T > 0.0)
-    if pos.size <= m:
-        return pos
-    vals = T[pos]
-    kth = np.partition(vals, pos.size - m)[pos.size - m]  # the m-th largest value
-    above = pos[vals > kth]
-    ties = pos[vals == kth][:m - above.size]  # pos is ascending: the lowest indices
-    return np.sort(np.concatenate([above, ties]))
-
-
 #: the kernels as plain Python (the same pivots, for tests and installations without numba)
 _PYTHON = {"restricted": _restricted, "grow": _grow, "price": _price, "duals": _duals}
 if AVAILABLE:  # the module's names rebound to the compiled functions, which call each other
-    _sift_down = njit(_sift_down)
     _refactor = njit(_refactor)
     _leaving_row = njit(_leaving_row)
     _ratio_test = njit(_ratio_test)
@@ -510,10 +467,14 @@ def _prepare(A: np.ndarray, b: np.ndarray, st: Start) -> _Start:
 
 
 def _new_chunk(A: np.ndarray, AT: np.ndarray, P: np.ndarray, s0: _Start, AWT: np.ndarray,
-               grow) -> Chunk:
+               kernels) -> Chunk:
     """The chunk of problems with perturbed costs ``P``: each at the start basis, its working
     set the start's basic columns and the :data:`FIRST` columns whose gap terms are largest
-    against the start basis's duals (``AWT``: the buffer of the working sets' columns)."""
+    against the start basis's duals (``AWT``: the buffer of the working sets' columns;
+    ``kernels`` as :func:`_kernels`).  The first columns are chosen by the pricing kernel of
+    the later rounds (:func:`_price`, the same selection and tie rule), with no limit that
+    would finish a problem."""
+    _, grow, price, _ = kernels
     Kc, r = P.shape
     cap, m, basic = s0.cap, s0.basic.size, s0.basic
     S = Chunk(Wc=np.zeros((Kc, cap), np.int64), AWT=AWT, nrm2=np.zeros((Kc, cap)),
@@ -531,10 +492,10 @@ def _new_chunk(A: np.ndarray, AT: np.ndarray, P: np.ndarray, s0: _Start, AWT: np
     S.inW[:, basic] = True
     Y = np.where(s0.B0 < r, P[:, np.minimum(s0.B0, r - 1)], 0.0) @ s0.Binv0
     Dp = P - Y @ A
-    T = np.maximum(np.abs(Dp) - Dp * s0.xi0, 0.0)
-    T[:, basic] = 0.0
+    picked, counts = np.zeros((Kc, FIRST), np.int64), np.zeros(Kc, np.int64)
+    price(S, Dp, s0.xi0, np.arange(Kc), np.full(Kc, -1.0), picked, counts)
     for k in range(Kc):
-        grow(S, k, _top(T[k], FIRST), AT, s0.xi0, P[k], Dp[k])
+        grow(S, k, picked[k, :counts[k]], AT, s0.xi0, P[k], Dp[k])
     return S
 
 
@@ -614,7 +575,7 @@ def solve(A: np.ndarray, b: np.ndarray, Gd: np.ndarray, st: Start | None = None,
     for lo in range(0, K, CHUNK):
         sl = slice(lo, min(K, lo + CHUNK))
         t0 = perf_counter()
-        S = _new_chunk(A, AT, pert[sl], s0, AWT[:sl.stop - lo], kernels[1])
+        S = _new_chunk(A, AT, pert[sl], s0, AWT[:sl.stop - lo], kernels)
         seconds["models"] += perf_counter() - t0
         conv[sl], r_ = _sift_chunk(A, AT, Gd[sl], pert[sl], s0, S, radius[sl], opts, kernels,
                                    seconds)

@@ -24,6 +24,7 @@ from .search import (
     Search,
     Stats,
     find_anchor,
+    same_trajectory,
 )
 from .verification import Model, Trajectory
 
@@ -212,7 +213,8 @@ class SearchOptions:
     starts : int
         SLP runs per objective (>= 1), see :mod:`.search`.
     seed : int
-        Seed of the random directions of the extra starts.
+        Seed of the random directions of the extra starts (with the step: each step its
+        own directions, whichever other steps are searched).
     floor : {"filtered", "predicted"}
         Reproduce ``y_0 .. y_k`` (the set after ``y_k``, against which every observer is
         held) or ``y_0 .. y_{k-1}`` (before ``y_k``: only for observers whose estimate of
@@ -296,7 +298,6 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     anchor = find_anchor(M, x_true, stats, 5 * opts.max_iter)
     if opts.max_simplex_iterations is not None:  # the budget of the searches after it
         stats.budget = stats.simplex_iterations + opts.max_simplex_iterations
-    rng = np.random.default_rng(opts.seed)
     S = steps.size
     lo, hi = np.full((S, n), np.nan), np.full((S, n), np.nan)
     lo_tr: list = [[None] * n for _ in range(S)]
@@ -304,7 +305,7 @@ def falsify(system: Any, record: Any, steps: int | Sequence[int] = 10,
     searched = 0
     for s, k in enumerate(steps.tolist()):
         try:
-            search = _search_step(M, k, anchor, opts, (stats, rng))
+            search = _search_step(M, k, anchor, opts, stats)
         except BudgetSpent:  # this step and the later ones stay NaN
             break
         searched += 1
@@ -334,12 +335,11 @@ def _steps(steps: int | Sequence[int], N: int) -> np.ndarray:
     return steps
 
 
-def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
-                 shared: tuple[Stats, np.random.Generator]) -> Search:
+def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions, stats: Stats) -> Search:
     """The search of step ``k`` from the ``anchor`` point, run in both directions of every
-    state (and from ``opts.starts - 1`` more starts); ``shared``: the run's work counters and
-    random generator."""
-    stats, rng = shared
+    state (and from ``opts.starts - 1`` more starts: random directions seeded by
+    ``(opts.seed, k)``, then each objective from the best other distinct trajectories);
+    ``stats``: the run's work counters."""
     n = M.n
     scale = np.maximum(np.abs(M.G0).sum(axis=1), 1e-12)  # radii of X0's hull
     m = k + 1 if opts.floor == "filtered" else k
@@ -360,16 +360,18 @@ def _search_step(M: Model, k: int, anchor: Any, opts: SearchOptions,
         stats.spend()
         finals[i, sgn] = search.run(start, c)
     if opts.starts > 1:
+        rng = np.random.default_rng([opts.seed, k])  # this step's own directions
         for _ in range(opts.starts - 1):
             d = rng.standard_normal(n)
             stats.spend()
             search.run(start, d / np.linalg.norm(d) / scale)
         for i, sgn in objectives:
-            tried = {id(start), id(finals[i, sgn])}
+            tried = (start, finals[i, sgn])
             ranked = sorted(search.pool, key=lambda p, i=i, sgn=sgn: -sgn * p.X[k][i])
             c = np.zeros(n)
             c[i] = sgn / scale[i]
-            for p in [p for p in ranked if id(p) not in tried][:opts.starts - 1]:
+            others = [p for p in ranked if not any(same_trajectory(p, t) for t in tried)]
+            for p in others[:opts.starts - 1]:
                 stats.spend()
                 search.run(p, c)
     return search
