@@ -165,12 +165,10 @@ def test_hinf_riccati_finds_the_least_gamma_of_the_sdp_and_a_certified_point(nam
 
 
 def test_eso_d_with_riccati_gains_contains_the_truth(monkeypatch, tmp_path):
-    from observers.builtin import ellipsoidal as builtin
     from observers.numerics import ellipsoidal as el
 
     monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(el, "HINF_RICCATI_ABOVE", 0)
-    monkeypatch.setattr(builtin, "HINF_RICCATI_ABOVE", 0)
     sc = systems.scenario("vehicle6d-cora")
     obs = observers.create("ESO-D", sc.system)
     assert obs.design_params()["hinf"] == "riccati"
@@ -197,6 +195,22 @@ def test_eso_c_and_eso_d_share_their_first_gain(monkeypatch, tmp_path):
         LinearDesignProblem(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G))
     np.testing.assert_allclose(esod.L, fresh["L"], rtol=1e-12, atol=0)
     np.testing.assert_allclose(esod.P, fresh["P"], rtol=1e-12, atol=0)
+
+
+def test_eso_first_gain_key_names_the_route_the_solve_takes(monkeypatch, tmp_path):
+    # issue 58: the first gain's cache key named the H-infinity route from a copy of the
+    # threshold taken at import (and without the rank rule of hinf_gain), so a first gain
+    # stored by one route was loaded where the solve takes the other
+    from observers.numerics import ellipsoidal as el
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", str(tmp_path))
+    s = systems.scenario("vehicle4d-sim").system
+    observers.create("ESO-D", s)  # the central route (4 states), stored
+    monkeypatch.setattr(el, "HINF_RICCATI_ABOVE", 0)  # now the Riccati route
+    esod = observers.create("ESO-D", s)
+    plant = LinearDesignProblem(np.asarray(s.A, float), np.asarray(s.C, float), s.W.G, s.V.G)
+    fresh = el.martinez_design(plant)
+    np.testing.assert_allclose(esod.L, fresh["L"], rtol=1e-9, atol=0)
 
 
 @pytest.mark.parametrize("name", ["vehicle6d-cora", "tank6-linear"])

@@ -11,9 +11,9 @@ from ..base import Observer
 from ..enclosures import Smooth, first_order
 from ..errors import DesignFailed, Diverged
 from ..families import as_zonotope
+from ..numerics import ellipsoidal as ellipsoidal_numerics
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
-    HINF_RICCATI_ABOVE,
     InvariantRecursion,
     ellipsoid_box,
     error_system,
@@ -227,11 +227,11 @@ class ESOB(EllipsoidalStripObserver):
         return q, P, s2
 
 
-def _hinf_params(n: int) -> dict:
-    """``hinf: riccati`` in a design key where the H-infinity gains of ``n`` states come from
-    the Riccati equation (above :data:`~observers.numerics.ellipsoidal.HINF_RICCATI_ABOVE`
-    states), else nothing (the smaller designs keep their key)."""
-    return {"hinf": "riccati"} if n > HINF_RICCATI_ABOVE else {}
+def _hinf_params(plant: LinearDesignProblem) -> dict:
+    """``hinf: riccati`` in a design key where the H-infinity gains of ``plant`` come from the
+    Riccati equation (:func:`~observers.numerics.ellipsoidal.hinf_route`, read when the key
+    is made: the route the solve takes), else nothing (the smaller designs keep their key)."""
+    return {"hinf": "riccati"} if ellipsoidal_numerics.hinf_route(plant) == "riccati" else {}
 
 
 class InvariantSetObserver(Observer):
@@ -266,13 +266,19 @@ class InvariantSetObserver(Observer):
         under its own key: ESO-C and ESO-D on one system solve its SDP once (at 30 states
         it is half of each design: about 20 s)."""
         return cached_design("ESO-first-gain", self.DESIGN_VERSION,
-                             {"A": A, "C": C, "E": E, "F": F}, _hinf_params(A.shape[0]),
+                             {"A": A, "C": C, "E": E, "F": F},
+                             _hinf_params(LinearDesignProblem(A, C, E, F)),
                              lambda: {"L": first_gain(LinearDesignProblem(A, C, E, F))})["L"]
 
-    def design_params(self) -> dict:
+    def design_params(self, E: np.ndarray | None = None, F: np.ndarray | None = None) -> dict:
         """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
-        equation (:func:`_hinf_params`)."""
-        return {**self.options, **_hinf_params(self.system.n)}
+        equation (:func:`_hinf_params`, for the noise matrices ``E``, ``F`` of the design;
+        default: those of the system)."""
+        s = self.system
+        if E is None or F is None:
+            E, F = self.noise_matrices(as_zonotope(s.W, "W"), as_zonotope(s.V, "V"))
+        plant = LinearDesignProblem(np.asarray(s.A, float), np.asarray(s.C, float), E, F)
+        return {**self.options, **_hinf_params(plant)}
 
     def design(self) -> None:
         s = self.system
@@ -281,7 +287,7 @@ class InvariantSetObserver(Observer):
         X0, W, V = (as_zonotope(S, name) for S, name in ((s.X0, "X0"), (s.W, "W"), (s.V, "V")))
         E, F = self.noise_matrices(W, V)
         d = cached_design(self.name, self.DESIGN_VERSION, {"A": A, "C": C, "E": E, "F": F},
-                          self.design_params(), lambda: self.compute_design(A, C, E, F))
+                          self.design_params(E, F), lambda: self.compute_design(A, C, E, F))
         self.L, self.P = d["L"], d["P"]
         self.lam, self.gamma2 = float(d["lam"]), float(d["gamma2"])
         self.Ao, _ = error_system(LinearDesignProblem(A, C, E, F), self.L)

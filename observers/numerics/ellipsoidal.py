@@ -398,15 +398,25 @@ def hinf_central(plant: LinearDesignProblem, Q, what: str, gap: float = HINF_CEN
     return Pc * scale, gain_from(Pc, Yc, what), float(x[-1]) * scale
 
 
+def hinf_route(plant: LinearDesignProblem) -> str:
+    """The route :func:`hinf_gain` takes for ``plant``: ``"riccati"`` above
+    :data:`HINF_RICCATI_ABOVE` states with a full-dimensional noise set (``F`` of full row
+    rank), else ``"central"``.  Read at call time, so that cache keys (which must name the
+    route) and the solve agree."""
+    F = np.atleast_2d(np.asarray(plant.F, dtype=float))
+    full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
+    return "riccati" if plant.A.shape[0] > HINF_RICCATI_ABOVE and full else "central"
+
+
 def hinf_gain(plant: LinearDesignProblem, Q, what: str) -> tuple[np.ndarray, np.ndarray, float]:
     """:func:`hinf_central` up to :data:`HINF_RICCATI_ABOVE` states (or without a
     full-dimensional noise set), :func:`hinf_riccati` above (for ``plant`` and ``Q``), both
     given the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`: the same gain,
     ``gamma^2`` scaled back), so that the point does not depend on the units of the data."""
+    route = hinf_route(plant)
     F = np.atleast_2d(np.asarray(plant.F, dtype=float))
     plant, s2 = unit_noise(LinearDesignProblem(plant.A, plant.C, plant.E, F))
-    full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
-    if plant.A.shape[0] > HINF_RICCATI_ABOVE and full:
+    if route == "riccati":
         P, L, g = hinf_riccati(plant, Q, what)
     else:
         P, L, g = hinf_central(plant, Q, what)
