@@ -14,6 +14,7 @@ from ..families import as_zonotope
 from ..numerics import ellipsoidal as ellipsoidal_numerics
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
+    DESIGNS,
     InvariantRecursion,
     ellipsoid_box,
     error_system,
@@ -249,8 +250,11 @@ class InvariantSetObserver(Observer):
 
     #: "2": the H-infinity gains are the central-path point of :func:`~observers.numerics.
     #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at;
-    #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`)
-    DESIGN_VERSION = "3"
+    #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`);
+    #: "4": the ``design`` option, default CORA's procedure (:func:`~observers.numerics.
+    #: ellipsoidal.hinf_cora`)
+    DESIGN_VERSION = "4"
+    OPTIONS = {"design": Choice("cora", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         """``E``, ``F`` with ``w = E wbar``, ``v = F vbar``, ``|wbar|, |vbar| <= 1``: the
@@ -265,10 +269,12 @@ class InvariantSetObserver(Observer):
         """Step 1 of both designs (:func:`~observers.numerics.ellipsoidal.first_gain`), cached
         under its own key: ESO-C and ESO-D on one system solve its SDP once (at 30 states
         it is half of each design: about 20 s)."""
+        design = self.options["design"]
+        plant = LinearDesignProblem(A, C, E, F)
         return cached_design("ESO-first-gain", self.DESIGN_VERSION,
                              {"A": A, "C": C, "E": E, "F": F},
-                             _hinf_params(LinearDesignProblem(A, C, E, F)),
-                             lambda: {"L": first_gain(LinearDesignProblem(A, C, E, F))})["L"]
+                             {"design": design, **_hinf_params(plant)},
+                             lambda: {"L": first_gain(plant, design=design)})["L"]
 
     def design_params(self, E: np.ndarray | None = None, F: np.ndarray | None = None) -> dict:
         """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
@@ -338,6 +344,16 @@ class ESOC(InvariantSetObserver):
         of ARCH 2021 Table 3 but is **not guaranteed** (the true state leaves its set on the
         6-state vehicle record); benchmark configurations list it as the labelled variant
         ``ESO-C[cora]``, not guaranteed.
+    design : {"cora", "cora-centre", "least-gamma"}
+        The point of the H-infinity LMIs (:func:`~observers.numerics.ellipsoidal.design_gain`):
+        ``"cora"`` CORA's procedure, the first feasible ``gamma`` of its grid
+        1..50 and there the analytic centre of the feasible set with ``cond(P)`` bounded
+        (:func:`~observers.numerics.ellipsoidal.hinf_cora`), the point that reproduces the
+        published rows; ``"cora-centre"`` the analytic centre of the whole feasible set at
+        that ``gamma``; ``"least-gamma"`` the central-path point 1 % above the least
+        ``gamma^2`` (units-free; the design of releases before 0.16; ESO-C's default until
+        ``"cora"`` solves its second LMI on the 6-tank system).  All unique points, certified
+        in numpy.
 
     Notes
     -----
@@ -357,7 +373,11 @@ class ESOC(InvariantSetObserver):
     """
 
     OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True),
-               "variant": Choice("paper", ("paper", "cora"))}
+               "variant": Choice("paper", ("paper", "cora")),
+               # "cora" does not yet solve ESO-C's second LMI on the 6-tank system (no strictly
+               # feasible start at the condition bound; the paper variant: no grid gamma):
+               # ESO-C keeps the least-gamma point until it does
+               "design": Choice("least-gamma", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         if self.options["variant"] != "cora":
@@ -372,7 +392,7 @@ class ESOC(InvariantSetObserver):
                                                   "outer:norm").Q)
         return loukkas_design(LinearDesignProblem(A, C, E, F), QW,
                               float(self.options["quantile"]), self.name,
-                              L1=self.first_gain(A, C, E, F))
+                              L1=self.first_gain(A, C, E, F), design=self.options["design"])
 
 
 @register(
@@ -395,11 +415,17 @@ class ESOD(InvariantSetObserver):
     with the offline design of Martinez et al. (2020,
     :func:`~observers.numerics.ellipsoidal.martinez_design`): the H-infinity LMI weighted
     by the inverse error covariance for uniform noise (variance 1/3 per factor).
+
+    Options
+    -------
+    design : {"cora", "cora-centre", "least-gamma"}
+        The point of the H-infinity LMIs, as ESO-C's option (default ``"cora"``: CORA's
+        gamma grid and the analytic centre with ``cond(P)`` bounded).
     """
 
     def compute_design(self, A, C, E, F) -> dict:
         return martinez_design(LinearDesignProblem(A, C, E, F), what=self.name,
-                               L1=self.first_gain(A, C, E, F))
+                               L1=self.first_gain(A, C, E, F), design=self.options["design"])
 
 
 @register(
