@@ -252,8 +252,9 @@ class InvariantSetObserver(Observer):
     #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at;
     #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`);
     #: "4": the ``design`` option, default CORA's procedure (:func:`~observers.numerics.
-    #: ellipsoidal.hinf_cora`)
-    DESIGN_VERSION = "4"
+    #: ellipsoidal.hinf_cora`); "5": its condition bisection measures strict feasibility on
+    #: the LMI with the noise rows scaled by 1 / gamma (a slightly different bound)
+    DESIGN_VERSION = "5"
     OPTIONS = {"design": Choice("cora", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
@@ -351,9 +352,10 @@ class ESOC(InvariantSetObserver):
         (:func:`~observers.numerics.ellipsoidal.hinf_cora`), the point that reproduces the
         published rows; ``"cora-centre"`` the analytic centre of the whole feasible set at
         that ``gamma``; ``"least-gamma"`` the central-path point 1 % above the least
-        ``gamma^2`` (units-free; the design of releases before 0.16; ESO-C's default until
-        ``"cora"`` solves its second LMI on the 6-tank system).  All unique points, certified
-        in numpy.
+        ``gamma^2`` (units-free; the design of releases before 0.16; ESO-C's default: CORA's
+        grid is in absolute units, and with the generator matrices of W and V the second
+        LMI's least ``gamma`` on the 6-tank system is 187.5, above the grid; the labelled
+        variant ``ESO-C[cora]`` takes ``"cora"``).  All unique points, certified in numpy.
 
     Notes
     -----
@@ -374,9 +376,9 @@ class ESOC(InvariantSetObserver):
 
     OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True),
                "variant": Choice("paper", ("paper", "cora")),
-               # "cora" does not yet solve ESO-C's second LMI on the 6-tank system (no strictly
-               # feasible start at the condition bound; the paper variant: no grid gamma):
-               # ESO-C keeps the least-gamma point until it does
+               # "cora" (CORA's absolute gamma grid 1..50) has no feasible gamma for ESO-C's
+               # second LMI on the 6-tank system with the generator matrices (least gamma
+               # 187.5): ESO-C keeps the least-gamma point; ESO-C[cora] takes "cora"
                "design": Choice("least-gamma", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:

@@ -440,7 +440,10 @@ def hinf_cora(plant: LinearDesignProblem, Q, what: str, point: str = "cora"
     * ``point="cora"``: the analytic centre of the same set cut by ``s I <= P <= k s I``
       (variables ``P, Y, s``), ``k = (1 +`` :data:`CORA_KAPPA_SLACK` ``) k*``, ``k*`` the
       least condition number of a strictly feasible ``P`` (bisection on Clarabel's most
-      interior point, relative 1e-5).  A feasibility solve stops near its well-conditioned
+      interior point, relative 1e-5; the margin of "strictly" is measured on the LMI with its
+      noise rows scaled by ``1 / gamma``, a congruence, so that a small ``gamma^2`` relative
+      to ``Q`` (ESO-C's covariance weight) does not cap it below the solver's tolerance).
+      A feasibility solve stops near its well-conditioned
       start; on the 6-tank system this point reproduces the published ESO-D row of ARCH 2021
       Table 3 within 3 %, the plain analytic centre (``cond(P)`` 150-280) misses it
       threefold.
@@ -474,7 +477,12 @@ def hinf_cora(plant: LinearDesignProblem, Q, what: str, point: str = "cora"
     P, Y, s, t = (cp.Variable((n, n), symmetric=True), cp.Variable((n, m)), cp.Variable(),
                   cp.Variable())
     M = _hinf_matrix(P, Y, gn, plant, Qn)
-    lmi = 0.5 * (M + M.T)
+    # the margin of the bisection below is measured on the LMI with its noise rows scaled by
+    # 1 / sqrt(g) (a congruence: the same set, the same analytic centre), whose blocks are then
+    # of one scale: unscaled, a small g (ESO-C's weight) caps the margin far below the
+    # solver's tolerance
+    T = np.diag(np.concatenate([np.ones(n), np.full(k - 2 * n, 1.0 / np.sqrt(gn)), np.ones(n)]))
+    lmi = T @ (0.5 * (M + M.T)) @ T
     found: list = []
 
     def feasible(kap: float) -> bool:
