@@ -11,9 +11,10 @@ from ..base import Observer
 from ..enclosures import Smooth, first_order
 from ..errors import DesignFailed, Diverged
 from ..families import as_zonotope
+from ..numerics import ellipsoidal as ellipsoidal_numerics
 from ..numerics.ellipsoidal import (
     CORA_SIGMA2_0,
-    HINF_RICCATI_ABOVE,
+    DESIGNS,
     InvariantRecursion,
     ellipsoid_box,
     error_system,
@@ -227,11 +228,11 @@ class ESOB(EllipsoidalStripObserver):
         return q, P, s2
 
 
-def _hinf_params(n: int) -> dict:
-    """``hinf: riccati`` in a design key where the H-infinity gains of ``n`` states come from
-    the Riccati equation (above :data:`~observers.numerics.ellipsoidal.HINF_RICCATI_ABOVE`
-    states), else nothing (the smaller designs keep their key)."""
-    return {"hinf": "riccati"} if n > HINF_RICCATI_ABOVE else {}
+def _hinf_params(plant: LinearDesignProblem) -> dict:
+    """``hinf: riccati`` in a design key where the H-infinity gains of ``plant`` come from the
+    Riccati equation (:func:`~observers.numerics.ellipsoidal.hinf_route`, read when the key
+    is made: the route the solve takes), else nothing (the smaller designs keep their key)."""
+    return {"hinf": "riccati"} if ellipsoidal_numerics.hinf_route(plant) == "riccati" else {}
 
 
 class InvariantSetObserver(Observer):
@@ -249,8 +250,12 @@ class InvariantSetObserver(Observer):
 
     #: "2": the H-infinity gains are the central-path point of :func:`~observers.numerics.
     #: ellipsoidal.hinf_central` (a unique point) instead of the point an SDP solver stops at;
-    #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`)
-    DESIGN_VERSION = "3"
+    #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`);
+    #: "4": the ``design`` option, default CORA's procedure (:func:`~observers.numerics.
+    #: ellipsoidal.hinf_cora`); "5": its condition bisection measures strict feasibility on
+    #: the LMI with the noise rows scaled by 1 / gamma (a slightly different bound)
+    DESIGN_VERSION = "5"
+    OPTIONS = {"design": Choice("cora", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         """``E``, ``F`` with ``w = E wbar``, ``v = F vbar``, ``|wbar|, |vbar| <= 1``: the
@@ -265,14 +270,22 @@ class InvariantSetObserver(Observer):
         """Step 1 of both designs (:func:`~observers.numerics.ellipsoidal.first_gain`), cached
         under its own key: ESO-C and ESO-D on one system solve its SDP once (at 30 states
         it is half of each design: about 20 s)."""
+        design = self.options["design"]
+        plant = LinearDesignProblem(A, C, E, F)
         return cached_design("ESO-first-gain", self.DESIGN_VERSION,
-                             {"A": A, "C": C, "E": E, "F": F}, _hinf_params(A.shape[0]),
-                             lambda: {"L": first_gain(LinearDesignProblem(A, C, E, F))})["L"]
+                             {"A": A, "C": C, "E": E, "F": F},
+                             {"design": design, **_hinf_params(plant)},
+                             lambda: {"L": first_gain(plant, design=design)})["L"]
 
-    def design_params(self) -> dict:
+    def design_params(self, E: np.ndarray | None = None, F: np.ndarray | None = None) -> dict:
         """The options, and ``hinf: riccati`` where the H-infinity gains come from the Riccati
-        equation (:func:`_hinf_params`)."""
-        return {**self.options, **_hinf_params(self.system.n)}
+        equation (:func:`_hinf_params`, for the noise matrices ``E``, ``F`` of the design;
+        default: those of the system)."""
+        s = self.system
+        if E is None or F is None:
+            E, F = self.noise_matrices(as_zonotope(s.W, "W"), as_zonotope(s.V, "V"))
+        plant = LinearDesignProblem(np.asarray(s.A, float), np.asarray(s.C, float), E, F)
+        return {**self.options, **_hinf_params(plant)}
 
     def design(self) -> None:
         s = self.system
@@ -281,7 +294,7 @@ class InvariantSetObserver(Observer):
         X0, W, V = (as_zonotope(S, name) for S, name in ((s.X0, "X0"), (s.W, "W"), (s.V, "V")))
         E, F = self.noise_matrices(W, V)
         d = cached_design(self.name, self.DESIGN_VERSION, {"A": A, "C": C, "E": E, "F": F},
-                          self.design_params(), lambda: self.compute_design(A, C, E, F))
+                          self.design_params(E, F), lambda: self.compute_design(A, C, E, F))
         self.L, self.P = d["L"], d["P"]
         self.lam, self.gamma2 = float(d["lam"]), float(d["gamma2"])
         self.Ao, _ = error_system(LinearDesignProblem(A, C, E, F), self.L)
@@ -332,6 +345,17 @@ class ESOC(InvariantSetObserver):
         of ARCH 2021 Table 3 but is **not guaranteed** (the true state leaves its set on the
         6-state vehicle record); benchmark configurations list it as the labelled variant
         ``ESO-C[cora]``, not guaranteed.
+    design : {"cora", "cora-centre", "least-gamma"}
+        The point of the H-infinity LMIs (:func:`~observers.numerics.ellipsoidal.design_gain`):
+        ``"cora"`` CORA's procedure, the first feasible ``gamma`` of its grid
+        1..50 and there the analytic centre of the feasible set with ``cond(P)`` bounded
+        (:func:`~observers.numerics.ellipsoidal.hinf_cora`), the point that reproduces the
+        published rows; ``"cora-centre"`` the analytic centre of the whole feasible set at
+        that ``gamma``; ``"least-gamma"`` the central-path point 1 % above the least
+        ``gamma^2`` (units-free; the design of releases before 0.16; ESO-C's default: CORA's
+        grid is in absolute units, and with the generator matrices of W and V the second
+        LMI's least ``gamma`` on the 6-tank system is 187.5, above the grid; the labelled
+        variant ``ESO-C[cora]`` takes ``"cora"``).  All unique points, certified in numpy.
 
     Notes
     -----
@@ -351,7 +375,11 @@ class ESOC(InvariantSetObserver):
     """
 
     OPTIONS = {"quantile": Number(0.999, low=0, high=1, low_open=True, high_open=True),
-               "variant": Choice("paper", ("paper", "cora"))}
+               "variant": Choice("paper", ("paper", "cora")),
+               # "cora" (CORA's absolute gamma grid 1..50) has no feasible gamma for ESO-C's
+               # second LMI on the 6-tank system with the generator matrices (least gamma
+               # 187.5): ESO-C keeps the least-gamma point; ESO-C[cora] takes "cora"
+               "design": Choice("least-gamma", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
         if self.options["variant"] != "cora":
@@ -366,7 +394,7 @@ class ESOC(InvariantSetObserver):
                                                   "outer:norm").Q)
         return loukkas_design(LinearDesignProblem(A, C, E, F), QW,
                               float(self.options["quantile"]), self.name,
-                              L1=self.first_gain(A, C, E, F))
+                              L1=self.first_gain(A, C, E, F), design=self.options["design"])
 
 
 @register(
@@ -389,11 +417,17 @@ class ESOD(InvariantSetObserver):
     with the offline design of Martinez et al. (2020,
     :func:`~observers.numerics.ellipsoidal.martinez_design`): the H-infinity LMI weighted
     by the inverse error covariance for uniform noise (variance 1/3 per factor).
+
+    Options
+    -------
+    design : {"cora", "cora-centre", "least-gamma"}
+        The point of the H-infinity LMIs, as ESO-C's option (default ``"cora"``: CORA's
+        gamma grid and the analytic centre with ``cond(P)`` bounded).
     """
 
     def compute_design(self, A, C, E, F) -> dict:
         return martinez_design(LinearDesignProblem(A, C, E, F), what=self.name,
-                               L1=self.first_gain(A, C, E, F))
+                               L1=self.first_gain(A, C, E, F), design=self.options["design"])
 
 
 @register(

@@ -398,15 +398,178 @@ def hinf_central(plant: LinearDesignProblem, Q, what: str, gap: float = HINF_CEN
     return Pc * scale, gain_from(Pc, Yc, what), float(x[-1]) * scale
 
 
+#: CORA's grid of ``gamma`` (``linspace(1, 50, 100)``): its designs take the first feasible one
+CORA_GAMMA_GRID = np.linspace(1.0, 50.0, 100)
+#: least relative excess of the grid's gamma^2 over the least gamma^2 in :func:`hinf_cora`
+CORA_GRID_MARGIN = 1e-3
+#: relative excess of the condition bound of :func:`hinf_cora` (``"cora"``) over its least value
+CORA_KAPPA_SLACK = 0.1
+#: design strategies of ESO-C and ESO-D: ``"cora"`` CORA's procedure (gamma grid) at the
+#: analytic centre of the feasible set with ``cond(P)`` bounded; ``"cora-centre"`` the same
+#: at the analytic centre of the whole feasible set; ``"least-gamma"`` the central-path point
+#: 1 % above the least gamma^2 (:func:`hinf_gain`, units-free)
+DESIGNS = ("cora", "cora-centre", "least-gamma")
+
+
+def _fold_gamma(plant: LinearDesignProblem, Qn, gn: float):
+    """Blocks of ``-M(P, Y, g)`` (:func:`_negated_hinf`) at a fixed ``g = gn``, as a linear
+    matrix function of ``x = [1, upper triangle of P, Y]``, and the blocks of ``P``."""
+    blocks, iu = _negated_hinf(plant, Qn)
+    B = blocks[:-1].copy()
+    B[0] = B[0] + gn * blocks[-1]
+    n = plant.A.shape[0]
+    PB = np.zeros((B.shape[0], n, n))
+    for t, (i, j) in enumerate(zip(*iu, strict=True)):
+        PB[1 + t, i, j] = PB[1 + t, j, i] = 1.0
+    return B, PB, iu
+
+
+def hinf_cora(plant: LinearDesignProblem, Q, what: str, point: str = "cora"
+              ) -> tuple[np.ndarray, np.ndarray, float]:
+    """CORA's solve of the H-infinity LMI of :func:`hinf_lmi` (``P >= 0``, ``M <= 0``) made a
+    unique point.
+
+    ``gamma`` is the first of :data:`CORA_GAMMA_GRID` at which the LMI is feasible (CORA
+    tries them in turn and keeps its solver's first feasible point; here the least
+    ``gamma^2`` comes from Clarabel and the next grid value, at least
+    :data:`CORA_GRID_MARGIN` above it, is taken), in absolute units as CORA's grid is.  At
+    that ``gamma`` the point is
+
+    * ``point="cora-centre"``: the analytic centre of ``{P >= 0, M(P, Y) <= 0}`` (maximiser
+      of ``log det P + log det(-M)``, bounded when ``E`` has full row rank);
+    * ``point="cora"``: the analytic centre of the same set cut by ``s I <= P <= k s I``
+      (variables ``P, Y, s``), ``k = (1 +`` :data:`CORA_KAPPA_SLACK` ``) k*``, ``k*`` the
+      least condition number of a strictly feasible ``P`` (bisection on Clarabel's most
+      interior point, relative 1e-5; the margin of "strictly" is measured on the LMI with its
+      noise rows scaled by ``1 / gamma``, a congruence, so that a small ``gamma^2`` relative
+      to ``Q`` (ESO-C's covariance weight) does not cap it below the solver's tolerance).
+      A feasibility solve stops near its well-conditioned
+      start; on the 6-tank system this point reproduces the published ESO-D row of ARCH 2021
+      Table 3 within 3 %, the plain analytic centre (``cond(P)`` 150-280) misses it
+      threefold.
+
+    Both maximise strictly concave barriers, by damped Newton in numpy
+    (:func:`~observers.numerics.lmi.analytic_centre`) from a strictly feasible point.
+    Returns ``(P, L, gamma^2)``; raises :class:`DesignFailed` if no grid ``gamma`` is
+    feasible (as CORA fails).
+    """
+    import cvxpy as cp
+
+    from .lmi import analytic_centre
+
+    A, C, E, F = plant
+    n, m = C.shape[1], C.shape[0]
+    if np.linalg.matrix_rank(E) < n:
+        raise DesignFailed(f"{what}: CORA's design point needs a full-dimensional W")
+    scale = float(np.linalg.eigvalsh(sym(Q))[-1])
+    if not scale > 0:
+        raise DesignFailed(f"{what}: the weight Q must be positive definite")
+    Qn = sym(Q) / scale
+    g_star = hinf_lmi(plant, Qn, what)[2]
+    i = int(np.searchsorted(CORA_GAMMA_GRID ** 2, g_star * scale * (1.0 + CORA_GRID_MARGIN)))
+    if i >= CORA_GAMMA_GRID.size:
+        raise DesignFailed(f"{what}: no gamma of CORA's grid 1..50 is feasible (least gamma "
+                           f"{np.sqrt(g_star * scale):.4g})")
+    g = float(CORA_GAMMA_GRID[i]) ** 2
+    gn = g / scale
+    B, PB, iu = _fold_gamma(plant, Qn, gn)
+    k = B.shape[1]
+    P, Y, s, t = (cp.Variable((n, n), symmetric=True), cp.Variable((n, m)), cp.Variable(),
+                  cp.Variable())
+    M = _hinf_matrix(P, Y, gn, plant, Qn)
+    # the margin of the bisection below is measured on the LMI with its noise rows scaled by
+    # 1 / sqrt(g) (a congruence: the same set, the same analytic centre), whose blocks are then
+    # of one scale: unscaled, a small g (ESO-C's weight) caps the margin far below the
+    # solver's tolerance
+    T = np.diag(np.concatenate([np.ones(n), np.full(k - 2 * n, 1.0 / np.sqrt(gn)), np.ones(n)]))
+    lmi = T @ (0.5 * (M + M.T)) @ T
+    found: list = []
+
+    def feasible(kap: float) -> bool:
+        # strictly, by a margin relative to the scale of P: Clarabel calls a problem with a
+        # sliver of a feasible set (or none, within its tolerance) solved
+        cons = [lmi << -t * np.eye(k), P >> (s + t) * np.eye(n),
+                P << kap * s * np.eye(n) - t * np.eye(n), t <= 1.0]
+        try:
+            solve(cp.Problem(cp.Maximize(t), cons), what)
+        except DesignFailed:
+            return False
+        ok = t.value is not None and t.value > min(0.5, 1e-6 * max(1.0, float(s.value)))
+        if ok:  # a start for the centre below, strictly inside for every larger bound
+            found[:] = [P.value, Y.value, float(s.value)]
+        return ok
+
+    if point == "cora":
+        lo, hi = 1.0, 2.0
+        while not feasible(hi):
+            lo, hi = hi, hi * hi
+            if hi > 1e16:
+                raise DesignFailed(f"{what}: no condition bound of P found")
+        while hi > lo * (1.0 + 1e-5):
+            mid = np.sqrt(lo * hi)
+            lo, hi = (lo, mid) if feasible(mid) else (mid, hi)
+        feasible(hi)
+        Pv, Yv, sv = found
+        kap = hi * (1.0 + CORA_KAPPA_SLACK)
+        x0 = np.concatenate([[1.0], Pv[iu], Yv.ravel(), [sv]])
+        B = np.concatenate([B, np.zeros((1, k, k))])
+        lower = np.concatenate([PB, -np.eye(n)[None]])
+        upper = np.concatenate([-PB, kap * np.eye(n)[None]])
+        blocks = [B, lower, upper]
+    elif point == "cora-centre":
+        solve(cp.Problem(cp.Maximize(t), [lmi << -t * np.eye(k), P >> t * np.eye(n),
+                                          t <= 1.0]), f"{what} (strictly feasible start)")
+        if t.value is None or not t.value > 0:
+            raise DesignFailed(f"{what}: the H-infinity LMI has no strictly feasible point")
+        x0 = np.concatenate([[1.0], P.value[iu], Y.value.ravel()])
+        blocks = [B, PB]
+    else:
+        raise ValueError(f"unknown CORA design point {point!r}")
+    a_eq = np.zeros(x0.size)
+    a_eq[0] = 1.0
+    x = analytic_centre(blocks, x0, a_eq, what, tol=1e-12)
+    Pc = np.zeros((n, n))
+    Pc[iu] = x[1:1 + iu[0].size]
+    Pc = sym(Pc + np.triu(Pc, 1).T)
+    Yc = x[1 + iu[0].size:1 + iu[0].size + n * m].reshape(n, m)
+    require_pd(Pc, f"{what} (P > 0)")
+    return Pc * scale, gain_from(Pc, Yc, what), g
+
+
+def design_gain(plant: LinearDesignProblem, Q, what: str, design: str = "cora"
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+    """The H-infinity gain of the design strategy ``design`` (:data:`DESIGNS`):
+    :func:`hinf_cora` for ``"cora"`` and ``"cora-centre"``, :func:`hinf_gain` for
+    ``"least-gamma"`` (and, for every strategy, above :data:`HINF_RICCATI_ABOVE` states or
+    with a degenerate ``W``: the Riccati route or the central-path point).
+    Returns ``(P, L, gamma^2)``."""
+    if design not in DESIGNS:
+        raise ValueError(f"unknown ESO design {design!r} (known: {', '.join(DESIGNS)})")
+    if (design == "least-gamma" or hinf_route(plant) == "riccati"
+            or np.linalg.matrix_rank(plant.E) < plant.A.shape[0]):
+        return hinf_gain(plant, Q, what)  # (no bounded feasible set without a full W)
+    return hinf_cora(plant, Q, what, design)
+
+
+def hinf_route(plant: LinearDesignProblem) -> str:
+    """The route :func:`hinf_gain` takes for ``plant``: ``"riccati"`` above
+    :data:`HINF_RICCATI_ABOVE` states with a full-dimensional noise set (``F`` of full row
+    rank), else ``"central"``.  Read at call time, so that cache keys (which must name the
+    route) and the solve agree."""
+    F = np.atleast_2d(np.asarray(plant.F, dtype=float))
+    full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
+    return "riccati" if plant.A.shape[0] > HINF_RICCATI_ABOVE and full else "central"
+
+
 def hinf_gain(plant: LinearDesignProblem, Q, what: str) -> tuple[np.ndarray, np.ndarray, float]:
     """:func:`hinf_central` up to :data:`HINF_RICCATI_ABOVE` states (or without a
     full-dimensional noise set), :func:`hinf_riccati` above (for ``plant`` and ``Q``), both
     given the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`: the same gain,
     ``gamma^2`` scaled back), so that the point does not depend on the units of the data."""
+    route = hinf_route(plant)
     F = np.atleast_2d(np.asarray(plant.F, dtype=float))
     plant, s2 = unit_noise(LinearDesignProblem(plant.A, plant.C, plant.E, F))
-    full = F.size > 0 and np.linalg.matrix_rank(F) == F.shape[0]
-    if plant.A.shape[0] > HINF_RICCATI_ABOVE and full:
+    if route == "riccati":
         P, L, g = hinf_riccati(plant, Q, what)
     else:
         P, L, g = hinf_central(plant, Q, what)
@@ -579,15 +742,17 @@ def _lyapunov_weight(Ao: np.ndarray, Sigma: np.ndarray, what: str) -> np.ndarray
     return sym(np.linalg.inv(V))
 
 
-def first_gain(plant: LinearDesignProblem, what: str = "ESO-C/ESO-D") -> np.ndarray:
+def first_gain(plant: LinearDesignProblem, what: str = "ESO-C/ESO-D", design: str = "cora"
+               ) -> np.ndarray:
     """Step 1 of both designs below: the gain of the H-infinity LMI with the weight ``Q = I``
-    (:func:`hinf_gain`).  It depends on ``plant`` (``A, C, E, F``) only, so ESO-C and ESO-D
-    on one system share it (their plugins cache it once)."""
-    return hinf_gain(plant, np.eye(plant.A.shape[0]), f"{what} (gain with Q = I)")[1]
+    (:func:`design_gain` of the strategy ``design``).  It depends on ``plant`` (``A, C, E,
+    F``) and ``design`` only, so ESO-C and ESO-D on one system share it (their plugins cache
+    it once)."""
+    return design_gain(plant, np.eye(plant.A.shape[0]), f"{what} (gain with Q = I)", design)[1]
 
 
 def loukkas_design(plant: LinearDesignProblem, QW, quantile: float, what: str = "ESO-C",
-                   L1: np.ndarray | None = None) -> dict:
+                   L1: np.ndarray | None = None, design: str = "cora") -> dict:
     r"""Algorithm 1 of Loukkas, Martinez & Meslem (2017) for the matrices ``plant``
     (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
@@ -627,10 +792,10 @@ def loukkas_design(plant: LinearDesignProblem, QW, quantile: float, what: str = 
     :math:`Q \succeq \lambda P` (capped at 1).
     """
     n = plant.A.shape[0]
-    L = first_gain(plant, what) if L1 is None else L1
+    L = first_gain(plant, what, design) if L1 is None else L1
     Ao, _ = error_system(plant, L)
     Q = _lyapunov_weight(Ao, QW / chi2.ppf(quantile, n), what)
-    P, L, gamma2 = hinf_gain(plant, Q, f"{what} (gain with the covariance weight)")
+    P, L, gamma2 = design_gain(plant, Q, f"{what} (gain with the covariance weight)", design)
     Ao, D = error_system(plant, L)
     S, gamma2 = schur_bound(Ao, D, P, gamma2)
     Q, lam, gamma2 = certify(Ao, D, P, gamma2, S, what)
@@ -638,7 +803,7 @@ def loukkas_design(plant: LinearDesignProblem, QW, quantile: float, what: str = 
 
 
 def martinez_design(plant: LinearDesignProblem, variance: float = 1.0 / 3.0, what: str = "ESO-D",
-                    L1: np.ndarray | None = None) -> dict:
+                    L1: np.ndarray | None = None, design: str = "cora") -> dict:
     r"""Algorithm 1 of Martinez, Loukkas & Meslem (2020) for the matrices ``plant``
     (:class:`~observers.numerics.lmi.LinearDesignProblem`).
 
@@ -669,10 +834,10 @@ def martinez_design(plant: LinearDesignProblem, variance: float = 1.0 / 3.0, wha
     and :math:`\lambda` is the least generalised eigenvalue of :math:`(Q, P)` after the
     certification (:func:`certify`).
     """
-    L = first_gain(plant, what) if L1 is None else L1
+    L = first_gain(plant, what, design) if L1 is None else L1
     Ao, D = error_system(plant, L)
     Q = _lyapunov_weight(Ao, variance * (D @ D.T), what)
-    P, L, gamma2 = hinf_gain(plant, Q, f"{what} (gain with the covariance weight)")
+    P, L, gamma2 = design_gain(plant, Q, f"{what} (gain with the covariance weight)", design)
     Ao, D = error_system(plant, L)
     Q, lam, gamma2 = certify(Ao, D, P, gamma2, Q, what)
     return {"L": L, "P": P, "Q": Q, "gamma2": np.array(gamma2), "lam": np.array(lam)}
