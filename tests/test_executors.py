@@ -282,9 +282,16 @@ from benchmarks.run.executors import ProcessExecutor
 from tests.test_executors import _hold, _sleepy
 
 held = np.ones(50_000_000)  # 400 MB, written: resident in every worker forked from here
+# the hang: a job that sleeps far past its timeout, at any speed of the machine
 ex = ProcessExecutor(1, timeout=3.0, memory_limit=300_000_000, start_method="fork")
 try:
     out = dict(ex.map(_sleepy, [60.0]))
+finally:
+    ex.close()
+# the leak: a timeout far beyond the time to write 500 MB on a loaded machine, so that the
+# memory limit, not the clock, ends it (with 3 s, a loaded CI machine ended it by timeout)
+ex = ProcessExecutor(1, timeout=600.0, memory_limit=300_000_000, start_method="fork")
+try:
     out.update({1: o for _, o in ex.map(_hold, [500_000_000])})
 finally:
     ex.close()
@@ -294,7 +301,7 @@ print(out[0].status, out[1].status, out[1].message)
 
 def _hold(nbytes):
     kept = np.ones(nbytes // 8)  # written: resident
-    time.sleep(60)
+    time.sleep(900)  # never reached: the memory limit ends the job (its timeout is 600 s)
     return kept.size
 
 
