@@ -12,6 +12,9 @@ RESULTS ?= results
 JOBS ?= $(shell getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
 # pytest-xdist workers of `make test` (one per core; TEST_JOBS=0 runs the suite in one process)
 TEST_JOBS ?= $(JOBS)
+# the order of `make test`: shuffled by a new seed every run (printed in the header; TEST_SEED=N
+# repeats an order)
+TEST_SEED ?= $(shell od -An -N2 -tu2 /dev/urandom | tr -d ' ')
 # single-threaded BLAS: faster and far less noisy on the small matrices of the observers
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
@@ -41,9 +44,9 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)  ## create .venv and install the project with its test, dask and docs extras
 
-test: $(STAMP)  ## run ruff and the test suite (TEST_JOBS workers, default one per core), which builds the docs with -W and runs their examples (CI runs this, then make check)
+test: $(STAMP)  ## run ruff and the test suite in a shuffled order (TEST_JOBS workers, default one per core; TEST_SEED repeats an order), which builds the docs with -W and runs their examples (CI runs this, then make check)
 	$(VENV)/bin/ruff check observers systems benchmarks tests
-	$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal
+	$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal --order-seed $(TEST_SEED)
 
 docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_build/html/index.html
 	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
@@ -81,8 +84,8 @@ scaling: $(STAMP)  ## scaling study, n-tank up to 200 states -> reports/scaling.
 	$(PY) -m benchmarks.studies.scaling --out reports/scaling.md --results $(RESULTS)/scaling
 	$(PY) -m benchmarks stale --record reports/scaling.md
 
-kernels: $(STAMP)  ## the paper tables re-run under every other OpenBLAS kernel of this CPU, each accuracy cell's spread against the committed stores -> reports/kernels.md, results/kernels/ (after make bench)
-	$(PY) -m benchmarks.studies.kernels --jobs $(JOBS) --out reports/kernels.md --results $(RESULTS)
+kernels: $(STAMP)  ## the paper tables re-run under every other OpenBLAS kernel of this CPU, each accuracy cell's spread against the committed stores -> reports/kernels.md, results/kernels/ (after make bench; only the rows whose stored fingerprint moved since run again)
+	$(PY) -m benchmarks.studies.kernels --changed --jobs $(JOBS) --out reports/kernels.md --results $(RESULTS)
 	$(PY) -m benchmarks stale --record reports/kernels.md
 	$(PY) -m benchmarks reports
 	$(PY) -m benchmarks index reports --committed
@@ -91,8 +94,8 @@ noise-grid: $(STAMP)  ## noise-level grid, gap and relative RMS against the scal
 	$(PY) -m benchmarks.studies.noise_grid --jobs $(JOBS) --out reports/noise_grid.md --results $(RESULTS)/noise_grid
 	$(PY) -m benchmarks stale --record reports/noise_grid.md
 
-robustness: $(STAMP)  ## rankings over the audit's realisations (20 per scenario, every guaranteed observer) -> reports/robustness.md (JOBS workers)
-	$(PY) -m benchmarks.studies.robustness --jobs $(JOBS) --out reports/robustness.md --results $(RESULTS)
+robustness: $(STAMP)  ## rankings over the audit's realisations (20 per scenario, every guaranteed observer) -> reports/robustness.md (JOBS workers); only the observers whose code changed since it was measured run again
+	$(PY) -m benchmarks.studies.robustness --changed --jobs $(JOBS) --out reports/robustness.md --results $(RESULTS)
 	$(PY) -m benchmarks stale --record reports/robustness.md
 
 frontier: $(STAMP)  ## frontier study, gap to the exact floor vs cost of the complexity knobs -> reports/frontier.md (budgeted)

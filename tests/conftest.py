@@ -1,7 +1,12 @@
-"""Shared fixtures: reference data, and an isolated design cache per test session."""
+"""Shared fixtures: reference data, and an isolated design cache per test session; the
+``--order-seed`` option that runs the suite in a shuffled order (``make test`` passes a new
+seed every run and the header prints it, so that a failure that depends on the order is
+seen, and can be repeated with the same seed)."""
 
 from __future__ import annotations
 
+import random
+from itertools import groupby
 from pathlib import Path
 
 import pytest
@@ -10,6 +15,35 @@ import yaml
 import benchmarks  # noqa: F401  (pins the BLAS threads and kernels before tests load numpy)
 
 DATA = Path(__file__).parent / "data"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--order-seed", type=int, default=None, metavar="N",
+                     help="run the test modules, and the tests within each module, in an "
+                          "order shuffled by seed N (default: the order of the files)")
+
+
+def pytest_report_header(config):
+    seed = config.getoption("order_seed")
+    return f"test order: shuffled with --order-seed {seed}" if seed is not None else None
+
+
+def shuffled(items: list, seed: int) -> list:
+    """``items`` (collected tests) in an order drawn from ``seed``: the modules shuffled,
+    and the tests within each module (a module's tests stay together, so that its fixtures
+    of module scope are built once, as in file order)."""
+    rng = random.Random(seed)
+    modules = [list(group) for _, group in groupby(items, key=lambda i: i.nodeid.split("::")[0])]
+    rng.shuffle(modules)
+    for tests in modules:
+        rng.shuffle(tests)
+    return [item for tests in modules for item in tests]
+
+
+def pytest_collection_modifyitems(config, items):
+    seed = config.getoption("order_seed")
+    if seed is not None:  # every xdist worker gets the same seed: the same order
+        items[:] = shuffled(items, seed)
 
 
 @pytest.fixture(autouse=True, scope="session")
