@@ -147,3 +147,19 @@ def test_a_fingerprint_that_reads_as_a_number_stays_its_text(tmp_path, fingerpri
     assert back["run_id"].tolist() == ["164025082e33"] * 2
     out = kernels.compare(read_table(path), {"H": read_table(path)}, "cfg")
     assert out["fingerprint"].tolist() == [fingerprint] * 2
+
+
+def test_an_incremental_run_measures_only_the_rows_whose_fingerprint_moved(tmp_path):
+    """``make kernels`` re-runs only the rows of the committed stores whose fingerprint moved
+    since the study's table measured them (a configuration it never measured: every row)."""
+    for config, fingerprint in (("arch2021_table3", "new"), ("arch2021_table4", "f0")):
+        store = tmp_path / config
+        store.mkdir()
+        _summary([1.0, 1.0, 1.0, 1.0], fingerprint=fingerprint).to_csv(
+            store / "summary.csv", index=False)
+    measured = pd.DataFrame([["arch2021_table3", "s", "A", 0, 1.0, 0.0, "H", "ok", "", "new"],
+                             ["arch2021_table3", "s", "B", 0, 1.0, 0.0, "H", "ok", "", "old"]],
+                            columns=kernels.COLUMNS)
+    changed = kernels.changed_rows(measured, tmp_path, ("arch2021_table3", "arch2021_table4"))
+    assert changed == {"arch2021_table3": {("s", "B")},
+                       "arch2021_table4": {("s", "A"), ("s", "B")}}

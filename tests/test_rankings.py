@@ -129,3 +129,21 @@ def test_the_studies_fingerprints_cover_every_guaranteed_observer():
     guaranteed = {i.name for i in observers.available() if i.guaranteed} - {"Exact"}
     for study in ("noise_grid", "robustness"):
         assert set(DATED[study].observers) == guaranteed, study
+
+
+def test_an_incremental_run_replaces_the_changed_observers_rows_and_ranks_again():
+    """``make robustness`` measures again only the observers whose code changed: their rows
+    are replaced, the others kept, the order and the ranks those of a full run."""
+    def table(rms_czn):
+        return robustness.add_ranks(pd.DataFrame({
+            "scenario": "s", "realisation": [0, 0, 0, 1, 1, 1], "kind": "uniform",
+            "observer": ["FRad-A", "CZN-A", "MHE"] * 2, "status": "ok", "violations": 0,
+            "rms": [2.0, rms_czn[0], 3.0, 2.0, rms_czn[1], 1.0], "gap": np.nan,
+            "gap_steady": np.nan, "floor": "exact", "floor_steps": 10}))[robustness.COLUMNS]
+
+    old, full = table([1.0, 4.0]), table([5.0, 1.5])
+    new = full[full["observer"] == "CZN-A"]
+    merged = robustness.merge_changed(old, new, ["CZN-A"])
+    pd.testing.assert_frame_equal(merged, full)
+    # by hand: CZN-A 5.0 is now the loosest of realisation 0, 1.5 the second of realisation 1
+    assert merged["rank"].tolist() == [1.0, 3.0, 2.0, 3.0, 2.0, 1.0]

@@ -55,13 +55,17 @@ TABLE = KERNEL_TABLE
 ATOL = 1e-12
 
 
-def run_under(config: str, kernel: str, out: Path, jobs: int) -> pd.DataFrame:
-    """``setobs-bench run CONFIG`` under the OpenBLAS core type ``kernel`` into ``out``, with
-    an empty design cache; its ``summary.csv``."""
+def run_under(config: str, kernel: str, out: Path, jobs: int,
+              observers: list[str] | None = None) -> pd.DataFrame:
+    """``setobs-bench run CONFIG`` (only ``observers``, with their labelled variants, if
+    given) under the OpenBLAS core type ``kernel`` into ``out``, with an empty design cache;
+    its ``summary.csv``."""
     env = {**os.environ, "OPENBLAS_CORETYPE": kernel,
            "SETOBS_CACHE_DIR": str(out / "cache")}
     cmd = [sys.executable, "-m", "benchmarks", "run", config, "--out", str(out / "run"),
            "--no-progress"] + (["--jobs", str(jobs)] if jobs > 1 else [])
+    for name in observers or []:
+        cmd += ["--observer", name]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
     summary = out / "run" / "summary.csv"
     if proc.returncode != 0 or not summary.is_file():
@@ -97,9 +101,57 @@ def compare(here: pd.DataFrame, others: dict[str, pd.DataFrame], config: str) ->
         "status_other": other_status, "fingerprint": base["fingerprint"]})[COLUMNS]
 
 
+def changed_rows(table: pd.DataFrame, results: Path, configs=CONFIGS
+                 ) -> dict[str, set[tuple[str, str]]]:
+    """Per configuration, the ``(scenario, observer)`` rows of its committed store whose
+    fingerprint differs from the one the study's ``table`` measured (every row of a
+    configuration the table does not hold)."""
+    out = {}
+    for config in configs:
+        here = read_table(results / config / "summary.csv")
+        then = table[table["config"] == config]
+        measured = dict(zip(zip(then["scenario"], then["observer"], strict=True),
+                            then["fingerprint"], strict=True))
+        rows = {k for k, fp in zip(zip(here["scenario"], here["observer"], strict=True),
+                                   here["fingerprint"], strict=True) if measured.get(k) != fp}
+        if rows:
+            out[config] = rows
+    return out
+
+
+def run_changed(table: pd.DataFrame, configs=CONFIGS, kernels: list[str] | None = None,
+                jobs: int = 2, results: Path = Path("results"), log=lambda m: None
+                ) -> pd.DataFrame:
+    """``table`` with the rows whose stored fingerprint moved since it was measured measured
+    again (their observers re-run under every other kernel, only on their configurations):
+    the study's incremental run (``make kernels``)."""
+    changed = changed_rows(table, results, configs)
+    log(f"kernels: {sum(map(len, changed.values()))} row(s) changed in "
+        f"{', '.join(changed) or 'no configuration'}")
+    if not changed:
+        return table
+    names = {c: sorted({o.split("[")[0] for _, o in rows}) for c, rows in changed.items()}
+    fresh = run_study(tuple(changed), kernels, jobs, results, log, observers=names)
+    key = list(zip(fresh["config"], fresh["scenario"], fresh["observer"], strict=True))
+    wanted = [(c, s, o) in {(c, *r) for c, rows in changed.items() for r in rows}
+              for c, s, o in key]
+    fresh = fresh[wanted]
+    old_keys = set(zip(fresh["config"], fresh["scenario"], fresh["observer"], strict=True))
+    kept = table[[k not in old_keys for k in zip(table["config"], table["scenario"],
+                                                 table["observer"], strict=True)]]
+    merged = pd.concat([kept, fresh], ignore_index=True)
+    order = {c: i for i, c in enumerate(configs)}
+    merged = merged.assign(_c=merged["config"].map(order)).sort_values(
+        ["_c"], kind="stable").drop(columns="_c").reset_index(drop=True)
+    merged.attrs["here"] = fresh.attrs.get("here", table.attrs.get("here"))
+    return merged[COLUMNS]
+
+
 def run_study(configs=CONFIGS, kernels: list[str] | None = None, jobs: int = 2,
-              results: Path = Path("results"), log=lambda m: None) -> pd.DataFrame:
-    """Every configuration under every other kernel, compared with its committed store."""
+              results: Path = Path("results"), log=lambda m: None,
+              observers: dict[str, list[str]] | None = None) -> pd.DataFrame:
+    """Every configuration (only ``observers[config]`` where given) under every other
+    kernel, compared with its committed store."""
     here = blas_corename()
     kernels = [k for k in (available_coretypes() if kernels is None else kernels)
                if k.lower() != here.lower()]
@@ -114,7 +166,8 @@ def run_study(configs=CONFIGS, kernels: list[str] | None = None, jobs: int = 2,
             others = {}
             for k in kernels:
                 t0 = time.perf_counter()
-                others[k] = run_under(config, k, Path(tmp) / config / k, jobs)
+                others[k] = run_under(config, k, Path(tmp) / config / k, jobs,
+                                      (observers or {}).get(config))
                 log(f"{config} under {k}: {time.perf_counter() - t0:.0f} s")
             frames.append(compare(read_table(committed), others, config))
     df = pd.concat(frames, ignore_index=True)
@@ -189,13 +242,22 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--kernel", action="append", default=None,
                    help="an OpenBLAS core type to compare with (repeatable; default every "
                         "other one this CPU runs)")
+    p.add_argument("--changed", action="store_true",
+                   help="measure again only the rows whose stored fingerprint moved since "
+                        "the committed table measured them (everything where there is none)")
     args = p.parse_args(argv)
     out, table = Path(args.out), Path(args.results) / TABLE.relative_to("results")
     configs = tuple(args.config or CONFIGS)
     try:
         require_positive(jobs=args.jobs)
-        df, elapsed = table_of(table, args.render, lambda: run_study(
-            configs, args.kernel, args.jobs, Path(args.results), log=log), read=_committed)
+        if args.changed and table.is_file() and not args.render:
+            old = _committed(table)
+            df, elapsed = table_of(table, False, lambda: run_changed(
+                old, configs, args.kernel, args.jobs, Path(args.results), log=log))
+        else:
+            df, elapsed = table_of(table, args.render, lambda: run_study(
+                configs, args.kernel, args.jobs, Path(args.results), log=log),
+                read=_committed)
     except (ConfigError, RuntimeError) as exc:
         return refuse(exc)
     atomic_write_text(out, report(df, df.attrs["here"], elapsed))

@@ -42,7 +42,7 @@ import pandas as pd
 import observers
 
 from ..errors import ConfigError
-from ..gate import audit
+from ..gate import audit, dated
 from ..io import atomic_write_text, environment, read_table
 from ..metrics import rms_radius
 from ..report import figures
@@ -54,6 +54,7 @@ from ..run.floor import floor_columns, observer_floor
 from ..run.floor_inner import FALSIFIER_STEPS
 from ..run.floors import compute_floor
 from ..run.rows import merge_options, run_observer
+from ..store.fingerprint import Fingerprinter
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: realisations per scenario (the audit's first ones)
@@ -356,10 +357,41 @@ def report(df: pd.DataFrame, fig: Path | None, out: Path, results: Path,
 def run_study(jobs: int = 1, scenarios=audit.AUDIT_SCENARIOS, count: int = REALISATIONS,
               names=None, scaling: bool = True, log=lambda m: None) -> pd.DataFrame:
     """Every task of :func:`study_tasks` in ``jobs`` processes, as one table."""
-    tasks = study_tasks(count, names, scenarios, scaling)
+    tasks = [t for t in study_tasks(count, names, scenarios, scaling) if t[2]]
     outs = run_tasks(run_realisation, tasks, jobs,
                      lambda task, _: log(f"{task[0]} realisation {task[1]}: done"))
     return add_ranks(pd.DataFrame([row for out in outs for row in out]))[COLUMNS]
+
+
+def run_changed(old: pd.DataFrame, changed: list[str], jobs: int = 1,
+                count: int = REALISATIONS, log=lambda m: None) -> pd.DataFrame:
+    """The table ``old`` with the rows of the observers ``changed`` measured again (every
+    realisation of theirs; the ranks of every realisation recomputed over the merged rows):
+    the study's incremental run (``make robustness``)."""
+    if not changed:
+        return old
+    return merge_changed(old, run_study(jobs, count=count, names=tuple(changed), log=log),
+                         changed)
+
+
+def merge_changed(old: pd.DataFrame, new: pd.DataFrame, changed: list[str]) -> pd.DataFrame:
+    """``old`` with the rows of the observers ``changed`` replaced by ``new``'s, in the order
+    of a full run (scenario, realisation, table order), ranks recomputed."""
+    kept = old[~old["observer"].isin(changed)]
+    merged = pd.concat([kept, new], ignore_index=True).drop(columns=["rank"])
+    position = {n: i for i, n in enumerate(study_observers())}
+    scenarios = {s: i for i, s in enumerate(dict.fromkeys(old["scenario"]))}
+    merged = merged.assign(_s=merged["scenario"].map(scenarios), _o=merged["observer"].map(
+        position)).sort_values(["_s", "realisation", "_o"], kind="stable")
+    return add_ranks(merged.drop(columns=["_s", "_o"]).reset_index(drop=True))[COLUMNS]
+
+
+def changed_observers() -> list[str]:
+    """The observers of the study whose code changed since the committed table was measured
+    (:func:`benchmarks.gate.dated.changed_rows`); every one if it has no record."""
+    changed = dated.changed_rows("robustness", Fingerprinter())
+    return study_observers() if changed is None else [
+        n for n in study_observers() if n in changed]
 
 
 def render(df: pd.DataFrame, out: Path, results: Path, elapsed: float) -> None:
@@ -378,13 +410,22 @@ def main(argv: list[str] | None = None) -> int:
                      render_help="no run: the report and figure from the table in --results")
     p.add_argument("--realisations", type=int, default=REALISATIONS,
                    help=f"per scenario (default {REALISATIONS})")
+    p.add_argument("--changed", action="store_true",
+                   help="measure again only the observers whose code changed since the "
+                        "committed table was measured (reports/robustness.md's dated block; "
+                        "everything where there is no table)")
     args = p.parse_args(argv)
     results, out = Path(args.results), Path(args.out)
     table = results / "robustness" / "robustness.csv"
     try:
         require_positive(jobs=args.jobs, realisations=args.realisations)
+        changed = changed_observers() if args.changed and table.is_file() else None
+        if changed is not None:
+            log(f"robustness: measuring again {len(changed)} observer(s): "
+                f"{', '.join(changed) or 'none'}")
         df, elapsed = table_of(table, args.render, lambda: run_study(
-            args.jobs, count=args.realisations, log=log))
+            args.jobs, count=args.realisations, log=log) if changed is None else run_changed(
+            read_table(table), changed, args.jobs, args.realisations, log=log))
     except ConfigError as exc:
         return refuse(exc)
     render(df, out, results, elapsed)
