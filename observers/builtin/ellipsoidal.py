@@ -253,8 +253,9 @@ class InvariantSetObserver(Observer):
     #: "3": solved with the noise at unit scale (:func:`~observers.numerics.lmi.unit_noise`);
     #: "4": the ``design`` option, default CORA's procedure (:func:`~observers.numerics.
     #: ellipsoidal.hinf_cora`); "5": its condition bisection measures strict feasibility on
-    #: the LMI with the noise rows scaled by 1 / gamma (a slightly different bound)
-    DESIGN_VERSION = "5"
+    #: the LMI with the noise rows scaled by 1 / gamma (a slightly different bound); "6":
+    #: CORA's procedure up to ``CORA_MAX_STATES`` (12) states only, the least-gamma point above
+    DESIGN_VERSION = "6"
     OPTIONS = {"design": Choice("cora", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:

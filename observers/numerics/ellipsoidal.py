@@ -404,6 +404,12 @@ CORA_GAMMA_GRID = np.linspace(1.0, 50.0, 100)
 CORA_GRID_MARGIN = 1e-3
 #: relative excess of the condition bound of :func:`hinf_cora` (``"cora"``) over its least value
 CORA_KAPPA_SLACK = 0.1
+#: the most states :func:`hinf_cora` designs for; above, every strategy takes the
+#: least-gamma point (:func:`hinf_gain`).  Its bisection on the condition number costs one SDP
+#: per step, measured (ESO-D, one core): 31 s at 12 tanks, 172 s at 18, 581 s at 24, more than
+#: 20 min at 30, while the points it reaches there do not reproduce ARCH 2021 Table 5 either
+#: (ESO-D 77.0 at 18 tanks, 92.5 at 24, published 42.9, 60.4)
+CORA_MAX_STATES = 12
 #: design strategies of ESO-C and ESO-D: ``"cora"`` CORA's procedure (gamma grid) at the
 #: analytic centre of the feasible set with ``cond(P)`` bounded; ``"cora-centre"`` the same
 #: at the analytic centre of the whole feasible set; ``"least-gamma"`` the central-path point
@@ -540,12 +546,13 @@ def design_gain(plant: LinearDesignProblem, Q, what: str, design: str = "cora"
                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The H-infinity gain of the design strategy ``design`` (:data:`DESIGNS`):
     :func:`hinf_cora` for ``"cora"`` and ``"cora-centre"``, :func:`hinf_gain` for
-    ``"least-gamma"`` (and, for every strategy, above :data:`HINF_RICCATI_ABOVE` states or
+    ``"least-gamma"`` (and, for every strategy, above :data:`CORA_MAX_STATES` states or
     with a degenerate ``W``: the Riccati route or the central-path point).
     Returns ``(P, L, gamma^2)``."""
     if design not in DESIGNS:
         raise ValueError(f"unknown ESO design {design!r} (known: {', '.join(DESIGNS)})")
-    if (design == "least-gamma" or hinf_route(plant) == "riccati"
+    if (design == "least-gamma" or plant.A.shape[0] > CORA_MAX_STATES
+            or hinf_route(plant) == "riccati"
             or np.linalg.matrix_rank(plant.E) < plant.A.shape[0]):
         return hinf_gain(plant, Q, what)  # (no bounded feasible set without a full W)
     return hinf_cora(plant, Q, what, design)
