@@ -109,12 +109,24 @@ def test_a_reproducing_row_moved_out_of_tolerance_fails_with_one_line_per_cell(t
 def test_an_open_row_may_move_and_a_missing_claimed_row_fails(tmp_path):
     results = _copy_stores(tmp_path)
     # an open claim (a labelled variant: not part of the table's reference) is not gated
-    _edit_store(results, "arch2021_table3", "ESO-C[cora]", 0.25)
+    _edit_store(results, "automatica2021_table3", "ESO-C[cora]", 0.25)
     assert policy.fidelity_gate(results).code == 0
     _edit_store(results, "arch2021_table4", "FRad-B", None)
     res = policy.fidelity_gate(results)
     assert res.code == 1
     assert any("ARCH T4, FRad-B (ours FRad-B), avg: ours missing" in t for _, t in res.messages)
+
+
+def test_the_gate_fails_when_eso_d_goes_back_to_the_least_gamma_point(tmp_path):
+    """Issue 61: the central point of least gamma moved ESO-D on ARCH Table 3 from the
+    published 39.8 to 121.2 and CI passed; moved back by that factor (121.2 / 38.84, the
+    reports of 0.15.0 and 0.16.0), the gate names the cell."""
+    results = _copy_stores(tmp_path)
+    _edit_store(results, "arch2021_table3", "ESO-D", 121.2 / 38.84)
+    res = policy.fidelity_gate(results)
+    assert res.code == 1
+    assert any(t.startswith("FIDELITY: ARCH T3, ESO-D (ours ESO-D), avg: ours 121")
+               and "published 39.8" in t for _, t in res.messages), res.messages
 
 
 @pytest.mark.parametrize("edit, message", [
