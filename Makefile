@@ -133,8 +133,9 @@ audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenari
 	$(PY) -m benchmarks audit --realisations $(AUDIT_REALISATIONS)
 	$(PY) -m benchmarks stale --record reports/soundness.md
 
-audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/
-	$(PY) -m benchmarks audit --short --no-progress
+AUDIT_SHORT_JOBS ?= 2
+audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/ (AUDIT_SHORT_JOBS workers, default 2)
+	$(PY) -m benchmarks audit --short --no-progress --jobs $(AUDIT_SHORT_JOBS)
 
 report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/ (a store: figures of its last local run)
 	@for dir in $(RESULTS)/*/; do \
