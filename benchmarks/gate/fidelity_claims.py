@@ -188,14 +188,9 @@ def _row_claims(table: str, row: str, entry, published: dict[str, float | str],
     reason = entry.pop("reason", "")
     if not isinstance(ours, str) or not ours:
         raise ConfigError(f"{where}: {table}, {row}: 'ours' must name a row of ours")
-    unknown = [c for c in entry if c not in published]
-    if unknown:
-        raise ConfigError(f"{where}: {table}, {row}: unknown cell {unknown[0]!r} (the paper "
-                          f"publishes: {', '.join(published)})")
-    missing = [c for c in published if c not in entry]
-    if missing:
-        raise ConfigError(f"{where}: {table}, {row}: published cell {missing[0]!r} is not "
-                          "listed (every published cell needs a status)")
+    _same_keys(entry, published, f"{where}: {table}, {row}", "cell",
+               f"(the paper publishes: {', '.join(published)})",
+               "(every published cell needs a status)")
     out = []
     for cell, value in entry.items():
         at = f"{where}: {table}, {row}, {cell}"
@@ -249,13 +244,19 @@ def load_claims(path: str | Path = CLAIMS_FILE) -> list[Claim]:
         if not isinstance(rows, dict):
             raise ConfigError(f"{where}: {table}: expected 'rows:' (published row -> cells)")
         published = published_cells(table)
-        bad = [r for r in rows if r not in published]
-        if bad:
-            raise ConfigError(f"{where}: {table}: unknown row {bad[0]!r} (published rows: "
-                              f"{', '.join(published)})")
-        unlisted = [r for r in published if r not in rows]
-        if unlisted:
-            raise ConfigError(f"{where}: {table}: published row {unlisted[0]!r} is not listed")
+        _same_keys(rows, published, f"{where}: {table}", "row",
+                   f"(published rows: {', '.join(published)})", "")
         for row, entry in rows.items():
             claims += _row_claims(table, row, entry, published[row], defaults, where)
     return claims
+
+
+def _same_keys(given, published, where: str, what: str, known: str, why: str) -> None:
+    """One-line errors for a key of ``given`` the paper does not publish, and for a published
+    key ``given`` does not list (the first of each)."""
+    unknown = [k for k in given if k not in published]
+    if unknown:
+        raise ConfigError(f"{where}: unknown {what} {unknown[0]!r} {known}")
+    missing = [k for k in published if k not in given]
+    if missing:
+        raise ConfigError(f"{where}: published {what} {missing[0]!r} is not listed {why}".rstrip())
