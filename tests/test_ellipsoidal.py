@@ -316,3 +316,18 @@ def test_eso_c_cora_design_is_unique_verified_and_near_the_published_row():
     # smallest_absolute_radii of systems/data/paper_tables/arch2021_table3_tank6_linear.yaml)
     smallest = np.array([0.3596, 0.2036, 1.940, 0.2019, 0.2004, 2.737])
     assert np.mean(rms / smallest) == pytest.approx(37.10, rel=0.15)
+
+
+def test_eso_d_falls_back_to_the_least_gamma_point_where_coras_procedure_has_none():
+    """Bug (0.16.0 bench): ESO-D's default design 'cora' found no condition bound of P on the
+    textbook DC motor and the row became noGain (it was ok with the least-gamma point); where
+    CORA's procedure has no point the units-free least-gamma point is taken."""
+    from observers.numerics import ellipsoidal as ell
+    from systems import scenario
+
+    sc = scenario("dc-motor-position")
+    assert sc.system.A.shape[0] <= ell.CORA_MAX_STATES  # the fallback, not the size rule
+    obs = observers.create("ESO-D", sc.system)  # raised DesignFailed before the fix
+    res = observers.run(obs, sc.u, sc.y, keep_sets=True)
+    assert res.status == "ok"
+    assert np.all((sc.x_true >= res.lo - 1e-9) & (sc.x_true <= res.hi + 1e-9))

@@ -546,8 +546,9 @@ def design_gain(plant: LinearDesignProblem, Q, what: str, design: str = "cora"
                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The H-infinity gain of the design strategy ``design`` (:data:`DESIGNS`):
     :func:`hinf_cora` for ``"cora"`` and ``"cora-centre"``, :func:`hinf_gain` for
-    ``"least-gamma"`` (and, for every strategy, above :data:`CORA_MAX_STATES` states or
-    with a degenerate ``W``: the Riccati route or the central-path point).
+    ``"least-gamma"`` (and, for every strategy, above :data:`CORA_MAX_STATES` states, with a
+    degenerate ``W``, or where CORA's procedure has no point: no feasible gamma on its
+    absolute grid, no condition bound: the Riccati route or the central-path point).
     Returns ``(P, L, gamma^2)``."""
     if design not in DESIGNS:
         raise ValueError(f"unknown ESO design {design!r} (known: {', '.join(DESIGNS)})")
@@ -555,7 +556,13 @@ def design_gain(plant: LinearDesignProblem, Q, what: str, design: str = "cora"
             or hinf_route(plant) == "riccati"
             or np.linalg.matrix_rank(plant.E) < plant.A.shape[0]):
         return hinf_gain(plant, Q, what)  # (no bounded feasible set without a full W)
-    return hinf_cora(plant, Q, what, design)
+    try:
+        return hinf_cora(plant, Q, what, design)
+    except DesignFailed:
+        # CORA's absolute grid has no feasible gamma, or no condition bound is found (a
+        # feasible set too thin for the solver, e.g. the textbook DC motor): the units-free
+        # least-gamma point, as before the strategy existed, rather than no gain
+        return hinf_gain(plant, Q, what)
 
 
 def hinf_route(plant: LinearDesignProblem) -> str:
