@@ -254,8 +254,10 @@ class InvariantSetObserver(Observer):
     #: "4": the ``design`` option, default CORA's procedure (:func:`~observers.numerics.
     #: ellipsoidal.hinf_cora`); "5": its condition bisection measures strict feasibility on
     #: the LMI with the noise rows scaled by 1 / gamma (a slightly different bound); "6":
-    #: CORA's procedure up to ``CORA_MAX_STATES`` (12) states only, the least-gamma point above
-    DESIGN_VERSION = "6"
+    #: CORA's procedure up to ``CORA_MAX_STATES`` (12) states only, the least-gamma point above;
+    #: "7": the least-gamma point where CORA's procedure has none (a failure cached by "6" is
+    #: not served again)
+    DESIGN_VERSION = "7"
     OPTIONS = {"design": Choice("cora", DESIGNS)}
 
     def noise_matrices(self, W: Zonotope, V: Zonotope) -> tuple[np.ndarray, np.ndarray]:
