@@ -217,11 +217,16 @@ def test_h_infinity_gains_do_not_depend_on_the_units_of_the_noise():
     for k in (0.1, 8.0):
         other = lg.hinf_g_design(A, C, k * E, k * F, 0.1, "sdp")
         np.testing.assert_allclose(other.L, base.L, rtol=1e-4, atol=1e-6 * np.abs(base.L).max())
-        assert other.info["gamma"] == pytest.approx(k * base.info["gamma"], rel=1e-6)
+        # gamma to the solver's tolerance (1.07e-6 apart on an AMD EPYC, below 1e-6 on an
+        # Intel Xeon: the same measured tolerance as the gain's)
+        assert other.info["gamma"] == pytest.approx(k * base.info["gamma"], rel=1e-5)
     plant = LinearDesignProblem(A, C, E, F)
     scaled = LinearDesignProblem(A, C, 0.1 * E, 0.1 * F)
-    L1 = first_gain(plant)
-    np.testing.assert_allclose(first_gain(scaled), L1, rtol=1e-4, atol=1e-6 * np.abs(L1).max())
+    # the units-free design (ESO-C's default); 'cora' takes CORA's absolute gamma grid, so it
+    # depends on the units by construction (docs/guide/papers.rst)
+    L1 = first_gain(plant, design="least-gamma")
+    np.testing.assert_allclose(first_gain(scaled, design="least-gamma"), L1, rtol=1e-4,
+                               atol=1e-6 * np.abs(L1).max())
     g = hinf_gain(plant, np.eye(A.shape[0]), "test")[2]
     assert hinf_gain(scaled, np.eye(A.shape[0]), "test")[2] == pytest.approx(0.01 * g,
                                                                             rel=1e-6)

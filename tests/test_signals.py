@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 import benchmarks.io as bio
-import benchmarks.run.runner as runner
+import benchmarks.run.rows as rows
 import observers
 from benchmarks.cli import build_parser, main
 from benchmarks.metrics import add_relative_rms
@@ -217,7 +217,7 @@ def no_work(monkeypatch):
     """Fail the test if any observer runs."""
     def forbidden(*args, **kwargs):
         raise AssertionError("an observer ran before the output folder was checked")
-    monkeypatch.setattr(runner, "run_observer", forbidden)
+    monkeypatch.setattr(rows, "run_observer", forbidden)
 
 
 @pytest.mark.parametrize("where", ["under a file", "proc", "not a results folder"])

@@ -49,7 +49,11 @@ def test_hanging_exiting_and_leaking_plugins_become_rows_and_the_run_completes(
         pytest.importorskip("distributed")
     cfg = _cfg(tmp_path, ["FRad-A", "Test-Hang", "Test-Exit", "Test-Leak"])
     out = tmp_path / "out"
-    code = main(["run", cfg, "--out", str(out), "--no-progress", "--timeout", "20",
+    # serially each misbehaving job starts a fresh worker after the hang's was ended: its
+    # timeout covers that start, which took over 20 s on a machine loaded four processes deep
+    # (Test-Exit became `timeout`); the hang is the only job that waits for it
+    timeout = "20" if executor else "60"
+    code = main(["run", cfg, "--out", str(out), "--no-progress", "--timeout", timeout,
                  "--memory-limit", "1500M", *executor])
     assert code == EXIT_CRASH
     pairs = _pairs(out)

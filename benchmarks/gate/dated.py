@@ -142,10 +142,11 @@ def record(report: str | Path, root: Path = ROOT, measured_at: str | None = None
     return rec[name]
 
 
-def changed_rows(name: str, fingerprinter: Fingerprinter, root: Path = ROOT
+def changed_rows(name: str, fingerprinter: Fingerprinter | None = None, root: Path = ROOT
                  ) -> dict[str, list[str]] | None:
     """``{row: [changed module paths]}`` of the rows of dated report ``name`` whose code changed
     since it was measured (an empty list: its data changed); None if it has no record."""
+    fingerprinter = fingerprinter or Fingerprinter(ModuleGraph(root))
     if name in STORED:
         return _stored_changes(name, fingerprinter, root)
     old = read_records(root).get(name)

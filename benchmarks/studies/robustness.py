@@ -54,7 +54,6 @@ from ..run.floor import floor_columns, observer_floor
 from ..run.floor_inner import FALSIFIER_STEPS
 from ..run.floors import compute_floor
 from ..run.rows import merge_options, run_observer
-from ..store.fingerprint import Fingerprinter
 from .cli import log, refuse, require_positive, study_parser, table_of, wrote
 
 #: realisations per scenario (the audit's first ones)
@@ -389,7 +388,7 @@ def merge_changed(old: pd.DataFrame, new: pd.DataFrame, changed: list[str]) -> p
 def changed_observers() -> list[str]:
     """The observers of the study whose code changed since the committed table was measured
     (:func:`benchmarks.gate.dated.changed_rows`); every one if it has no record."""
-    changed = dated.changed_rows("robustness", Fingerprinter())
+    changed = dated.changed_rows("robustness")
     return study_observers() if changed is None else [
         n for n in study_observers() if n in changed]
 

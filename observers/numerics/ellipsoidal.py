@@ -432,32 +432,19 @@ def _fold_gamma(plant: LinearDesignProblem, Qn, gn: float):
 
 def hinf_cora(plant: LinearDesignProblem, Q, what: str, point: str = "cora"
               ) -> tuple[np.ndarray, np.ndarray, float]:
-    """CORA's solve of the H-infinity LMI of :func:`hinf_lmi` (``P >= 0``, ``M <= 0``) made a
-    unique point.
+    """CORA's solve of the H-infinity LMI of :func:`hinf_lmi` made a unique point.
 
-    ``gamma`` is the first of :data:`CORA_GAMMA_GRID` at which the LMI is feasible (CORA
-    tries them in turn and keeps its solver's first feasible point; here the least
-    ``gamma^2`` comes from Clarabel and the next grid value, at least
-    :data:`CORA_GRID_MARGIN` above it, is taken), in absolute units as CORA's grid is.  At
-    that ``gamma`` the point is
-
-    * ``point="cora-centre"``: the analytic centre of ``{P >= 0, M(P, Y) <= 0}`` (maximiser
-      of ``log det P + log det(-M)``, bounded when ``E`` has full row rank);
-    * ``point="cora"``: the analytic centre of the same set cut by ``s I <= P <= k s I``
-      (variables ``P, Y, s``), ``k = (1 +`` :data:`CORA_KAPPA_SLACK` ``) k*``, ``k*`` the
-      least condition number of a strictly feasible ``P`` (bisection on Clarabel's most
-      interior point, relative 1e-5; the margin of "strictly" is measured on the LMI with its
-      noise rows scaled by ``1 / gamma``, a congruence, so that a small ``gamma^2`` relative
-      to ``Q`` (ESO-C's covariance weight) does not cap it below the solver's tolerance).
-      A feasibility solve stops near its well-conditioned
-      start; on the 6-tank system this point reproduces the published ESO-D row of ARCH 2021
-      Table 3 within 3 %, the plain analytic centre (``cond(P)`` 150-280) misses it
-      threefold.
-
-    Both maximise strictly concave barriers, by damped Newton in numpy
-    (:func:`~observers.numerics.lmi.analytic_centre`) from a strictly feasible point.
-    Returns ``(P, L, gamma^2)``; raises :class:`DesignFailed` if no grid ``gamma`` is
-    feasible (as CORA fails).
+    ``gamma``: the first of :data:`CORA_GAMMA_GRID` (absolute units, as CORA's) at least
+    :data:`CORA_GRID_MARGIN` above the least ``gamma^2`` (Clarabel).  There, ``point=
+    "cora-centre"``: the analytic centre of ``{P >= 0, M(P, Y) <= 0}``; ``point="cora"``: that
+    of the set cut by ``s I <= P <= k s I``, ``k = (1 +`` :data:`CORA_KAPPA_SLACK` ``) k*``,
+    ``k*`` the least condition number of a strictly feasible ``P`` (bisection on Clarabel's
+    most interior point; strictness measured on the LMI with its noise rows scaled by
+    ``1 / gamma``, a congruence). A feasibility solve stops near its well-conditioned start:
+    on the 6-tank this point reproduces ARCH 2021 Table 3's ESO-D within 3 %, the plain centre
+    misses it threefold.  Damped Newton in numpy (:func:`~observers.numerics.lmi.
+    analytic_centre`).  Returns ``(P, L, gamma^2)``; :class:`DesignFailed` where no grid
+    ``gamma`` is feasible (as CORA fails) or no condition bound is found.
     """
     import cvxpy as cp
 
