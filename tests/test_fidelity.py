@@ -118,14 +118,14 @@ def test_an_open_row_may_move_and_a_missing_claimed_row_fails(tmp_path):
 
 
 def test_the_gate_fails_when_eso_d_goes_back_to_the_least_gamma_point(tmp_path):
-    """Issue 61: the central point of least gamma moved ESO-D on ARCH Table 3 from the
-    published 39.8 to 121.2 and CI passed; moved back by that factor (121.2 / 38.84, the
-    reports of 0.15.0 and 0.16.0), the gate names the cell."""
+    """Issue 61: the central point of least gamma moved ESO-D on ARCH Table 3 about threefold
+    from the published 39.8 and CI passed; any move beyond the cell's 10 % (here 1.5x, a
+    row that is nowhere the reference minimum) makes the gate name the cell."""
     results = _copy_stores(tmp_path)
-    _edit_store(results, "arch2021_table3", "ESO-D", 121.2 / 38.84)
+    _edit_store(results, "arch2021_table3", "ESO-D", 1.5)
     res = policy.fidelity_gate(results)
     assert res.code == 1
-    assert any(t.startswith("FIDELITY: ARCH T3, ESO-D (ours ESO-D), avg: ours 121")
+    assert any(t.startswith("FIDELITY: ARCH T3, ESO-D (ours ESO-D), avg: ours ")
                and "published 39.8" in t for _, t in res.messages), res.messages
 
 

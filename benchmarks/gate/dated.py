@@ -30,16 +30,15 @@ from there (:func:`changed_rows`).
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from importlib import metadata
 from pathlib import Path
 
 import observers
 
 from ..errors import ConfigError
 from ..io import atomic_write_text, json_text, read_json_object
+from ..report.citation import project_version
 from ..report.dated_block import BEGIN, END, with_block
 from ..report.freshness import commit
 from ..store import stale
@@ -84,16 +83,6 @@ STORED = {"kernels": "kernels", "soundness": "audit"}
 RECORD = Path("results") / "reports.json"
 
 
-def version() -> str:
-    """The version of the installed project (``pyproject.toml``'s)."""
-    try:
-        return metadata.version("setobs-bench")
-    except metadata.PackageNotFoundError:
-        text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
-        found = re.search(r'^version\s*=\s*"([^"]+)"', text, re.M)
-        return found.group(1) if found else "?"
-
-
 def row_prints(name: str, fingerprinter: Fingerprinter) -> tuple[dict[str, str], dict[str, str]]:
     """``({row: digest}, {module: digest})`` of the dated report ``name`` now: one row per
     observer it runs (see the module docstring), and the code of every module of their
@@ -131,7 +120,7 @@ def record(report: str | Path, root: Path = ROOT, measured_at: str | None = None
         known = ", ".join(f"reports/{s}.md" for s in (*DATED, *STORED))
         raise ConfigError(f"stale --record: {report} is not a dated report (known: {known})")
     rec = read_records(root)
-    rec[name] = {"version": measured_by or version(), "commit": measured_at or commit(root),
+    rec[name] = {"version": measured_by or project_version(), "commit": measured_at or commit(root),
                  "date": datetime.now(timezone.utc).date().isoformat()}
     if name in DATED:  # the others' rows are fingerprinted in their stores
         rows, code = row_prints(name, Fingerprinter(ModuleGraph(root)))
@@ -238,5 +227,5 @@ def outdated_blocks(reports: Path, root: Path = ROOT,
 
 
 __all__ = ["BEGIN", "DATED", "END", "RECORD", "STORED", "block", "changed_rows",
-           "dated_reports", "outdated_blocks", "read_records", "record", "refresh", "version",
+           "dated_reports", "outdated_blocks", "read_records", "record", "refresh",
            "with_block"]

@@ -16,6 +16,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..report.citation import project_version
 from ..store.fingerprint import Fingerprinter
 from ..store.graph import ROOT, ModuleGraph
 from . import dated
@@ -71,8 +72,8 @@ def _set_version(root: Path, new: str) -> str:
 
 def changelog_entry(new: str, measured: list[str], date: str) -> str:
     """The opening lines of the release's ``CHANGELOG.md`` entry: what it measured again."""
-    what = ", ".join(f"`reports/{n}.md`" for n in measured) or "nothing (no dated report had "
-    what += "" if measured else "a changed row)"
+    what = (", ".join(f"`reports/{n}.md`" for n in measured)
+            or "none (no dated report had a changed row)")
     return (f"## [{new}] - {date}\n\nRelease: every published table current (`make bench`); "
             f"dated reports measured again by this release: {what}.\n\n")
 
@@ -87,7 +88,7 @@ def bump(part: str = "patch", root: Path = ROOT) -> str:
         raise ConfigError(f"release: dated reports still measured by older code "
                           f"(`make {' '.join(left)}` first)")
     records = dated.read_records(root)
-    current = dated.version()
+    current = project_version()
     new = next_version(current, part)
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root,
                           capture_output=True, text=True).stdout.strip()

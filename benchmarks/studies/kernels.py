@@ -132,10 +132,9 @@ def run_changed(table: pd.DataFrame, configs=CONFIGS, kernels: list[str] | None 
         return table
     names = {c: sorted({o.split("[")[0] for _, o in rows}) for c, rows in changed.items()}
     fresh = run_study(tuple(changed), kernels, jobs, results, log, observers=names)
-    key = list(zip(fresh["config"], fresh["scenario"], fresh["observer"], strict=True))
-    wanted = [(c, s, o) in {(c, *r) for c, rows in changed.items() for r in rows}
-              for c, s, o in key]
-    fresh = fresh[wanted]
+    rows = {(c, *r) for c, rows in changed.items() for r in rows}
+    fresh = fresh[[k in rows for k in zip(fresh["config"], fresh["scenario"],
+                                           fresh["observer"], strict=True)]]
     old_keys = set(zip(fresh["config"], fresh["scenario"], fresh["observer"], strict=True))
     kept = table[[k not in old_keys for k in zip(table["config"], table["scenario"],
                                                  table["observer"], strict=True)]]
