@@ -1,7 +1,9 @@
 """Shared fixtures: reference data, and an isolated design cache per test session; the
 ``--order-seed`` option that runs the suite in a shuffled order (``make test`` passes a new
 seed every run and the header prints it, so that a failure that depends on the order is
-seen, and can be repeated with the same seed)."""
+seen, and can be repeated with the same seed); the compiled kernels loaded once before the
+tests start (compiled on a cold numba cache, as in a fresh CI checkout), so that no test's
+budget and no worker pays for their compilation."""
 
 from __future__ import annotations
 
@@ -23,9 +25,30 @@ def pytest_addoption(parser):
                           "order shuffled by seed N (default: the order of the files)")
 
 
+#: seconds the kernels took to load (or compile) before the tests, for the header
+_WARM_SECONDS: list[float] = []
+
+
+def pytest_sessionstart(session):
+    """Load the compiled kernels (:func:`benchmarks.run.workerinit.warm`) once, in the
+    controller before the xdist workers start (or in the only process): on a cold numba cache
+    they are compiled here, once, into the cache every worker and every subprocess then
+    loads, instead of by each worker under a test's budget (a 20-step FRad-A job took
+    137 s cold on the 2-core machine, and a test's fixed 300 s budget was once exceeded)."""
+    if hasattr(session.config, "workerinput"):  # an xdist worker: its controller did it
+        return
+    from benchmarks.run.workerinit import warm
+
+    _WARM_SECONDS.append(warm())
+
+
 def pytest_report_header(config):
+    lines = [f"compiled kernels ready in {_WARM_SECONDS[0]:.1f} s (minutes: a cold numba cache)"
+             ] if _WARM_SECONDS else []
     seed = config.getoption("order_seed")
-    return f"test order: shuffled with --order-seed {seed}" if seed is not None else None
+    if seed is not None:
+        lines.append(f"test order: shuffled with --order-seed {seed}")
+    return lines
 
 
 def shuffled(items: list, seed: int) -> list:
