@@ -5,6 +5,7 @@ an installed plugin package would be), run through the real command line and exe
 from __future__ import annotations
 
 import importlib
+import time
 
 import pandas as pd
 import pytest
@@ -35,6 +36,23 @@ def _cfg(tmp_path, observers, name="bad", steps=12, **extra) -> str:
     return str(path)
 
 
+def _calibrated_budget() -> int:
+    """A job budget for the runs below: 20 s plus 10x what this machine takes, now, to start
+    a fresh worker process and run a trivial job in it.  A misbehaving job's budget must cover
+    such a start (serially, each one after the hang's worker was ended); measured in the same
+    test, so a loaded machine gets a longer budget (a fixed 20 s was once too short on a
+    machine loaded four processes deep)."""
+    from benchmarks.run.executors import ProcessExecutor
+
+    t0 = time.perf_counter()
+    ex = ProcessExecutor(1)
+    try:
+        assert [out for _, out in ex.map(abs, [-1])] == [1]
+    finally:
+        ex.close()
+    return round(20 + 10 * (time.perf_counter() - t0))
+
+
 def _pairs(out) -> pd.DataFrame:
     s = pd.read_csv(out / "summary.csv", keep_default_na=False)
     return s.drop_duplicates(["observer"]).set_index("observer")
@@ -49,10 +67,9 @@ def test_hanging_exiting_and_leaking_plugins_become_rows_and_the_run_completes(
         pytest.importorskip("distributed")
     cfg = _cfg(tmp_path, ["FRad-A", "Test-Hang", "Test-Exit", "Test-Leak"])
     out = tmp_path / "out"
-    # serially each misbehaving job starts a fresh worker after the hang's was ended: its
-    # timeout covers that start, which took over 20 s on a machine loaded four processes deep
-    # (Test-Exit became `timeout`); the hang is the only job that waits for it
-    timeout = "20" if executor else "60"
+    # each misbehaving job may start a fresh worker (serially, after the hang's was ended):
+    # its budget covers that start; the hang is the only job that waits for it
+    timeout = str(_calibrated_budget())
     code = main(["run", cfg, "--out", str(out), "--no-progress", "--timeout", timeout,
                  "--memory-limit", "1500M", *executor])
     assert code == EXIT_CRASH
@@ -538,7 +555,8 @@ def test_check_runs_to_its_last_line_and_names_the_misbehaving_plugins(tmp_path,
     project = [i.name for i in observers.available() if regression.is_project_observer(i.name)]
     others = [i.name for i in observers.available() if not regression.is_project_observer(i.name)
               and i.name not in misbehaving]
-    cfg = {"name": "mini", "observers": "all", "containment": "hull", "timeout": 25,
+    cfg = {"name": "mini", "observers": "all", "containment": "hull",
+           "timeout": _calibrated_budget(),
            "memory_limit": "1G", "exclude": [o for o in project + others if o != "FRad-A"],
            "scenarios": [{"name": "alamo2d-sim", "seed": 2, "noise": "vertex", "steps": 30}]}
     path = tmp_path / "mini.yaml"

@@ -1264,7 +1264,9 @@ def _strip_step_py(c, G, d, y, args):
 
 
 def _strip_first_py(c, G, y, args):
-    return _update(c, G, y, StepData(*args))
+    # a writable copy of the read-only G of the initial set: the update then has the argument
+    # types of every later step (:func:`_strip_step_py`) and is compiled once, not twice
+    return _update(c, G.copy(), y, StepData(*args))
 
 
 def _predict_linearised_py(c, G, J, d, R, args):
