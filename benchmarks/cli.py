@@ -1,6 +1,6 @@
 """Command line: ``setobs-bench`` (or ``python -m benchmarks``) with the sub-commands
 ``run, bench, reports, stale, report, index, history, list, check, fidelity, baseline, audit,
-time, speed, designs``.
+time, speed, designs, export, score``.
 
 Bad input ends with a one-line ``error: ...`` on stderr and exit code 2 (nothing is
 written); a regression (``check``) or a containment violation of a guaranteed observer
@@ -23,6 +23,8 @@ from systems import scenario_names
 
 from . import verdicts
 from .errors import USER_ERRORS, ConfigError
+from .exchange import export as exchange_export
+from .exchange import score as exchange_score
 from .gate import audit, blas, dated, history, policy, regression, release
 from .io import (
     atomic_write_json,
@@ -34,6 +36,7 @@ from .io import (
 )
 from .report import citation, freshness
 from .report.html import write_html, write_index
+from .report.latex import write_latex
 from .report.markdown import write_report
 from .report.tables import design_times_table
 from .run import designs, executors
@@ -271,9 +274,29 @@ def _cmd_report(args) -> int:
     data = store.view() if store is not None else None
     path = write_report(args.dir, args.out, figures=not args.no_figures, data=data)
     print(f"wrote {path}")
+    if args.latex:  # report.tex beside the Markdown report
+        print(f"wrote {write_latex(args.dir, Path(path).with_suffix('.tex'), data=data)}")
     if args.out is None:  # DIR/index.html beside DIR/report.md
         print(f"wrote {write_html(args.dir, figures=not args.no_figures, data=data)}")
     return 0
+
+
+def _cmd_export(args) -> int:
+    cfg = load_config(args.config)
+    for path in exchange_export.export_config(cfg, args.out, args.format):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_score(args) -> int:
+    outcome = exchange_score.score(args.results, load_config(args.config), args.out)
+    for line in outcome.verdicts:
+        print(line)
+    for line in outcome.problems:
+        print(line, file=sys.stderr)
+    print(f"wrote {outcome.out / 'summary.csv'} (`setobs-bench report {outcome.out}` renders "
+          "it)")
+    return outcome.code
 
 
 def _cmd_index(args) -> int:
@@ -379,6 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_stale(sub)
     _add_release(sub)
     _add_report(sub)
+    _add_exchange(sub)
     _add_index(sub)
     _add_history(sub)
     _add_list(sub)
@@ -519,7 +543,32 @@ def _add_report(sub) -> None:
     rep.add_argument("--out", help="Markdown file to write (default DIR/report.md; without "
                                    "--out DIR/index.html is written too)")
     rep.add_argument("--no-figures", action="store_true", help="tables only")
+    rep.add_argument("--latex", action="store_true",
+                     help="also write the tables as LaTeX (booktabs) beside the Markdown "
+                          "report (report.tex)")
     rep.set_defaults(func=_cmd_report)
+
+
+def _add_exchange(sub) -> None:
+    """The ``export`` and ``score`` sub-commands (tools outside the harness)."""
+    ex = sub.add_parser("export", help="write the problems of a config (model, sets, record; "
+                                       "no true states) for tools in other languages",
+                        description=exchange_export.__doc__.splitlines()[0])
+    ex.add_argument("config", help="a YAML config: a path or a shipped name")
+    ex.add_argument("--out", required=True, help="output folder")
+    ex.add_argument("--format", default="json", choices=list(exchange_export.FORMATS),
+                    help="json (default), mat (MATLAB/Octave) or csv (a folder per scenario)")
+    ex.set_defaults(func=_cmd_export)
+    sc = sub.add_parser("score", help="score tools' result files as observers ext:<tool> "
+                                      "beside a config's stored rows",
+                        epilog=verdicts.EXIT_CODES_HELP,
+                        description=exchange_score.__doc__.splitlines()[0])
+    sc.add_argument("results", nargs="+", metavar="RESULT",
+                    help="result files (setobs-result, .json or .mat)")
+    sc.add_argument("--config", required=True, help="the config they answer (a path or a "
+                                                    "shipped name)")
+    sc.add_argument("--out", help="output folder (default scored/<config name>)")
+    sc.set_defaults(func=_cmd_score)
 
 
 def _add_index(sub) -> None:

@@ -37,12 +37,13 @@ CANONICAL_ORDER = (
 )
 
 FAMILIES = ("strip", "propagation", "interval", "data-driven", "stochastic", "reference",
-            "moving-horizon")
+            "moving-horizon", "external")
 
 #: families that ``observers: all`` of a benchmark configuration leaves out: the stochastic
 #: (non-guaranteed) baselines and the moving-horizon estimators, which are not in the papers'
-#: comparisons (name them in a configuration; the frontier study shows them)
-OUTSIDE_ALL = ("stochastic", "moving-horizon")
+#: comparisons (name them in a configuration; the frontier study shows them), and the
+#: replayed results of outside tools (``setobs-bench score``, :mod:`benchmarks.exchange`)
+OUTSIDE_ALL = ("stochastic", "moving-horizon", "external")
 
 #: the two exact floors an observer's sets can be held against: the set of states consistent
 #: with the record *after* ``y[k]`` (``"filtered"``) or *before* it (``"predicted"``)
@@ -81,7 +82,8 @@ def register(
     family : str
         Observer type, one of :data:`FAMILIES`, as in the papers' classification
         (``"reference"``: the exact reference ``Exact``; ``"moving-horizon"``: ``MHE``,
-        exact over a window).
+        exact over a window; ``"external"``: a tool's result file replayed by
+        ``setobs-bench score``).
     set_type : str
         Set representation of the estimates (``"zonotope"``, ``"ellipsoid"``, ...).
     ready_for_control : bool

@@ -31,7 +31,8 @@ BASE = {"errors", "io", "metrics", "verdicts"}
 #: the wings of ``benchmarks/`` and the other wings each may import (besides the base)
 WINGS = {"run": set(), "report": set(), "store": {"run", "report"},
          "gate": {"run", "report", "store"},
-         "timing": {"run", "report"}, "studies": {"run", "report", "timing", "gate"}}
+         "timing": {"run", "report"}, "studies": {"run", "report", "timing", "gate"},
+         "exchange": {"run", "store"}}
 
 
 def module_name(path: Path) -> str:

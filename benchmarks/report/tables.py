@@ -297,7 +297,14 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
 
     The ratios are :func:`relative_values` (their reference: :func:`scenario_table_caption`).
     Each number column is written in one notation. The Markdown and the HTML report both
-    render these cells."""
+    render these cells (the LaTeX tables the cells of :func:`scenario_table_cells`)."""
+    head, rows = scenario_table_cells(df, meta)
+    return head, format_columns(rows)
+
+
+def scenario_table_cells(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[Any]]]:
+    """The header and the unformatted cells (:class:`~.numbers.Num` or strings) of
+    :func:`scenario_table_data`."""
     key, variant, paper = _paper(df, meta)
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
@@ -341,7 +348,7 @@ def scenario_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         cells += [Num(g["hull_ms"].iloc[0]), Num(g["design_s"].iloc[0]), _memory_cell(g),
                   _status_cell(g), _covers_cell(g)]
         rows.append(cells)
-    return head, format_columns(rows)
+    return head, rows
 
 
 def absolute_table(df: pd.DataFrame, meta: dict) -> str:
@@ -363,6 +370,13 @@ def absolute_table_caption(df: pd.DataFrame, meta: dict) -> str:
 def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[str]]] | None:
     """Header and rows of the absolute RMS radii (paper: relative value times its smallest
     absolute radius); ``None`` above 8 states."""
+    data = absolute_table_cells(df, meta)
+    return None if data is None else (data[0], format_columns(data[1]))
+
+
+def absolute_table_cells(df: pd.DataFrame, meta: dict
+                         ) -> tuple[list[str], list[list[Any]]] | None:
+    """The header and the unformatted cells of :func:`absolute_table_data`."""
     sc = df["scenario"].iloc[0]
     info = meta.get("scenarios", {}).get(sc, {})
     n = int(df["state"].max()) + 1
@@ -379,7 +393,7 @@ def absolute_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[l
         rows.append([obs] + [Num(r[i], p.absolute[i] if p and p.absolute else None,
                                  caveat=spread_note(obs, sc, i, _config(meta)) if ok else None)
                              for i in range(n)])
-    return head, format_columns(rows)
+    return head, rows
 
 
 def _vector(values: list[float], term: str) -> str:
