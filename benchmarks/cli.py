@@ -178,10 +178,11 @@ def _cmd_stale(args) -> int:
         print(f"recorded {args.record} as measured by {rec['version']} at commit "
               f"{rec['commit'] or '?'}")
         return 0
-    lines = policy.stale(args.configs or None)
+    prints = policy.make_fingerprinter()  # one parse of the source tree for both tiers
+    lines = policy.stale(args.configs or None, prints=prints)
     for line in lines:
         print(line)
-    later = [] if args.configs else policy.changed_since()
+    later = [] if args.configs else policy.changed_since(prints=prints)
     for line in later:
         print(line)
     if lines:

@@ -3,11 +3,20 @@
 seed every run and the header prints it, so that a failure that depends on the order is
 seen, and can be repeated with the same seed); the compiled kernels loaded once before the
 tests start (compiled on a cold numba cache, as in a fresh CI checkout), so that no test's
-budget and no worker pays for their compilation."""
+budget and no worker pays for their compilation; and the documentation site built in a
+background process from the start of the session (:func:`site_build`), on the core the
+kernels' compilation leaves idle."""
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
 from itertools import groupby
 from pathlib import Path
 
@@ -29,6 +38,78 @@ def pytest_addoption(parser):
 _WARM_SECONDS: list[float] = []
 
 
+#: the environment variable naming the folder of the site built in the background
+SITE_ENV = "SETOBS_TEST_SITE"
+#: the site's build: ``-W`` as ``make docs``; writes ``exit-code`` (the build's exit code, or
+#: the exception that ended it) when it ends, whatever happened
+_SITE_BUILD = """
+import sys
+from pathlib import Path
+root, docs = Path(sys.argv[1]), sys.argv[2]
+try:
+    from sphinx.cmd.build import build_main
+    code = build_main(["-W", "--keep-going", "-q", "-b", "html", docs, str(root / "html"),
+                       "-d", str(root / "doctrees")])
+except BaseException as exc:
+    code = repr(exc)
+(root / "exit-code").write_text(str(code))
+"""
+_SITE: list = []
+
+
+def _wants_site(config) -> bool:
+    """Whether the session runs the built-site tests (``tests/test_docs.py``, or a folder
+    holding it): only then is the site built in the background."""
+    docs = Path(__file__).resolve().parent / "test_docs.py"
+    for arg in config.args:
+        path = Path(config.invocation_params.dir, arg.split("::")[0]).resolve()
+        if path == docs or path in docs.parents:
+            return True
+    return False
+
+
+def _start_site_build(config) -> None:
+    """Start building the documentation site in a background process (controller only);
+    its folder is passed to the workers in :data:`SITE_ENV` (set before they start)."""
+    if not _wants_site(config) or any(importlib.util.find_spec(m) is None
+                                      for m in ("sphinx", "numpydoc")):
+        return  # test_docs builds it itself, or skips the built-site tests and says why
+    root = Path(tempfile.mkdtemp(prefix="setobs-test-site-"))
+    log = (root / "build.log").open("w")
+    proc = subprocess.Popen([sys.executable, "-c", _SITE_BUILD, str(root),
+                             str(Path(__file__).resolve().parents[1] / "docs")],
+                            stdout=log, stderr=subprocess.STDOUT)
+    log.close()
+    os.environ[SITE_ENV] = str(root)
+    _SITE.append((proc, root))
+
+
+def site_build() -> tuple[int | str, Path] | None:
+    """``(exit code, html folder)`` of the site built in the background since the start of
+    the session (waiting for it to end), or None where none was started (no ``make test``
+    controller: the caller builds it itself).  A failed build prints its log's tail."""
+    root = os.environ.get(SITE_ENV)
+    if not root:
+        return None
+    marker = Path(root) / "exit-code"
+    while not marker.exists():  # the builder always writes it (a crash too)
+        time.sleep(0.5)
+    text = marker.read_text().strip()
+    code: int | str = int(text) if text.lstrip("-").isdigit() else text
+    if code != 0:
+        print((Path(root) / "build.log").read_text(errors="replace")[-4000:])
+    return code, Path(root) / "html"
+
+
+def pytest_sessionfinish(session):
+    """The controller ends the site's build if it still runs and removes its folder."""
+    for proc, root in _SITE:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        shutil.rmtree(root, ignore_errors=True)
+
+
 def pytest_sessionstart(session):
     """Load the compiled kernels (:func:`benchmarks.run.workerinit.warm`) once, in the
     controller before the xdist workers start (or in the only process): on a cold numba cache
@@ -37,6 +118,7 @@ def pytest_sessionstart(session):
     137 s cold on the 2-core machine, and a test's fixed 300 s budget was once exceeded)."""
     if hasattr(session.config, "workerinput"):  # an xdist worker: its controller did it
         return
+    _start_site_build(session.config)  # on the other core meanwhile
     from benchmarks.run.workerinit import warm
 
     _WARM_SECONDS.append(warm())

@@ -36,6 +36,7 @@ import observers
 from benchmarks import parse_config
 from benchmarks.cli import build_parser, main
 from benchmarks.run.records import read_csv, select
+from tests.conftest import site_build
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -110,7 +111,11 @@ def test_readme_is_a_front_page_whose_links_exist():
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     """``(exit code, html folder)`` of one build of the site with ``-W`` (as ``make docs``),
-    shared by the tests of the built pages."""
+    shared by the tests of the built pages: the one the session started in the background
+    (``tests/conftest.py``), else one built here."""
+    built = site_build()
+    if built is not None:
+        return built
     sphinx = pytest.importorskip("sphinx.cmd.build",
                                  reason="Sphinx is not installed (pip install -e '.[docs]')")
     pytest.importorskip("numpydoc", reason="numpydoc is not installed (pip install -e '.[docs]')")

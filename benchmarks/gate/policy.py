@@ -192,12 +192,20 @@ def render_all(results: Path, reports: Path) -> list[Path]:
     return changed
 
 
-def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
+def make_fingerprinter() -> store_stale.Fingerprinter:
+    """Fingerprints against one reading of the source tree (its module graph: the parse of
+    every module, the larger part of a ``stale``), to share between :func:`stale` and
+    :func:`changed_since`."""
+    return store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
+
+
+def stale(names: list[str] | None = None, reports: Path | None = None,
+          prints: store_stale.Fingerprinter | None = None) -> list:
     """``setobs-bench stale``: the first tier, what every landing keeps current: every stale
     row and report of the configurations (:mod:`benchmarks.store.stale`) and, without
     ``names``, every dated block of a second-tier report that says less than the code now
-    does (``make reports`` renders it again)."""
-    fingerprinter = store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
+    does (``make reports`` renders it again); ``prints``: a :func:`make_fingerprinter` to use."""
+    fingerprinter = prints or make_fingerprinter()
     found = store_stale.find_stale(names, reports=reports, fingerprinter=fingerprinter)
     if not names:
         folder = Path(reports) if reports is not None else store_stale.ROOT / "reports"
@@ -211,10 +219,12 @@ def stale(names: list[str] | None = None, reports: Path | None = None) -> list:
     return found
 
 
-def changed_since(reports: Path | None = None) -> list[str]:
+def changed_since(reports: Path | None = None,
+                  prints: store_stale.Fingerprinter | None = None) -> list[str]:
     """The second tier: one line per dated report with rows the code has changed since it
-    was measured (:func:`.dated.changed_rows`); never a reason to block a landing."""
-    fingerprinter = store_stale.Fingerprinter(store_stale.ModuleGraph(store_stale.ROOT))
+    was measured (:func:`.dated.changed_rows`); never a reason to block a landing;
+    ``prints``: a :func:`make_fingerprinter` to use."""
+    fingerprinter = prints or make_fingerprinter()
     folder = Path(reports) if reports is not None else store_stale.ROOT / "reports"
     out = []
     for name in dated.dated_reports(folder):

@@ -91,6 +91,11 @@ def _is_type_checking(test: ast.expr) -> bool:
         isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
+#: the fields of a node that hold statements (an import is a statement: no expression holds
+#: one, so the walk does not descend into expressions)
+_BODIES = ("body", "orelse", "finalbody", "handlers", "cases")
+
+
 def _imports(tree: ast.Module):
     """Every import statement of ``tree`` that can run, with whether it is at module level."""
     def walk(nodes, top):
@@ -99,11 +104,11 @@ def _imports(tree: ast.Module):
                 yield node, top
             elif isinstance(node, ast.If) and _is_type_checking(node.test):
                 yield from walk(node.orelse, top)
-            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef,
-                                   ast.Lambda)):
-                yield from walk(ast.iter_child_nodes(node), False)
             else:
-                yield from walk(ast.iter_child_nodes(node), top)
+                inner = top and not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef,
+                                                      ast.ClassDef))
+                for name in _BODIES:
+                    yield from walk(getattr(node, name, None) or (), inner)
     yield from walk(tree.body, True)
 
 
