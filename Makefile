@@ -32,7 +32,8 @@ help:  ## list the targets
 	@echo "systems/ (models, scenarios, data), benchmarks/ in wings: run/ (config -> specs -> runner ->"
 	@echo "executors), report/ (tables, markdown, html, figures, numbers), store/ (result stores: graph,"
 	@echo "fingerprint, store, bench, stale), gate/ (regression, fidelity, budget, blas, policy, audit,"
-	@echo "audit_store, history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, robustness, kernels, alanwar2022);"
+	@echo "audit_store, history), timing/ (steps, speed), studies/ (scaling, frontier, noise_grid, robustness, kernels, alanwar2022),"
+	@echo "exchange/ (export problems, score other tools' result files);"
 	@echo "cli.py parses and prints"
 
 $(STAMP): pyproject.toml
