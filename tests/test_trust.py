@@ -37,22 +37,28 @@ def _cfg(tmp_path, observers, name="bad", steps=12, **extra) -> str:
 
 
 def _frad_a_job(steps: int) -> int:
-    """What a misbehaving job does before it misbehaves: build the record, design, step."""
+    """What a misbehaving job does before its budget or limit stops it: build the record,
+    design, step, and (Test-Leak) write 8 x 200 MB, the most the memory limit lets through."""
+    import numpy as np
+
     import observers
     import systems
 
     sc = systems.scenario("alamo2d-sim")
     observers.run(observers.create("FRad-A", sc.system, **sc.options), sc.u[:steps],
                   sc.y[:steps])
-    return steps
+    kept = [np.ones(25_000_000) for _ in range(8)]
+    return steps if len(kept) == 8 else -1
 
 
 def _calibrated_budget() -> int:
     """A job budget for the runs below: 10 s plus 10x what this machine takes, now, to run a
-    12-step FRad-A job in a fresh worker process (the start of a worker included: serially,
-    each misbehaving job after the hang's worker was ended gets a fresh one).  Measured in the
-    same test, so a loaded machine gets a longer budget (a fixed 20 s was once too short on a
-    machine loaded four processes deep); the hang waits for the whole budget."""
+    12-step FRad-A job and write 1.6 GB in a fresh worker process (Test-Leak must reach the
+    memory limit before its budget; once, under a loaded CI, it did not in 15 s), the start
+    of a worker included (serially, each misbehaving job after the hang's worker was ended gets
+    a fresh one).  Measured in the same test, so a loaded machine gets a longer budget (a fixed
+    20 s was once too short on a machine loaded four processes deep); the hang waits for the
+    whole budget."""
     from benchmarks.run.executors import ProcessExecutor
 
     def fresh_worker_job() -> float:
