@@ -110,3 +110,15 @@ def test_installed_wheel_runs_outside_the_repository(release):
     assert (summary["status"] == "ok").all()
     known = summary["contained"].dropna()  # a record without the true state has no verdict
     assert len(known) and (known == "yes").all()
+
+
+def test_a_release_entry_goes_above_the_newest_version_and_takes_the_unreleased_items():
+    from benchmarks.gate.release import with_entry
+
+    head = "# Changelog\n\npolicy\n\n"
+    old = "## [1.2.0] - 2026-01-01\n\nold items\n"
+    entry = "## [1.3.0] - 2026-02-02\n\nRelease: measured.\n\n"
+    assert with_entry(head + old, entry) == head + entry + old
+    unreleased = "## [Unreleased]\n\n### Added\n- a feature\n\n"
+    assert with_entry(head + unreleased + old, entry) == (
+        head + entry + "### Added\n- a feature\n\n" + old)

@@ -78,6 +78,19 @@ def changelog_entry(new: str, measured: list[str], date: str) -> str:
             f"dated reports measured again by this release: {what}.\n\n")
 
 
+#: the heading of the changes not yet released (their items become the release's)
+UNRELEASED = "## [Unreleased]\n"
+
+
+def with_entry(text: str, entry: str) -> str:
+    """``CHANGELOG.md`` ``text`` with the release's ``entry`` above the newest version; an
+    ``[Unreleased]`` section becomes the release's (its heading replaced by the entry)."""
+    first = text.index("\n## [") + 1
+    if text.startswith(UNRELEASED, first):
+        return text[:first] + entry + text[first + len(UNRELEASED):].lstrip("\n")
+    return text[:first] + entry + text[first:]
+
+
 def bump(part: str = "patch", root: Path = ROOT) -> str:
     """Bump the version, open its CHANGELOG entry, commit and tag; returns the new version.
 
@@ -100,9 +113,7 @@ def bump(part: str = "patch", root: Path = ROOT) -> str:
     _set_version(root, new)
     log = root / "CHANGELOG.md"
     text = log.read_text(encoding="utf-8")
-    first = text.index("\n## [")
-    log.write_text(text[:first + 1] + changelog_entry(new, measured, date) + text[first + 1:],
-                   encoding="utf-8")
+    log.write_text(with_entry(text, changelog_entry(new, measured, date)), encoding="utf-8")
     files = [*VERSION_FILES, "CHANGELOG.md", "results", "reports"]
     subprocess.run(["git", "add", "--", *files], cwd=root, check=True)
     subprocess.run(["git", "commit", "-q", "-m", f"Release {new}"], cwd=root, check=True)
