@@ -10,7 +10,6 @@ scenario, the step and the field.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +22,7 @@ from observers.errors import EmptySet
 from observers.sets import ConZonotope, Ellipsoid, Interval, SetError, Zonotope
 
 from ..errors import ConfigError
+from ..io import read_json_object
 from .schema import RESULT_SCHEMA, RESULT_VERSION, SET_FIELDS
 
 #: the metadata fields of a result's ``tool`` entry
@@ -69,14 +69,7 @@ def _load(path: Path) -> dict[str, Any]:
         except Exception as exc:  # scipy's reader raises several kinds for a bad file
             raise ConfigError(f"{path}: not a readable .mat file ({exc})") from None
         return {k: v for k, v in data.items() if not k.startswith("__")}
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        why = getattr(exc, "msg", None) or getattr(exc, "reason", "")
-        raise ConfigError(f"{path}: not valid JSON ({why})") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: not a JSON object")
-    return data
+    return read_json_object(path, "result file")
 
 
 def _text(value: Any) -> str:
