@@ -23,7 +23,7 @@ from .errors import (
     UnknownObserver,
     Unsupported,
 )
-from .registry import ObserverInfo, available, create, get, names, register
+from .registry import ObserverInfo, available, create, get, names, register, unregister
 
 __all__ = [
     "DesignFailed",
@@ -42,4 +42,5 @@ __all__ = [
     "names",
     "register",
     "run",
+    "unregister",
 ]

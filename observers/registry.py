@@ -190,6 +190,21 @@ def table_order(names) -> list[str]:
     return sorted(names, key=key)
 
 
+def unregister(name: str, missing_ok: bool = False) -> ObserverInfo | None:
+    """Remove the observer registered under ``name`` and return its entry.
+
+    For a process that registers observers for a while (a tool's results replayed by
+    ``setobs-bench score``, a test's plugin): a later :func:`names` no longer lists it, and the
+    name may be registered again by another class.  An unknown name is refused as by
+    :func:`get`, unless ``missing_ok`` (then None is returned).
+    """
+    if missing_ok and name not in _REGISTRY:
+        return None
+    info = get(name)
+    del _REGISTRY[info.name]
+    return info
+
+
 def available() -> list[ObserverInfo]:
     """All registered observers, in the papers' table order (others alphabetically)."""
     _load_plugins()

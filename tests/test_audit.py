@@ -107,7 +107,7 @@ def shrunk():
 
     yield make
     for n in names:
-        registry._REGISTRY.pop(n)
+        registry.unregister(n)
 
 
 def test_audit_catches_an_unsound_observer(tmp_path, capsys, shrunk):

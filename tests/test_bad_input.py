@@ -187,7 +187,7 @@ def test_observers_that_need_detectability_report_no_gain_on_the_python_api():
         run = run_observer("FRad-A", sc, {}, "exact")
         assert run.status == "ok" and run.violations == 0
     finally:
-        registry._REGISTRY.pop("Test-NeedsDetectable")
+        registry.unregister("Test-NeedsDetectable")
 
 
 @pytest.fixture
@@ -202,7 +202,7 @@ def infeasible_observer():
             raise DesignFailed(f"{self.name}: the LMI is infeasible (test)")
 
     yield "Test-Infeasible"
-    registry._REGISTRY.pop("Test-Infeasible")
+    registry.unregister("Test-Infeasible")
 
 
 def test_infeasible_design_is_a_nogain_row_and_the_run_goes_on(tmp_path, capsys,

@@ -62,4 +62,4 @@ def test_offline_gain_mixin_uses_given_gain_or_design():
                            match="gain must be a numeric vector or matrix with finite entries"):
             observers.create("Test-Offline", s, gain=[np.nan, 1.0])
     finally:
-        registry._REGISTRY.pop("Test-Offline")
+        registry.unregister("Test-Offline")

@@ -37,7 +37,7 @@ def plugin():
 
     yield load
     for name in added:
-        registry._REGISTRY.pop(name, None)
+        registry.unregister(name, missing_ok=True)
 
 
 def _summary(out) -> pd.DataFrame:

@@ -35,7 +35,7 @@ def _no_replay_left():
     (tests/test_rankings.py failed on ``ext:own`` once)."""
     yield
     for name in [n for n in registry.names() if n.startswith("ext:")]:
-        registry._REGISTRY.pop(name, None)
+        registry.unregister(name, missing_ok=True)
 
 
 @pytest.fixture(scope="module")

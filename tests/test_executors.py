@@ -93,7 +93,7 @@ def crash_observer():
 
     importlib.reload(tests.plugins.crash)  # (re-)registers Test-Crash
     yield "Test-Crash"
-    registry._REGISTRY.pop("Test-Crash", None)
+    registry.unregister("Test-Crash", missing_ok=True)
 
 
 @pytest.mark.parametrize("executor", ["processes", "dask"])

@@ -38,7 +38,7 @@ def half_frad_c():
 
     importlib.reload(tests.plugins.half_frad_c)  # (re-)registers Test-Half-FRad-C
     yield "Test-Half-FRad-C"
-    registry._REGISTRY.pop("Test-Half-FRad-C", None)
+    registry.unregister("Test-Half-FRad-C", missing_ok=True)
 
 
 def _options(info, sc) -> dict:

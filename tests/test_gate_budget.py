@@ -142,7 +142,7 @@ def sleeper():
 
     importlib.reload(mod)
     yield "Test-Sleep"
-    registry._REGISTRY.pop("Test-Sleep", None)
+    registry.unregister("Test-Sleep", missing_ok=True)
 
 
 def test_a_plugin_hanging_in_step_is_stopped_by_its_budget_and_named(tmp_path, sleeper,

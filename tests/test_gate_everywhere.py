@@ -133,7 +133,7 @@ def third_party_plugin():
     observers.register("Acme-FRad", family="strip", set_type="zonotope",
                        ready_for_control=False)(cls)
     yield "Acme-FRad"
-    registry._REGISTRY.pop("Acme-FRad")
+    registry.unregister("Acme-FRad")
 
 
 def test_third_party_plugins_are_listed_not_gated_unless_strict(tmp_path, capsys,

@@ -86,7 +86,7 @@ def test_divergence_is_reported_not_raised():
         assert res.status == "diverged" and res.failed_step is not None
         assert np.isnan(res.lo[-1]).all()
     finally:
-        registry._REGISTRY.pop("Test-Unstable")
+        registry.unregister("Test-Unstable")
 
 
 def test_an_exploding_hull_diverges_at_the_growth_bound_before_1e12():
@@ -162,7 +162,7 @@ def test_entry_point_plugins_are_discovered(monkeypatch):
         res = observers.run(observers.create("Plugin-Obs", sc.system), sc.u, sc.y)
         assert res.status == "ok"
     finally:
-        registry._REGISTRY.pop("Plugin-Obs", None)
+        registry.unregister("Plugin-Obs", missing_ok=True)
 
 
 def test_duplicate_names_are_rejected():
@@ -199,4 +199,30 @@ def test_an_empty_estimate_ends_the_run_with_status_empty():
         assert res.status == "empty" and res.failed_step == 3
         assert "empty" in res.message and np.isnan(res.lo[3:]).all()
     finally:
-        registry._REGISTRY.pop("Test-Empty")
+        registry.unregister("Test-Empty")
+
+
+def test_unregister_removes_a_name_and_frees_it():
+    from observers.builtin.frad import FRadA
+
+    @observers.register("Test-Gone", family="strip", set_type="zonotope",
+                        ready_for_control=False)
+    class Gone(FRadA):
+        """FRad-A under another name (test only)."""
+
+    assert "Test-Gone" in observers.names()
+    info = observers.unregister("Test-Gone")
+    assert info.cls is Gone and "Test-Gone" not in observers.names()
+    with pytest.raises(observers.UnknownObserver, match="unknown observer 'Test-Gone'"):
+        observers.unregister("Test-Gone")
+    assert observers.unregister("Test-Gone", missing_ok=True) is None
+
+    @observers.register("Test-Gone", family="strip", set_type="zonotope",
+                        ready_for_control=False)
+    class Other(FRadA):  # the name is free for another class
+        """Another class under the freed name (test only)."""
+
+    try:
+        assert observers.get("Test-Gone").cls is Other
+    finally:
+        observers.unregister("Test-Gone")

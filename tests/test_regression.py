@@ -106,7 +106,7 @@ def offline_observer():
             return gain["L"]
 
     yield gain
-    registry._REGISTRY.pop("Test-OfflineGate")
+    registry.unregister("Test-OfflineGate")
 
 
 def test_solver_dependent_designs_get_their_looser_documented_tolerance(tmp_path, capsys,
@@ -181,7 +181,7 @@ def test_baseline_refuses_an_unsound_or_crashing_observer(tmp_path, capsys):
         assert not (tmp_path / "baseline").exists()
         assert gate(tmp_path, "baseline", cfg, "--update", "--force") == 1  # never enshrined
     finally:
-        registry._REGISTRY.pop("Test-Unsound")
+        registry.unregister("Test-Unsound")
 
 
 def test_malformed_baseline_is_a_one_line_error(tmp_path, capsys):

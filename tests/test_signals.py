@@ -78,7 +78,7 @@ def plugins():
     names = ("Test-Half", "Test-Diagonal", "Test-Crash")
     yield names
     for n in names:
-        registry._REGISTRY.pop(n)
+        registry.unregister(n)
 
 
 # -- honest signals ------------------------------------------------------------------------
@@ -208,7 +208,7 @@ def test_any_object_with_step_runs_in_run_and_in_the_runner(tmp_path, capsys):
         assert (s.loc["Test-Plain", "status"] == "ok").all()
         assert (s.loc["Test-Plain", "contained"] == "yes").all()
     finally:
-        registry._REGISTRY.pop("Test-Plain")
+        registry.unregister("Test-Plain")
 
 
 # -- nothing lost, nothing mixed -------------------------------------------------------------
@@ -394,7 +394,7 @@ def test_a_set_without_contains_is_undecided_not_contained(tmp_path):
         assert main(["run", str(cfg), "--out", str(tmp_path / "r"), "--no-progress"]) == 0
         assert set(literal(tmp_path / "r" / "summary.csv")["contained"]) == {"n/a"}
     finally:
-        registry._REGISTRY.pop("Test-BoxOnly")
+        registry.unregister("Test-BoxOnly")
 
 
 def test_temporary_folders_of_killed_writers_are_removed(tmp_path):

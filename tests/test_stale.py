@@ -222,6 +222,35 @@ def test_an_edit_of_orchestration_or_the_falsifier_stales_no_linear_row(tmp_path
     assert not [m.group(0) for m in rows if linear[(m.group(1), m.group(3).rstrip(":"))]]
 
 
+#: the set types whose interval hull is computed by the hull LPs (``observers.lp.hull``)
+LP_HULL_SETS = {"conzonotope", "bundle"}
+#: observers of the papers' tables whose sets need no LP hull (their hull is closed-form)
+NO_LP_HULL = {"VolMin-A", "VolMin-B", "FRad-A", "FRad-B", "FRad-C", "PRad-A", "PRad-B",
+              "PRad-C-I", "PRad-C-II", "PRad-D", "PRad-E", "Nom-G", "Hinf-G", "ESO-A", "ESO-B",
+              "ESO-C", "ESO-D", "ESMF", "ROPO", "INT-CP", "Exact"}
+
+
+@pytest.mark.parametrize("edited", ["observers/lp/hull.py", "observers/lp/sifting_jit.py"])
+def test_an_edit_of_the_hull_lps_stales_only_rows_with_an_lp_hull(tmp_path, stored, edited):
+    """The hull LPs (dual simplex, sifting) are in the code of the rows whose sets have an LP
+    hull only: the zonotope types' membership test is apart from them (``observers.lp.
+    feasible``), the harness tells set types apart by what they offer and the exact floor
+    solves its LPs by HiGHS (issue: an edit of ``observers/lp/`` staled 1028 of 1231 rows)."""
+    tree = _tree(tmp_path)
+    path = tree / edited
+    path.write_text(path.read_text() + "\n_EDITED = 1\n")
+    _, lines = _stale(tree)
+    named = [ROW.match(line) for line in lines if line.startswith("STALE ROW")]
+    assert all(named)
+    stale = {_base(m.group(2)) for m in named}
+    with_hull = {i.name for i in observers.available() if i.set_type in LP_HULL_SETS}
+    tables = stored[stored["config"] != "soundness"]
+    # every stored row of an observer with an LP hull is stale, and no row of the others
+    assert with_hull & set(tables["observer"].map(_base)) <= stale
+    assert not stale & NO_LP_HULL, sorted(stale & NO_LP_HULL)
+    assert len(named) < len(tables) / 2
+
+
 def test_an_edit_of_the_zonotope_stales_every_row_that_uses_zonotopes(tmp_path, stored):
     tree = _tree(tmp_path)
     path = tree / "observers" / "sets" / "zonotope.py"

@@ -25,7 +25,7 @@ def misbehaving():
     importlib.reload(mod)
     yield mod.NAMES
     for name in mod.NAMES:
-        registry._REGISTRY.pop(name, None)
+        registry.unregister(name, missing_ok=True)
 
 
 def _cfg(tmp_path, observers, name="bad", steps=12, **extra) -> str:
@@ -270,7 +270,7 @@ def test_names_never_become_paths_outside_the_results(tmp_path, monkeypatch):
         assert main(["report", str(work / "results" / "_._.._x"), "--out",
                      str(work / "results" / "md" / "report.md")]) == 0
     finally:
-        registry._REGISTRY.pop("Test/Slash", None)
+        registry.unregister("Test/Slash", missing_ok=True)
     outside = _files_under(tmp_path) - _files_under(work / "results") - {path}
     assert not outside, sorted(map(str, outside))
     figures = [p.relative_to(work / "results") for p in _files_under(work / "results")

@@ -6,14 +6,18 @@ point is *certified* to lie within ``tol`` of the set (infinity norm), ``False``
 precision does not decide (reported as "undecided", never silently counted either way).
 ``distance`` is a certified lower bound of the distance from the point to the set (0 inside).
 
-Per set type, cheapest test first:
+Per set type, cheapest test first.  The types are told apart by what they offer (``box_form``,
+``members``, ``distance``), not by importing their classes: the harness then depends on the
+code of the set types the observer itself uses, so an edit of the hull LPs of constrained
+zonotopes stales only the rows whose observers make them (:mod:`benchmarks.store.fingerprint`).
+
 
 ``Interval``
     closed form.
-``ZonotopeBundle`` (an intersection of zonotopes)
+``ZonotopeBundle`` (an intersection of zonotopes, ``members``)
     every member as a zonotope (below): inside if inside every member, outside if outside
     one (the largest member distance bounds the distance to the intersection from below).
-``Zonotope`` ``{c + G xi : |xi|_inf <= 1}`` and ``ConZonotope`` (plus ``A xi = b``)
+``Zonotope`` ``{c + G xi : |xi|_inf <= 1}`` and ``ConZonotope`` (plus ``A xi = b``): ``box_form``
     1. *hull*: a point farther than ``tol`` from the interval hull is outside; the distance
        to the hull is a lower bound of the distance to the set.
     2. *certificate*: a factor vector ``xi`` in the unit box with ``|G xi - (x - c)| <= tol``
@@ -41,7 +45,7 @@ import highspy
 import numpy as np
 
 from observers.lp import new_highs
-from observers.sets import ConZonotope, Interval, Zonotope, ZonotopeBundle
+from observers.sets import Interval
 
 _EPS = np.finfo(float).eps
 #: relative feasibility tolerance of the LP (HiGHS's default is 1e-7)
@@ -81,9 +85,9 @@ class MembershipTester:
         if isinstance(S, Interval):
             d = hull_distance(S.lo, S.hi, x)
             return self._count(Membership(d <= tol, d, "closed-form"))
-        if isinstance(S, (Zonotope, ConZonotope)):
+        if hasattr(S, "box_form"):  # a zonotope or a constrained zonotope
             return self._zonotopic(S, x, tol, hull)
-        if isinstance(S, ZonotopeBundle):
+        if hasattr(S, "members"):  # a zonotope bundle
             return self._bundle(S, x, tol, hull)
         if hasattr(S, "distance"):
             d = float(S.distance(x))
@@ -121,12 +125,8 @@ class MembershipTester:
         d_hull = hull_distance(lo, hi, x)
         if d_hull > tol:
             return self._count(Membership(False, d_hull, "hull"))
-        G = np.asarray(S.G, float)
-        v = x - np.asarray(S.c, float)
-        if isinstance(S, ConZonotope) and S.num_constraints:
-            A, b = np.asarray(S.A, float), np.asarray(S.b, float)
-        else:
-            A, b = np.zeros((0, G.shape[1])), np.zeros(0)
+        c, G, A, b = (np.asarray(a, float) for a in S.box_form())
+        v = x - c
         tol_a = constraint_tolerance(A, b)
         if G.shape[1] == 0:
             d = float(np.abs(v).max(initial=0.0))

@@ -24,7 +24,7 @@ import pandas as pd
 
 import observers
 from observers import DesignFailed, OptionError, RunResult, Unsupported
-from observers.sets import ConZonotope, Interval, Zonotope
+from observers.sets import Interval
 from systems import ModelError, Scenario
 
 from ..errors import ConfigError
@@ -67,8 +67,8 @@ class ObserverRun:
 
 def _testable(S) -> bool:
     """Whether :class:`MembershipTester` can test membership in ``S`` exactly."""
-    return isinstance(S, (Interval, Zonotope, ConZonotope)) or hasattr(S, "distance") or (
-        hasattr(S, "contains"))
+    return isinstance(S, Interval) or any(hasattr(S, a) for a in ("box_form", "distance",
+                                                                    "contains"))
 
 
 def check_containment(res: RunResult, x_true: np.ndarray, tol: float, exact: bool):

@@ -6,10 +6,13 @@ A room of its own between the compiled kernels and the set types (``kernels`` <-
 
 - :mod:`observers.lp.highs`: :func:`new_highs`, a quiet ``highspy.Highs`` (the one way any
   module of ours makes a HiGHS solver);
+- :mod:`observers.lp.feasible`: :func:`box_feasible`, whether equality constraints have a
+  solution in the unit box (the membership test of the zonotope types; apart from the hull
+  LPs, so that an edit of those stales only rows whose sets have an LP hull);
 - :mod:`observers.lp.hull`: LPs over the unit box with equality constraints (the interval
-  hull and support values of constrained zonotopes, :class:`HullLP`; feasibility,
-  :func:`box_feasible`), every bound evaluated from a dual point by weak duality
-  (:func:`dual_bound`, :func:`dual_bounds`), hence sound whatever the solver returns;
+  hull and support values of constrained zonotopes, :class:`HullLP`), every bound evaluated
+  from a dual point by weak duality (:func:`dual_bound`, :func:`dual_bounds`), hence sound
+  whatever the solver returns;
 - :mod:`observers.lp.sifting`: the hull LPs with very many columns by sifting, working sets
   of columns priced against all of them, the restricted LPs by HiGHS
   (:func:`observers.lp.sifting.solve`); :mod:`observers.lp.sifting_jit`: the same scheme with
@@ -22,6 +25,7 @@ A room of its own between the compiled kernels and the set types (``kernels`` <-
   hulls take where the kernels are compiled.
 """
 
+from .feasible import box_feasible
 from .highs import new_highs
 from .hull import (
     BATCHED_MAX_ROWS,
@@ -29,7 +33,6 @@ from .hull import (
     HullLP,
     HullLPStats,
     batched_is_cheaper,
-    box_feasible,
     dual_bound,
     dual_bounds,
     sifting_is_cheaper,

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from time import perf_counter
 
 import numpy as np
-import scipy.sparse as sp
 
 try:  # highspy is a hard dependency; keep the import error readable
     import highspy
@@ -437,45 +436,3 @@ def sifting_is_cheaper(K: int, p: int, r: int, compiled: bool | None = None) -> 
         return r >= SIFTING_MIN_COLUMNS and r >= SIFTING_MIN_RATIO * p
     return (not batched_is_cheaper(K, p) and r >= HIGHS_SIFTING_MIN_COLUMNS
             and r >= HIGHS_SIFTING_MIN_RATIO * p)
-
-
-def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
-    """Whether some ``xi`` in the unit box satisfies ``M xi = t`` up to ``|M xi - t| <= tol``.
-
-    Rows of ``M``/``t`` are the equality constraints (e.g. ``[G; A]`` and ``[x - c; b]``);
-    ``tol`` is a scalar or one tolerance per row.  Slack variables bounded by ``tol`` absorb
-    the tolerance; HiGHS decides feasibility (with its own feasibility tolerance of 1e-7).
-    """
-    m, r = M.shape
-    tol = np.broadcast_to(np.asarray(tol, dtype=float), (m,))
-    if r == 0:
-        return bool(np.all(np.abs(t) <= tol))
-    h = new_highs()
-    lp = highspy.HighsLp()
-    lp.num_col_ = r + m
-    lp.num_row_ = m
-    lp.col_cost_ = np.zeros(r + m)
-    lp.col_lower_ = np.concatenate([-np.ones(r), -tol])
-    lp.col_upper_ = np.concatenate([np.ones(r), tol])
-    lp.row_lower_ = np.asarray(t, float)
-    lp.row_upper_ = np.asarray(t, float)
-    csc = sp.csc_matrix(np.hstack([M, np.eye(m)]))
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = csc.indptr
-    lp.a_matrix_.index_ = csc.indices
-    lp.a_matrix_.value_ = csc.data
-    h.passModel(lp)
-    # HiGHS's presolve + dual simplex can stop without a verdict ("Not Set") on badly scaled
-    # generators (e.g. entries from 1e-39 to 3 after many steps of a contracting gain): retry
-    # without presolve, then with the interior-point solver; undecided counts as not contained
-    for option, value in _FEASIBILITY_RETRIES:
-        if option is not None:
-            h.setOptionValue(option, value)
-        h.run()
-        status = h.getModelStatus()
-        if status in (highspy.HighsModelStatus.kOptimal, highspy.HighsModelStatus.kInfeasible):
-            break
-    return status == highspy.HighsModelStatus.kOptimal
-
-
-_FEASIBILITY_RETRIES = ((None, None), ("presolve", "off"), ("solver", "ipm"))

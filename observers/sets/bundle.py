@@ -84,6 +84,11 @@ class ZonotopeBundle:
         return self._members
 
     @property
+    def doubles(self) -> int:
+        """Floating-point values that define the set: the sum over the members (memory)."""
+        return sum(Z.doubles for Z in self.members)
+
+    @property
     def dim(self) -> int:
         """Dimension n of the ambient space."""
         return self._members[0].dim

@@ -99,6 +99,16 @@ class ConZonotope(CentreGenerators):
         """``(c, G, A, b)`` (read-only arrays)."""
         return self._c, self._G, self._A, self._b
 
+    @property
+    def doubles(self) -> int:
+        """Floating-point values that define the set: ``c, G, A, b`` (memory)."""
+        return self._c.size + self._G.size + self._A.size + self._b.size
+
+    def box_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(c, G, A, b)`` of the set as ``{c + G xi : A xi = b, |xi|_inf <= 1}`` (as
+        :meth:`Zonotope.box_form <observers.sets.Zonotope.box_form>`, with the constraints)."""
+        return self.arrays()
+
     # -- data -----------------------------------------------------------------------------
     c = property(lambda self: self._c, doc="Centre.")
     G = property(lambda self: self._G, doc="Generator matrix (n x r).")

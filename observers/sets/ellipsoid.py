@@ -207,6 +207,11 @@ class Ellipsoid:
     Q = property(lambda self: self._Q, doc="Shape matrix (symmetric PSD).")
 
     @property
+    def doubles(self) -> int:
+        """Floating-point values that define the set: centre and shape matrix (memory)."""
+        return self.q.size + self.Q.size
+
+    @property
     def dim(self) -> int:
         """Dimension n of the ambient space."""
         return self._q.shape[0]

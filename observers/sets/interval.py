@@ -48,6 +48,11 @@ class Interval:
         return self._hi
 
     @property
+    def doubles(self) -> int:
+        """Floating-point values that define the set: ``lo`` and ``hi`` (memory)."""
+        return self.lo.size + self.hi.size
+
+    @property
     def dim(self) -> int:
         """Dimension of the ambient space."""
         return self._lo.shape[0]

@@ -100,6 +100,18 @@ class Zonotope(CentreGenerators):
         return self._G
 
     @property
+    def doubles(self) -> int:
+        """Floating-point values that define the set: centre and generators (memory)."""
+        return self._c.size + self._G.size
+
+    def box_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(c, G, A, b)`` of the set as ``{c + G xi : A xi = b, |xi|_inf <= 1}``: here no
+        constraint (``A`` has no rows); a constrained zonotope gives its own.  The one form in
+        which the harness tests membership in both (:mod:`benchmarks.run.membership`)."""
+        r = self._G.shape[1]
+        return self._c, self._G, np.zeros((0, r)), np.zeros(0)
+
+    @property
     def order(self) -> float:
         """Order ``r / n`` (CORA's definition)."""
         return self.num_generators / self.dim
