@@ -85,8 +85,20 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 
 
 def csv_text(df: pd.DataFrame) -> str:
-    """A data frame as CSV text (full float precision), as every result file is written."""
-    return df.to_csv(index=False, float_format="%.17g")
+    """A data frame as CSV text (full float precision), as every result file is written.
+
+    A float is written the same whether its column is a float column or a column of mixed
+    values (a store's merged rows: a seed ``0`` beside a record without one, read back as
+    ``0.0``): ``%.17g`` either way, so a row's text does not depend on its neighbours."""
+    def fmt(v):
+        return FLOAT_FORMAT % v if isinstance(v, float) and v == v else v
+
+    mixed = {c: df[c].map(fmt) for c in df.columns if df[c].dtype == object}
+    return (df.assign(**mixed) if mixed else df).to_csv(index=False, float_format=FLOAT_FORMAT)
+
+
+#: how a float is written in a result file (full precision, shortest for integral values)
+FLOAT_FORMAT = "%.17g"
 
 
 #: columns of the result tables that hold hex identifiers, read as text: ``pd.read_csv`` would

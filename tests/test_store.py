@@ -277,3 +277,30 @@ def test_every_store_is_committed_and_local_runs_are_not():
     done = subprocess.run(["git", "check-ignore", "--no-index", *wanted, *local], cwd=root,
                           capture_output=True, text=True)
     assert set(done.stdout.split()) == set(local)
+
+
+def test_a_merge_keeps_the_text_of_the_rows_it_does_not_run(tmp_path):
+    """Bug (found by an incremental ``make bench``): the rows a merge keeps were written back
+    from ``pd.read_csv``'s reading, so a seed beside a record without one came back as
+    ``0.0`` and every ``n/a`` of a verdict column as an empty cell.  The kept lines are now
+    the same text, but for ``rel_rms`` (recomputed over the merged rows)."""
+    from benchmarks.run.config import parse_config
+
+    def cfg(names):
+        raw = {"name": "mixed", "title": "mixed seeds",
+               "scenarios": ["alamo2d", {"name": "alamo2d-sim", "seed": 0}],
+               "observers": list(names)}
+        return parse_config(raw, "mixed")
+
+    results, reports = tmp_path / "results", tmp_path / "reports"
+    reports.mkdir()
+    assert _bench(cfg(["FRad-A", "Hinf-G"]), results, reports).ran == 4
+    path = results / "mixed" / "summary.csv"
+    before = pd.read_csv(path, dtype=str, keep_default_na=False)
+    assert {"", "0"} <= set(before["seed"]) and (before == "n/a").any().any()
+    assert _bench(cfg(["FRad-A", "Hinf-G", "FRad-B"]), results, reports).ran == 2
+    after = pd.read_csv(path, dtype=str, keep_default_na=False)
+    kept = after[after["observer"] != "FRad-B"].reset_index(drop=True)
+    pd.testing.assert_frame_equal(kept.drop(columns="rel_rms"),
+                                  before.drop(columns="rel_rms"))
+    assert set(after["seed"]) == {"", "0"}

@@ -160,7 +160,9 @@ def load_store(folder: str | Path, layout: Layout = CONFIG) -> Store | None:
             "changed since it was written (hand-edited or corrupted?)"
         raise ConfigError(f"store {folder}: {SUMMARY} is {how}: it does not match {META}; {fix}")
     try:
-        summary = read_table(io.BytesIO(data))
+        # only an empty cell is missing: a verdict's "n/a" stays text, so that the rows a merge
+        # keeps are written back as they were read
+        summary = read_table(io.BytesIO(data), keep_default_na=False, na_values=[""])
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise ConfigError(f"store {folder}: {SUMMARY} is not readable CSV: "
                           f"{str(exc).splitlines()[0]}; {fix}") from None
