@@ -90,10 +90,10 @@ def csv_text(df: pd.DataFrame) -> str:
     A float is written the same whether its column is a float column or a column of mixed
     values (a store's merged rows: a seed ``0`` beside a record without one, read back as
     ``0.0``): ``%.17g`` either way, so a row's text does not depend on its neighbours."""
-    def fmt(v):
+    def full_precision(v):
         return FLOAT_FORMAT % v if isinstance(v, float) and v == v else v
 
-    mixed = {c: df[c].map(fmt) for c in df.columns if df[c].dtype == object}
+    mixed = {c: df[c].map(full_precision) for c in df.columns if df[c].dtype == object}
     return (df.assign(**mixed) if mixed else df).to_csv(index=False, float_format=FLOAT_FORMAT)
 
 

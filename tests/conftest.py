@@ -111,17 +111,17 @@ def pytest_sessionfinish(session):
 
 
 def pytest_sessionstart(session):
-    """Load the compiled kernels (:func:`benchmarks.run.workerinit.warm`) once, in the
+    """Load the compiled kernels (:func:`benchmarks.run.warmup.warm`) once, in the
     controller before the xdist workers start (or in the only process): on a cold numba cache
     they are compiled here, once, into the cache every worker and every subprocess then
     loads, instead of by each worker under a test's budget (a 20-step FRad-A job took
     137 s cold on the 2-core machine, and a test's fixed 300 s budget was once exceeded)."""
     if hasattr(session.config, "workerinput"):  # an xdist worker: its controller did it
         return
-    _start_site_build(session.config)  # on the other core meanwhile
-    from benchmarks.run.workerinit import warm
+    _start_site_build(session.config)  # beside it
+    from benchmarks.run.warmup import warm
 
-    _WARM_SECONDS.append(warm())
+    _WARM_SECONDS.append(warm(parallel=True))  # two shares in two processes
 
 
 def pytest_report_header(config):

@@ -375,8 +375,8 @@ if __name__ == "__main__":  # pragma: no cover - a tool for a reader
 #: what orchestrates a run, reports or gates it: in no stored row's code
 ORCHESTRATION = ("benchmarks.run.runner", "benchmarks.run.executors", "benchmarks.run.progress",
                  "benchmarks.run.config", "benchmarks.run.floors", "benchmarks.run.designs",
-                 "benchmarks.run.workerinit", "benchmarks.run.describe", "benchmarks.io",
-                 "benchmarks.cli")
+                 "benchmarks.run.workerinit", "benchmarks.run.warmup", "benchmarks.run.describe",
+                 "benchmarks.io", "benchmarks.cli")
 ORCHESTRATION_WINGS = ("benchmarks.store", "benchmarks.gate", "benchmarks.report",
                        "benchmarks.timing", "benchmarks.studies")
 

@@ -153,7 +153,7 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
     (:class:`~benchmarks.gate.budget.GateExecutor`: a budget per job from the recorded
     costs, and the wall time of each job; closed here), by default one with the budget of
     the configuration's ``timeout``, else :data:`~benchmarks.gate.budget.GATE_TIMEOUT`, for
-    every job.  The compiled kernels are loaded first (:func:`benchmarks.run.workerinit.warm`),
+    every job.  The compiled kernels are loaded first (:func:`benchmarks.run.warmup.warm`),
     outside every job's budget."""
     if cfg.containment == "hull":
         cfg.containment = HULL_AND_EXACT  # not in cfg.raw: the configuration is unchanged
@@ -161,9 +161,9 @@ def run_subset(cfg: BenchConfig, use_cache: bool = False, progress: bool | None 
         cfg.timeout = GATE_TIMEOUT
     # the compiled kernels loaded (compiled on a cold numba cache: minutes) before the first
     # timed job, so that no job's budget or recorded cost holds their compilation
-    from ..run.workerinit import warm
+    from ..run.warmup import warm
 
-    warm()
+    warm(parallel=True)
     executor = executor or GateExecutor(cfg)
     try:
         with design_cache(use_cache) as cache_note:
