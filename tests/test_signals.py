@@ -407,3 +407,35 @@ def test_temporary_folders_of_killed_writers_are_removed(tmp_path):
         (d / "runs.csv").write_text("half")
     _run(tmp_path, tmp_path / "r")
     assert not dead.exists() and running.is_dir()
+
+
+def test_an_empty_estimate_on_a_true_trajectory_is_a_violation_at_its_step(tmp_path, capsys):
+    """Issue 62: the record comes from a true trajectory, which no empty set contains, so an
+    estimate that becomes empty is ``contained: no`` at that step (it was ``n/a``: a neutral
+    status), counted as a violation, and ``run`` says so."""
+    from observers.sets import EmptySet
+
+    class EmptyAtFive(Plain):
+        """Plain's boxes (they hold the true state), then an empty estimate at step 5."""
+
+        def step(self, u_prev, y):
+            if self.k == 5:
+                raise EmptySet("the measurement strip misses the estimate (test)")
+            return super().step(u_prev, y)
+
+    observers.register("Test-EmptyAtFive", family="strip", set_type="zonotope",
+                       ready_for_control=False)(EmptyAtFive)
+    try:
+        cfg = write_cfg(tmp_path, ["Test-EmptyAtFive", "FRad-A"])
+        out = tmp_path / "r"
+        assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 1
+        s = literal(out / "summary.csv").set_index("observer")
+        row = s.loc["Test-EmptyAtFive"]
+        assert (row["status"] == "empty").all()
+        assert (row["failed_step"].astype(str) == "5").all()
+        assert (row["contained"] == "no").all() and (row["violations"].astype(str) == "1").all()
+        assert (row["first_violation_step"].astype(str) == "5").all()
+        assert (s.loc["FRad-A", "contained"] == "yes").all()
+        assert "Test-EmptyAtFive" in capsys.readouterr().err
+    finally:
+        registry.unregister("Test-EmptyAtFive")

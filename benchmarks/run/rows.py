@@ -179,10 +179,25 @@ def run_observer(name: str, sc: Scenario, options: dict, containment: str,
             res, sc.x_true, sc.tolerance, exact=(containment == "exact"))
         if containment == HULL_AND_EXACT:  # the gate: exact membership beside the hull
             _, exact_in, exact_decided = check_containment(res, sc.x_true, sc.tolerance, True)
-            run.exact_verdict = containment_verdict(res.status, sc.N, exact_in, exact_decided)
+            run.exact_verdict = containment_verdict(res.status, sc.N, _with_empty(exact_in, res),
+                                                    exact_decided)
+    if same_dim and sc.x_true is not None:
+        run.in_set = _with_empty(run.in_set, res)
     if not keep_sets:
         res.sets.clear()  # free memory; bounds are kept
     return run
+
+
+def _with_empty(in_set: np.ndarray | None, res: RunResult) -> np.ndarray | None:
+    """``in_set`` with the step at which the estimate became empty (status ``empty``) as a
+    miss: the record comes from a true trajectory, which no empty set contains, so an empty
+    estimate is a violation of the guarantee at that step, not a neutral outcome (a record
+    that no state fits is told apart by its exact floor: :func:`mark_inconsistent`)."""
+    k = res.failed_step
+    if res.status != "empty" or k is None:
+        return in_set
+    seen = np.ones(0, dtype=bool) if in_set is None else in_set
+    return np.append(seen, False) if seen.size == k else in_set
 
 
 def _phase_ms(obs, steps: int) -> dict:
@@ -214,9 +229,9 @@ def _rows_runs(run: ObserverRun) -> pd.DataFrame:
     contained = np.full((N, n), np.nan)
     in_set = np.full(N, np.nan)
     if run.contained is not None:
-        k = run.contained.shape[0]
-        contained[:k] = run.contained
-        in_set[:k] = run.in_set
+        contained[:run.contained.shape[0]] = run.contained
+    if run.in_set is not None:  # one more than the sets where the estimate became empty
+        in_set[:run.in_set.size] = run.in_set
     return pd.DataFrame({
         "scenario": sc.name, "observer": run.info.name, "step": step,
         "t": step * sc.system.dt, "state": state, "lo": lo, "hi": hi, "radius": 0.5 * (hi - lo),
