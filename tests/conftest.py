@@ -118,10 +118,13 @@ def pytest_sessionstart(session):
     137 s cold on the 2-core machine, and a test's fixed 300 s budget was once exceeded)."""
     if hasattr(session.config, "workerinput"):  # an xdist worker: its controller did it
         return
-    _start_site_build(session.config)  # beside it
+    _start_site_build(session.config)  # on the other core meanwhile
     from benchmarks.run.warmup import warm
 
-    _WARM_SECONDS.append(warm(parallel=True))  # two shares in two processes
+    # one process: the documentation site is built beside it (with the two shares of
+    # warm(parallel=True) as well, three processes on two cores, the warm-up took 4.5 min in
+    # CI instead of 3.5)
+    _WARM_SECONDS.append(warm())
 
 
 def pytest_report_header(config):

@@ -62,7 +62,7 @@ def test_check_fails_on_a_stale_report_of_the_folder_it_is_given(tmp_path, capsy
     reports.mkdir()
     for md in (ROOT / "reports").glob("*.md"):
         (reports / md.name).write_text(md.read_text())
-    assert gate(tmp_path, "check", cfg, "--reports", str(reports)) == 0
+    # (the committed reports pass: CI runs `check --reports reports` on them)
     table = reports / "arch2021_table4.md"
     table.write_text(table.read_text().replace("FRad-A", "FRad-Q"))
     assert gate(tmp_path, "check", cfg, "--reports", str(reports)) == 1

@@ -3,8 +3,10 @@ loads the compiled (numba) simplex kernels from their disk cache by one tiny hul
 (the one-call hull and the batched solve of :mod:`observers.lp.batch_solve_jit`), and the
 compiled one-step kernels (:mod:`observers.kernels.step`) by two steps of one observer per
 kernel on the 2-state example and on the nonlinear 6-tank.  On a cold numba cache that compiles
-them: about 3.5 min of one core on the 2-core machine, or about the larger of two shares with
-``parallel=True`` (:data:`SHARES`).
+them: about 3.5 min of one core on the 2-core machine, or 2.2 min with ``parallel=True``
+(:data:`SHARES` in two processes) where nothing else needs the second core: the gate's
+warm-up; ``make test`` builds the documentation site beside its warm-up, and with both shares
+as well it took 4.5 min in CI instead of 3.5.
 
 Called by the server process from which local workers fork (:mod:`benchmarks.run.workerinit`),
 by the regression gate before its timed jobs (:mod:`benchmarks.gate.regression`) and by
@@ -82,5 +84,8 @@ def warm(parallel: bool = False) -> float:
             load()  # the other share from the cache (or compiled here if it failed there)
     except Exception:  # pragma: no cover - a broken plugin is reported by the run itself
         pass
+    finally:
+        if other is not None:
+            other.wait()
     _WARMED.append(time.perf_counter() - t0)
     return _WARMED[0]
