@@ -198,17 +198,22 @@ def test_any_object_with_step_runs_in_run_and_in_the_runner(tmp_path, capsys):
     res = observers.run(Plain(), None, np.array([[0.1], [0.2], [0.3]]))
     assert res.status == "ok" and res.observer == "Plain" and res.lo.shape == (3, 2)
     np.testing.assert_allclose(res.hi[:, 0], [1.1, 1.2, 1.3])
-    observers.register("Test-Plain", family="strip", set_type="interval",
-                       ready_for_control=False)(Plain)
+    s = _run_plugin(tmp_path, "Test-Plain", Plain, "interval", exit_code=0)
+    assert (s.loc["Test-Plain", "status"] == "ok").all()
+    assert (s.loc["Test-Plain", "contained"] == "yes").all()
+
+
+def _run_plugin(tmp_path, name, cls, set_type, exit_code):
+    """``cls`` registered as ``name`` and run beside FRad-A by ``setobs-bench run`` (then
+    unregistered): the summary, indexed by observer, with ``n/a`` kept as text."""
+    observers.register(name, family="strip", set_type=set_type, ready_for_control=False)(cls)
     try:
-        cfg = write_cfg(tmp_path, ["Test-Plain", "FRad-A"])
+        cfg = write_cfg(tmp_path, [name, "FRad-A"])
         out = tmp_path / "r"
-        assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 0
-        s = literal(out / "summary.csv").set_index("observer")
-        assert (s.loc["Test-Plain", "status"] == "ok").all()
-        assert (s.loc["Test-Plain", "contained"] == "yes").all()
+        assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == exit_code
+        return literal(out / "summary.csv").set_index("observer")
     finally:
-        registry.unregister("Test-Plain")
+        registry.unregister(name)
 
 
 # -- nothing lost, nothing mixed -------------------------------------------------------------
@@ -423,19 +428,11 @@ def test_an_empty_estimate_on_a_true_trajectory_is_a_violation_at_its_step(tmp_p
                 raise EmptySet("the measurement strip misses the estimate (test)")
             return super().step(u_prev, y)
 
-    observers.register("Test-EmptyAtFive", family="strip", set_type="zonotope",
-                       ready_for_control=False)(EmptyAtFive)
-    try:
-        cfg = write_cfg(tmp_path, ["Test-EmptyAtFive", "FRad-A"])
-        out = tmp_path / "r"
-        assert main(["run", str(cfg), "--out", str(out), "--no-progress"]) == 1
-        s = literal(out / "summary.csv").set_index("observer")
-        row = s.loc["Test-EmptyAtFive"]
-        assert (row["status"] == "empty").all()
-        assert (row["failed_step"].astype(str) == "5").all()
-        assert (row["contained"] == "no").all() and (row["violations"].astype(str) == "1").all()
-        assert (row["first_violation_step"].astype(str) == "5").all()
-        assert (s.loc["FRad-A", "contained"] == "yes").all()
-        assert "Test-EmptyAtFive" in capsys.readouterr().err
-    finally:
-        registry.unregister("Test-EmptyAtFive")
+    s = _run_plugin(tmp_path, "Test-EmptyAtFive", EmptyAtFive, "interval", exit_code=1)
+    row = s.loc["Test-EmptyAtFive"]
+    assert (row["status"] == "empty").all()
+    assert (row["failed_step"].astype(str) == "5").all()
+    assert (row["contained"] == "no").all() and (row["violations"].astype(str) == "1").all()
+    assert (row["first_violation_step"].astype(str) == "5").all()
+    assert (s.loc["FRad-A", "contained"] == "yes").all()
+    assert "Test-EmptyAtFive" in capsys.readouterr().err
