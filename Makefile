@@ -135,7 +135,7 @@ audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenari
 	$(PY) -m benchmarks stale --record reports/soundness.md
 
 AUDIT_SHORT_JOBS ?= 2
-audit-short: $(STAMP)  ## CI: audit on 6 adversarial realisations per scenario -> results/audit-short/ (AUDIT_SHORT_JOBS workers, default 2)
+audit-short: $(STAMP)  ## CI: audit on 3 adversarial realisations per scenario (one per kind) -> results/audit-short/ (AUDIT_SHORT_JOBS workers, default 2)
 	$(PY) -m benchmarks audit --short --no-progress --jobs $(AUDIT_SHORT_JOBS)
 
 report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/ (a store: figures of its last local run)

@@ -96,6 +96,7 @@ def crash_observer():
     registry.unregister("Test-Crash", missing_ok=True)
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("executor", ["processes", "dask"])
 def test_a_worker_that_dies_is_that_jobs_error_and_the_run_completes(
         tmp_path, crash_observer, executor, capsys, request):

@@ -115,12 +115,14 @@ def _no_violation(sc, u, y, x_true, steps):
     return res
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["tank6-nonlinear", "vanderpol-sim"])
 def test_no_violation_by_the_builtin_nonlinear_observers(name):
     sc = systems.scenario(name)
     _no_violation(sc, sc.u, sc.y, sc.x_true, spread_steps(sc.N, 3, first=1))
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_no_violation_by_the_builtin_nonlinear_observers_on_tank30():
     """tank30-nonlinear, its first 40 steps (the CZN observers take ~90 s on the whole

@@ -79,6 +79,7 @@ def _copy_sources(dst: Path) -> None:
             "__pycache__", "*.nbi", "*.nbc", "*.pyc"))
 
 
+@pytest.mark.heavy
 @pytest.mark.slow
 def test_run_by_name_from_a_non_editable_install_outside_the_repository(tmp_path):
     src, target, work = tmp_path / "src", tmp_path / "site", tmp_path / "work"

@@ -132,6 +132,7 @@ def test_make_reports_on_the_committed_tree_changes_no_file(tmp_path):
     assert render_all(ROOT / "results", reports) == []
 
 
+@pytest.mark.heavy
 def test_a_docstring_edit_stales_nothing(tmp_path):
     tree = _tree(tmp_path)
     path = tree / "observers" / "numerics" / "frad.py"
@@ -170,6 +171,7 @@ def test_an_edit_of_the_ellipsoidal_numerics_stales_their_observers_only(tmp_pat
     assert all("observers/numerics/ellipsoidal.py" in line for line in rows)
 
 
+@pytest.mark.heavy
 def test_the_robustness_report_names_the_rows_changed_since(tmp_path):
     """A dated report says which of its rows the code has changed since it was measured
     (rendered by `make reports`), without being stale itself."""

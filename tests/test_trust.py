@@ -80,6 +80,7 @@ def _pairs(out) -> pd.DataFrame:
 
 
 # -- defects 1 and 2: a hanging, crashing or leaking plugin is its own row ------------------
+@pytest.mark.heavy
 @pytest.mark.parametrize("executor", [[], ["--jobs", "2"], ["--executor", "dask", "--jobs", "2"]],
                          ids=["serial", "jobs2", "dask"])
 def test_hanging_exiting_and_leaking_plugins_become_rows_and_the_run_completes(

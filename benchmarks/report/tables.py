@@ -65,6 +65,13 @@ INTRO = ("Relative RMS interval radius v_i (eq. 9 of Althoff & Rath 2021) per st
          "`n/a` where nothing could prove it.")
 
 
+def _by_observer(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The rows of each observer of ``df`` sorted by state, in :func:`table_order` (one
+    grouping per table: a mask per observer cost a report 2/3 of its rendering time)."""
+    groups = {obs: g.sort_values("state") for obs, g in df.groupby("observer", sort=False)}
+    return [(obs, groups[obs]) for obs in table_order(list(groups))]
+
+
 def _contained_col(df: pd.DataFrame) -> str:
     hull = contained_column("hull")
     return hull if hull in df.columns else contained_column("exact")
@@ -144,8 +151,7 @@ def gap_table_data(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[list[A
     head = ["Observer", "floor"] + [f"g{i + 1} {names[i]}" for i in show] + ["mean",
                                                                               "steady mean"]
     rows: list[list[Any]] = []
-    for obs in table_order(df["observer"].unique()):
-        g = df[df["observer"] == obs].sort_values("state")
+    for obs, g in _by_observer(df):
         if g["status"].iloc[0] == "unsupported":
             continue
         gap = _gap_values(g)
@@ -321,8 +327,7 @@ def scenario_table_cells(df: pd.DataFrame, meta: dict) -> tuple[list[str], list[
     rows: list[list[Any]] = []
     rel, _ = relative_values(df, meta)
     df = df.assign(_rel=rel, _bad=violating(df))
-    for obs in table_order(df["observer"].unique()):
-        g = df[df["observer"] == obs].sort_values("state")
+    for obs, g in _by_observer(df):
         if g["status"].iloc[0] == "unsupported":
             rows.append([obs] + [Num(None)] * (len(show) + 7) + [_status_cell(g), NA])
             continue
@@ -385,8 +390,7 @@ def absolute_table_cells(df: pd.DataFrame, meta: dict
     paper = paper_rows(info.get("paper_table"), n)
     head = ["Observer"] + [f"r{i + 1}" for i in range(n)]
     rows: list[list[Any]] = []
-    for obs in table_order(df["observer"].unique()):
-        g = df[df["observer"] == obs].sort_values("state")
+    for obs, g in _by_observer(df):
         p = paper.get(obs)
         r = g["rms_radius"].to_numpy(float)
         ok = g["status"].iloc[0] == "ok"
