@@ -21,7 +21,7 @@ export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
 .DEFAULT_GOAL := help
-.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale fidelity datadriven evidence release check baseline history audit audit-short speed scaling frontier noise-grid robustness kernels clean
+.PHONY: help install test lint docs bench bench-cold bench-quick report reports stale fidelity datadriven evidence release check baseline history audit audit-short audit-edge audit-edge-short speed scaling frontier noise-grid robustness kernels clean
 
 help:  ## list the targets
 	@echo "setobs-bench: guaranteed state estimator benchmark harness"
@@ -137,6 +137,12 @@ audit: $(STAMP)  ## soundness audit (AUDIT_REALISATIONS per observer and scenari
 AUDIT_SHORT_JOBS ?= 2
 audit-short: $(STAMP)  ## CI: audit on 3 adversarial realisations per scenario (one per kind) -> results/audit-short/ (AUDIT_SHORT_JOBS workers, default 2)
 	$(PY) -m benchmarks audit --short --no-progress --jobs $(AUDIT_SHORT_JOBS)
+
+audit-edge: $(STAMP)  ## edge-case audit: every observer on the degenerate systems of systems/edge.py (short and long records) -> reports/edge_cases.md
+	$(PY) -m benchmarks audit --edge --no-progress --jobs $(AUDIT_SHORT_JOBS)
+
+audit-edge-short: $(STAMP)  ## CI: the edge-case audit on short records, one adversarial realisation -> results/edge-audit-short/
+	$(PY) -m benchmarks audit --edge --short --no-progress --jobs $(AUDIT_SHORT_JOBS)
 
 report: $(STAMP)  ## (re)write report.md, index.html and figures for every results/<config>/ (a store: figures of its last local run)
 	@for dir in $(RESULTS)/*/; do \

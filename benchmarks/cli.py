@@ -227,7 +227,8 @@ def _cmd_baseline(args) -> int:
 
 def _cmd_audit(args) -> int:
     options = policy.AuditOptions(jobs=args.jobs, short=args.short, out=args.out,
-                                  report=args.report, progress=_progress(args), cold=args.cold)
+                                  report=args.report, progress=_progress(args), cold=args.cold,
+                                  edge=args.edge)
     return _print(policy.audit(args.scenarios, args.observers, realisations=args.realisations,
                                options=options))
 
@@ -696,6 +697,12 @@ def _add_audit(sub) -> None:
                          f"{', '.join(audit.ADVERSARIAL)}) among the first "
                          f"{audit.SHORT_REALISATIONS}; writes to "
                          "results/audit-short/ (soundness.csv, soundness.md)")
+    au.add_argument("--edge", action="store_true",
+                    help="the edge-case audit: the degenerate systems of systems/edge.py "
+                         "(flat sets, repeated and dependent outputs, a known state, extreme "
+                         "magnitudes and units), short and long records -> "
+                         "reports/edge_cases.md; with --short (CI) the short records only -> "
+                         "results/edge-audit-short/")
     au.add_argument("--out", help="a direct run: folder of soundness.csv (default: the full "
                                   "audit's store results/soundness/)")
     au.add_argument("--report", help="a direct run: its Markdown report (default: "

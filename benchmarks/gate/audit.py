@@ -62,7 +62,7 @@ import pandas as pd
 
 import observers
 import systems
-from systems import ModelError, Scenario
+from systems import ModelError, Scenario, edge
 
 from ..errors import ConfigError
 from ..run.executors import run_tasks
@@ -90,7 +90,9 @@ SHORT_REALISATIONS = 5
 #: record's floor (the exact consistent set, or the falsifier's verified consistent states on
 #: a nonlinear record): a few, since the exact reference of a 350-step record costs ~30 s
 FLOOR_REALISATIONS = 10
-SHORT_FLOOR_REALISATIONS = 2
+#: (1: the vertex realisation of each scenario; the second, vertex-hold, floor alone cost
+#: 104 s of LPs on the 6-D vehicle, a third of the short audit's CPU time in CI)
+SHORT_FLOOR_REALISATIONS = 1
 #: steps per realisation whose miss of an exact floor is re-solved by the dense reference
 #: before it counts (each costs 2n LPs over the whole record so far)
 FLOOR_RECHECKS = 3
@@ -109,10 +111,18 @@ class Realisations:
 
 #: the short audit's realisations (``audit --short``, the proof of a tighter observer)
 SHORT = Realisations(SHORT_REALISATIONS, ADVERSARIAL, SHORT_FLOOR_REALISATIONS)
+#: the edge-case audit's realisations (:mod:`systems.edge`): the ``vertex-hold`` realisation
+#: (realisation 3; x0 at a vertex of X0, noise held at vertices) of every case, held against
+#: the record's floor too; ``audit --edge`` on the short and the long records, CI's
+#: ``--edge --short`` on the short ones
+EDGE_FULL = Realisations(4, ("vertex-hold",), 1)
+EDGE_SHORT = EDGE_FULL
 RESULT_COLUMNS = ["observer", "guaranteed", "scenario", "kind", "runs", "steps", "violations",
                   "undecided", "worst_violation", "worst_at", "floor_steps", "uncovered",
                   "uncovered_at", "ok", "noGain", "unsupported", "diverged", "empty",
-                  "error", "lp_tests", "seconds"]
+                  "error", "lp_tests", "seconds", "reasons"]
+#: the characters of a failed run's message kept in ``reasons``
+REASON_CHARS = 160
 
 
 # -- realisations ---------------------------------------------------------------------------
@@ -176,12 +186,20 @@ def simulate_factors(system, u: np.ndarray, xi0: np.ndarray, xi_w: np.ndarray,
     return X, Y
 
 
+def scenario(name: str, **kwargs) -> Scenario:
+    """The audit's scenario ``name``: a named scenario of :mod:`systems`, or an edge case of
+    :mod:`systems.edge` (the degenerate systems of ``audit --edge``)."""
+    if name in edge.SCENARIOS:
+        return edge.scenario(name, **kwargs)
+    return systems.scenario(name, **kwargs)
+
+
 def realisation(name: str, index: int) -> tuple[str, Scenario]:
     """Realisation ``index`` of scenario ``name``: ``(kind, scenario)`` (seed = index)."""
     kind = KINDS[index % len(KINDS)]
     if kind in NOISE_OF_KIND:
-        return kind, systems.scenario(name, seed=index, noise=NOISE_OF_KIND[kind])
-    base = systems.scenario(name, seed=index)
+        return kind, scenario(name, seed=index, noise=NOISE_OF_KIND[kind])
+    base = scenario(name, seed=index)
     s, N = base.system, base.N
     rng = np.random.default_rng([index, KINDS.index(kind)])
     u = np.asarray(base.u, float)
@@ -204,14 +222,14 @@ def realisations(name: str, count: int) -> tuple[tuple[str, Scenario], ...]:
 def check_scenario(name: str) -> None:
     """Raise a one-line error unless ``name`` is a simulated scenario with true states."""
     try:
-        sc = systems.scenario(name)
+        sc = scenario(name)
     except ModelError as exc:
         raise ConfigError(f"audit: {exc}") from None
     if sc.x_true is None:
         raise ConfigError(f"audit: scenario '{name}' has no true states (use a simulated one, "
                           f"e.g. {', '.join(AUDIT_SCENARIOS)})")
     try:
-        systems.scenario(name, seed=0, noise="vertex")
+        scenario(name, seed=0, noise="vertex")
     except ModelError:
         raise ConfigError(f"audit: scenario '{name}' is a fixed record; the audit needs a "
                           "simulated one (accepting seed and noise)") from None
@@ -247,7 +265,8 @@ def audit_pair(scenario: str, observer: str, count: int,
                 "worst_violation": 0.0, "worst_at": "", "floor_steps": 0, "uncovered": 0,
                 "uncovered_at": "", "ok": 0, "noGain": 0, "unsupported": 0,
                 "diverged": 0, "empty": 0,
-                "error": 0, "lp_tests": 0, "seconds": 0.0} for k in KINDS}
+                "error": 0, "lp_tests": 0, "seconds": 0.0, "reasons": ""} for k in KINDS}
+    reasons: dict[str, list[str]] = {k: [] for k in KINDS}
     audited = 0
     for index, (kind, sc) in enumerate(realisations(scenario, count)):
         if kind not in kinds:
@@ -260,11 +279,14 @@ def audit_pair(scenario: str, observer: str, count: int,
         try:
             run = run_observer(observer, sc, merge_options(observer, sc), "hull",
                                keep_sets=True)
-        except ConfigError:  # an option rejected for this system: counted as an error run
+        except ConfigError as exc:  # an option rejected for this system: an error run
             row["error"] += 1
+            _note_reason(reasons[kind], "error", str(exc))
             continue
         status = run.status if run.status in STATUSES else "error"
         row[status] += 1
+        if status != "ok":
+            _note_reason(reasons[kind], status, run.message)
         if run.status == "empty":  # the true state is in no empty set: a violation
             row["violations"] += 1
             row["worst_violation"] = np.inf
@@ -284,9 +306,21 @@ def audit_pair(scenario: str, observer: str, count: int,
         row["steps"] += len(sets)
         row["lp_tests"] += tester.counts.get("lp", 0)
         row["seconds"] += time.perf_counter() - t0
-        if audited <= floors and res is not None and len(sets):
+        if (audited <= floors and res is not None and len(sets)
+                and not (scenario in edge.SCENARIOS and edge.case(scenario).no_floor)):
             _hold_to_floor(row, _floor(scenario, index), observer, res, sc, run.status, index)
+    for kind, row in rows.items():
+        row["reasons"] = " | ".join(reasons[kind])
     return [r for r in rows.values() if r["runs"]]
+
+
+def _note_reason(seen: list[str], status: str, message) -> None:
+    """Add ``status: message`` (its first line, at most :data:`REASON_CHARS` characters) to
+    ``seen`` unless it is there: why a run refused, failed or ended early."""
+    text = str(message or "").strip().splitlines()
+    line = f"{status}: {text[0][:REASON_CHARS] if text else 'no message'}"
+    if line not in seen:
+        seen.append(line)
 
 
 def _hold_to_floor(row: dict, floor: RecordFloor, observer: str, res, sc: Scenario,
@@ -423,6 +457,9 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
             "failed": ", ".join(f"{s} {int(g[s].sum())}" for s in STATUSES[1:] + ("error",)
                                 if g[s].sum()),
             "lp_tests": int(g["lp_tests"].sum()), "seconds": float(g["seconds"].sum()),
+            "reasons": " | ".join(dict.fromkeys(
+                part for text in g.get("reasons", pd.Series(dtype=str)).fillna("")
+                for part in str(text).split(" | ") if part)),
         })
     return pd.DataFrame(out)
 

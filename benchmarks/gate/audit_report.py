@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from systems import edge as edge_cases
+
 from ..io import atomic_write_csv, atomic_write_text, environment
 from ..report.citation import citation_lines
 from ..report.markdown import store_footer
@@ -101,10 +103,53 @@ def soundness_report(df: pd.DataFrame, count: int, provenance: str,
     return "\n".join(parts)
 
 
+def edge_sections(df: pd.DataFrame) -> list[str]:
+    """The edge-case audit's own sections (:mod:`systems.edge`): the cases, and per observer
+    and case every run that refused the system, failed or ended early, with its reasons."""
+    agg = aggregate(df)
+    cases = [[c.name, c.property, f"none: {c.no_floor}" if c.no_floor else "held"]
+             for c in edge_cases.CASES]
+    failed = agg[agg["failed"] != ""]
+    rows = [[r.observer, r.scenario, r.failed,
+             (r.reasons or "-").replace(" | ", "; ").replace("|", "\\|")]
+            for r in failed.itertuples(index=False)]
+    per = agg.groupby("observer", sort=False).agg(
+        runs=("runs", "sum"), violations=("violations", "sum"), uncovered=("uncovered", "sum"),
+        failed=("failed", lambda f: sum(1 for x in f if x)))
+    summary = [[obs, str(int(r.runs)), f"**{int(r.violations)}**" if r.violations else "0",
+                f"**{int(r.uncovered)}**" if r.uncovered else "0", str(int(r.failed))]
+               for obs, r in per.iterrows()]
+    return [
+        "## The edge cases",
+        "",
+        "Each case is the 3-state plant of `systems/edge.py` (or its unicycle) with one "
+        f"degenerate property; a `-long` case is the same on {edge_cases.LONG_STEPS} steps "
+        f"(the others: {edge_cases.SHORT_STEPS}).",
+        "",
+        markdown_table(["case", "what is degenerate", "floor"], cases),
+        "",
+        "## Per observer",
+        "",
+        "Runs, steps missing the true state (an empty estimate counts), steps missing the "
+        "floor, and the cases it refused or failed on (below, with the reasons).",
+        "",
+        markdown_table(["observer", "runs", "violations", "uncovered", "cases refused or "
+                        "failed"], summary),
+        "",
+        "## Refusals and failures, with their reasons",
+        "",
+        markdown_table(["observer", "case", "runs", "reasons"], rows) if rows else
+        "(none: every observer accepted every case and ended every run)",
+        "",
+    ]
+
+
 def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: int,
-                elapsed: float, jobs: int, command: str) -> tuple[Path, Path]:
+                elapsed: float, jobs: int, command: str, edge: bool = False
+                ) -> tuple[Path, Path]:
     """Write a direct run's ``soundness.csv`` (per kind) and its Markdown report, each
-    atomically (the short audit of CI, or an audit of chosen scenarios or observers)."""
+    atomically (the short audit of CI, the edge-case audits, or an audit of chosen scenarios
+    or observers; ``edge``: with :func:`edge_sections`)."""
     csv_path = Path(out) / "soundness.csv"
     atomic_write_csv(csv_path, df)
     report = Path(report)
@@ -113,7 +158,8 @@ def write_audit(df: pd.DataFrame, out: str | Path, report: str | Path, count: in
                   f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} (git "
                   f"{versions.get('git', '?')}); {elapsed:.0f} s wall time with {jobs} "
                   "worker(s).")
-    atomic_write_text(report, soundness_report(df, count, provenance).rstrip("\n") + "\n")
+    text = soundness_report(df, count, provenance, edge_sections(df) if edge else None)
+    atomic_write_text(report, text.rstrip("\n") + "\n")
     return csv_path, report
 
 

@@ -36,6 +36,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from systems import edge
+
 from ..errors import ConfigError
 from ..io import atomic_write_csv, blas_corename
 from ..store import bench as store_bench
@@ -401,14 +403,46 @@ class AuditOptions:
         Progress bars (None: in a terminal).
     cold : bool
         The full audit re-runs every pair, not just the stale ones.
+    edge : bool
+        The edge-case audit: the degenerate systems of :mod:`systems.edge` instead of the
+        benchmark scenarios (long records into ``reports/edge_cases.md``; with ``short``,
+        CI's, short records into ``results/edge-audit-short/``).
     """
 
     jobs: int | None = None
     short: bool = False
+    edge: bool = False
     out: str | None = None
     report: str | None = None
     progress: bool | None = None
     cold: bool = False
+
+
+def _direct_audit(scenarios: Sequence[str] | None, realisations: int, options: AuditOptions
+                  ) -> tuple[soundness.Realisations, str, str, str, tuple[str, ...]]:
+    """What a direct audit runs and where it writes: ``(realisations, command, csv folder,
+    report, scenarios)`` for the short audit, the edge-case audits or chosen scenarios and
+    observers (``scenarios``: None for the default ones of the mode)."""
+    out, report = options.out, options.report
+    if options.edge:
+        short = options.short
+        chosen = soundness.EDGE_SHORT if short else soundness.EDGE_FULL
+        command = "python -m benchmarks audit --edge" + (" --short" if short else "")
+        out = out or str(Path("results") / ("edge-audit-short" if short else "edge-audit"))
+        report = report or (str(Path(out) / "soundness.md") if short
+                            else str(Path("reports") / "edge_cases.md"))
+        return chosen, command, out, report, tuple(
+            scenarios or (edge.NAMES if short else edge.SCENARIOS))
+    chosen = soundness.Realisations(realisations)
+    command = f"python -m benchmarks audit --realisations {realisations}"
+    if options.short:
+        chosen = soundness.SHORT
+        command = "python -m benchmarks audit --short"
+        out = out or str(Path("results") / "audit-short")
+        report = report or str(Path(out) / "soundness.md")
+    out = out or str(Path("results") / "audit")
+    report = report or str(Path(out) / "soundness.md")
+    return chosen, command, out, report, tuple(scenarios or soundness.AUDIT_SCENARIOS)
 
 
 def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
@@ -423,8 +457,9 @@ def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
     short, out, report = options.short, options.out, options.report
     progress, cold = options.progress, options.cold
     jobs = options.jobs if options.jobs is not None else soundness.default_jobs()
-    full = (not short and out is None and report is None and not observer_names
-            and tuple(scenarios) == tuple(soundness.AUDIT_SCENARIOS))
+    default_scenarios = tuple(scenarios) == tuple(soundness.AUDIT_SCENARIOS)
+    full = (not short and not options.edge and out is None and report is None
+            and not observer_names and default_scenarios)
     t0 = time.perf_counter()
     if full:
         store, ran_rows, ran = audit_store.bench_audit(realisations, jobs, cold=cold,
@@ -436,19 +471,12 @@ def audit(scenarios: Sequence[str], observer_names: Sequence[str] | None, *,
         lines = [f"wrote {audit_store.REPORT} from {audit_store.STORE} ({ran} pair(s) run in "
                  f"{elapsed:.0f} s, the others current)"]
     else:
-        chosen = soundness.Realisations(realisations)
-        command = f"python -m benchmarks audit --realisations {realisations}"
-        if short:
-            chosen = soundness.SHORT
-            command = "python -m benchmarks audit --short"
-            out = out or str(Path("results") / "audit-short")
-            report = report or str(Path(out) / "soundness.md")
-        out = out or str(Path("results") / "audit")
-        report = report or str(Path(out) / "soundness.md")
+        chosen, command, out, report, scenarios = _direct_audit(
+            scenarios if not default_scenarios else None, realisations, options)
         df = soundness.run_audit(scenarios, observer_names, chosen, jobs, progress=progress)
         elapsed = time.perf_counter() - t0
         csv_path, report = audit_report.write_audit(df, out, report, chosen.count, elapsed,
-                                                    jobs, command)
+                                                    jobs, command, edge=options.edge)
         lines = [f"wrote {report} and {csv_path}"]
     agg = soundness.aggregate(df)
     bad = agg[agg["guaranteed"] & ((agg["violations"] > 0) | (agg["uncovered"] > 0))]

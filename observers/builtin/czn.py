@@ -46,6 +46,9 @@ from ..sets import ConZonotope, HullLP, HullLPStats, get_reduction
 from ..sets import conzono_ops as ops
 from .frad import WangGainVariant
 
+#: relative half-width of the strip of an output measured without noise
+#: (:meth:`ConZonotopeStripObserver._widen_noise_free_outputs`)
+NOISE_FREE_MARGIN = 1e-9
 #: default bound on the number of constraints, as a multiple of the number of outputs m
 DEFAULT_CONSTRAINT_STEPS = 2
 #: most generators whose box :meth:`ConZonotopeStripObserver.lp_rescale` computes by LPs (2 per
@@ -154,7 +157,26 @@ class ConZonotopeStripObserver(Linearised, ZonotopeObserver):
         self._inflate = inflate
         self.F_meas = self.F * inflate  # noise generators of the measurement set
         self.sigma_meas = self.sigma * inflate  # strip half-widths
+        if self.output_linear:
+            self._widen_noise_free_outputs()
         self._F_meas0, self._sigma_meas0 = self.F_meas, self.sigma_meas
+
+    def _widen_noise_free_outputs(self) -> None:
+        """An output measured without noise (a strip of zero width) is an equality constraint
+        that the hull LPs decided by the rounding of the set's data: on a 3-state plant every
+        CZN observer ended ``empty`` at step 36 (the edge-case audit).  Its strip is widened
+        outward to :data:`NOISE_FREE_MARGIN` times the output's magnitude over ``X0``
+        (``|C_i| |x0| + |c_V,i|``), which keeps the set sound (a superset) and changes nothing
+        for an output with noise."""
+        flat = self.sigma_meas <= 0
+        if not flat.any():
+            return
+        x0 = self.X0.interval()
+        reach = np.maximum(np.abs(x0.lo), np.abs(x0.hi))
+        scale = np.abs(self.C) @ reach + np.abs(self.V.c)
+        floor = NOISE_FREE_MARGIN * np.where(scale > 0, scale, 1.0)
+        self.sigma_meas = np.where(flat, floor, self.sigma_meas)
+        self.F_meas = np.hstack([self.F_meas, np.diag(floor)[:, flat]])
 
     def reset(self) -> None:
         super().reset()

@@ -120,7 +120,8 @@ class NomG(_OfflineGainPropagation):
 
     OPTIONS = {"mu": Number(1.0, low=0, high=1, low_open=True),
                "solver": Choice("newton", ("newton", "clarabel"))}
-    DESIGN_VERSION = "2"
+    #: "3": dependent outputs refused (their cached Newton failures are not replayed)
+    DESIGN_VERSION = "3"
 
     def design_gain(self) -> np.ndarray:
         s = self.system

@@ -350,7 +350,8 @@ class PRadCI(_Centre, _BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "radius-bound", "radius-bound-cora-rate"))}
-    DESIGN_VERSION = "5"
+    #: "6": dependent outputs refused (their cached Newton failures are not replayed)
+    DESIGN_VERSION = "6"
 
     def bound_gain(self) -> np.ndarray:
         rate = self.centre_rate() if self.options["design"] == "radius-bound-cora-rate" else None
@@ -388,7 +389,7 @@ class PRadCII(_Centre, _BetaTol, _ConstantAllStrips):
     """
 
     OPTIONS = {"design": Choice("centre", ("centre", "ellipsoid-trace"))}
-    DESIGN_VERSION = "5"
+    DESIGN_VERSION = "6"  # as PRad-C-I's
 
     def bound_gain(self) -> np.ndarray:
         return wang_c2_gain(_plant(self)).L
@@ -434,7 +435,7 @@ class PRadD(_Centre, _ConstantAllStrips):
     OPTIONS = {"design": Choice("centre", ("centre", "max-gamma")),
                "alpha": Number(None, low=0, high=1, low_open=True, high_open=True, allow_none=True),
                "beta": Number(0.5, low=0, high=1, low_open=True, high_open=True)}
-    DESIGN_VERSION = "5"
+    DESIGN_VERSION = "6"  # as PRad-C-I's
 
     def centre_rate(self) -> float:
         alpha = self.options["alpha"]

@@ -25,12 +25,20 @@ def box_feasible(M: np.ndarray, t: np.ndarray, tol=0.0) -> bool:
 
     Rows of ``M``/``t`` are the equality constraints (e.g. ``[G; A]`` and ``[x - c; b]``);
     ``tol`` is a scalar or one tolerance per row.  Slack variables bounded by ``tol`` absorb
-    the tolerance; HiGHS decides feasibility (with its own feasibility tolerance of 1e-7).
+    the tolerance; HiGHS decides feasibility (with its own feasibility tolerance of 1e-7,
+    relative: each row is first divided by its largest magnitude among ``M``'s entries and
+    ``t``, which leaves the set of solutions unchanged).  Unscaled, a vertex of the box of
+    radius 5e-7 was called infeasible with ``tol = 1e-9`` (slack bounds far below HiGHS's
+    own tolerances, on rows far below 1), and feasible with ``tol = 0``.
     """
     m, r = M.shape
     tol = np.broadcast_to(np.asarray(tol, dtype=float), (m,))
     if r == 0:
         return bool(np.all(np.abs(t) <= tol))
+    M, t = np.asarray(M, float), np.asarray(t, float)
+    scale = np.maximum(np.abs(M).max(axis=1), np.abs(t))
+    scale = np.where(scale > 0, scale, 1.0)  # a zero row: 0 = t within tol, as it is
+    M, t, tol = M / scale[:, None], t / scale, tol / scale
     h = new_highs()
     lp = highspy.HighsLp()
     lp.num_col_ = r + m

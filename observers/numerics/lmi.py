@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..errors import DesignFailed
+from ..errors import DesignFailed, Unsupported
 
 #: solver statuses accepted; an "inaccurate" point is judged by the numpy verification that
 #: follows every solve
@@ -244,6 +244,22 @@ def unit_noise(plant: LinearDesignProblem) -> tuple[LinearDesignProblem, float]:
     if not s > 0 or not np.isfinite(s):
         return plant, 1.0
     return LinearDesignProblem(A, C, E / s, F / s), s * s
+
+
+def require_independent_outputs(C, who: str) -> None:
+    """Refuse (:class:`~observers.errors.Unsupported`) an output matrix whose rows are linearly
+    dependent (two sensors of one quantity, a rank-deficient ``C``): a gain ``L`` is then not
+    determined by ``L C`` (``L`` and ``L + N`` with ``N C = 0`` act alike), so the feasible
+    set of a gain LMI in ``Y = P L`` is unbounded along ``N`` and has no analytic centre
+    (the Newton iteration diverged on the edge-case audit's repeated output)."""
+    C = np.atleast_2d(np.asarray(C, float))
+    m = C.shape[0]
+    rank = int(np.linalg.matrix_rank(C)) if C.size else 0
+    if rank < m:
+        raise Unsupported(
+            f"{who}: the {m} outputs are linearly dependent (C has rank {rank}; e.g. two "
+            "sensors of one quantity), so its gain is not determined and the analytic centre "
+            "of its LMI does not exist; merge or drop the dependent outputs")
 
 
 def range_basis(G: np.ndarray, rtol: float = 1e-12) -> np.ndarray:

@@ -220,6 +220,7 @@ def nom_g_design(A, C, mu: float = 1.0, solver: str = "newton") -> GainDesign:
     Verified in numpy: the LMI is positive definite, ``P`` too, and
     ``rho(A - L C) < sqrt(mu) <= 1``.
     """
+    lmi.require_independent_outputs(C, "Nom-G")
     what = "Nom-G"
     if not 0.0 < mu <= 1.0:
         raise DesignFailed(f"{what}: mu must lie in (0, 1], got {mu}")

@@ -36,6 +36,7 @@ from .lmi import (
     gain_from,
     min_eig,
     psd_constraint,
+    require_independent_outputs,
     require_pd,
     require_psd,
     solve,
@@ -625,6 +626,7 @@ def centre_gain(plant: LinearDesignProblem, rate: float, what: str = "PRad-C",
     """
     plant = _as_arrays(plant)
     A, C, E, F = plant
+    require_independent_outputs(C, what)
     n, m, nw, nv = C.shape[1], C.shape[0], E.shape[1], F.shape[1]
     if solver == "auto":
         solver = "newton" if n * (n + m) <= NEWTON_MAX_VARIABLES else "start"

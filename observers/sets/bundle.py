@@ -29,6 +29,10 @@ from .interval import Interval
 from .reduction import Reduction, check_order, get_reduction
 from .zonotope import Zonotope, strip_generators
 
+#: relative rounding margin of a member's interval hull ``c +- sum |G|``: members' hulls that
+#: cross by less than this times their magnitude meet (a flat intersection)
+HULL_ROUNDING = 64 * np.finfo(float).eps
+
 
 class ZonotopeBundle:
     """The intersection of the zonotopes ``members`` (all of one dimension, at least one).
@@ -171,30 +175,39 @@ class ZonotopeBundle:
             start += widths[i + 1]
         return ConZonotope.trusted(Z1.c.copy(), G, A, b, self._solver)
 
-    def _member_box(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = np.max([Z.interval().lo for Z in self._members], axis=0)
-        hi = np.min([Z.interval().hi for Z in self._members], axis=0)
-        return lo, hi
+    def _member_box(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The intersection of the members' hulls and its rounding margin (per coordinate,
+        :data:`HULL_ROUNDING` times the largest ``|c| + sum |G|`` of a member)."""
+        his = [Z.interval() for Z in self._members]
+        lo = np.max([H.lo for H in his], axis=0)
+        hi = np.min([H.hi for H in his], axis=0)
+        scale = np.max([np.abs(Z.c) + np.abs(Z.G).sum(axis=1) for Z in self._members], axis=0)
+        return lo, hi, HULL_ROUNDING * scale
 
     def interval(self) -> Interval:
         """Interval hull of the intersection by LP (bounds from dual points, sound), within
         the intersection of the members' hulls; :class:`EmptySet` if those are disjoint.
         Where the LP reports the intersection empty (which rounding can fake on a thin
-        intersection) the members' hulls are kept."""
+        intersection) the members' hulls are kept.  Bounds that cross by no more than the
+        rounding margin of the members' hulls (:data:`HULL_ROUNDING`) are a flat
+        intersection, not an empty one: its hull is the crossed interval, taken outward (a
+        coordinate measured without noise pins every member to the same value up to the
+        rounding of its own update; such crossings of 1e-16 ended ZB-A with ``empty``)."""
         if self._hull is not None:
             return self._hull
-        lo, hi = self._member_box()
-        if np.any(lo > hi):
+        lo, hi, margin = self._member_box()
+        if np.any(lo > hi + margin):
             raise EmptySet("the members of the zonotope bundle do not intersect")
         if self.size > 1:
             try:
                 H = self.as_conzonotope().interval()
-                lo, hi = np.maximum(lo, H.lo), np.minimum(hi, H.hi)
             except EmptySet:
-                pass
-            if np.any(lo > hi):  # two sound bounds crossed: the intersection is empty
-                raise EmptySet("the members of the zonotope bundle do not intersect")
-        self._hull = Interval(lo, hi)
+                H = None
+            if H is not None:
+                lo, hi = np.maximum(lo, H.lo), np.minimum(hi, H.hi)
+                if np.any(lo > hi + margin):  # two sound bounds crossed beyond rounding
+                    raise EmptySet("the members of the zonotope bundle do not intersect")
+        self._hull = Interval(np.minimum(lo, hi), np.maximum(lo, hi))
         return self._hull
 
     def support(self, d) -> float | np.ndarray:

@@ -314,7 +314,9 @@ class Ellipsoid:
         lam, V = np.linalg.eigh(self._Q)
         lam = np.maximum(lam, 0.0)
         z = V.T @ (x - self._q)
-        pos = lam > _PSD_TOL * max(1.0, lam.max(initial=0.0))
+        # the range of Q relative to its largest eigenvalue: an absolute floor of 1e-10 put the
+        # whole of an ellipsoid of radius 5e-7 (a system in units of 1e-6) outside its range
+        pos = lam > _PSD_TOL * lam.max(initial=0.0)
         # components outside the range of Q must be travelled in full
         off = float(np.sum(z[~pos] ** 2))
         zp, lp = z[pos], lam[pos]
