@@ -5,6 +5,7 @@ naming the degenerate property."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import observers
@@ -136,3 +137,24 @@ def test_the_analytic_centre_designs_refuse_dependent_outputs_in_one_line(name, 
     text = str(err.value)
     assert "\n" not in text and text.startswith(f"{name}: ")
     assert "outputs are linearly dependent" in text and "rank" in text
+
+
+def test_the_edge_audit_lists_runs_and_refusals_with_their_reasons(tmp_path, capsys,
+                                                                   monkeypatch):
+    from benchmarks.cli import main
+
+    monkeypatch.setenv("SETOBS_CACHE_DIR", "off")
+    out = tmp_path / "edge"
+    argv = ["audit", "--edge", "--short", "--scenarios", "edge-dependent-outputs",
+            "edge-zero-v", "--observers", "FRad-A", "PRad-C-I", "--jobs", "1",
+            "--no-progress", "--out", str(out)]
+    assert main(argv) == 0, capsys.readouterr()
+    df = audit.aggregate(pd.read_csv(out / "soundness.csv"))
+    assert set(df["scenario"]) == {"edge-dependent-outputs", "edge-zero-v"}
+    assert (df["violations"] == 0).all() and (df["runs"] == 1).all()
+    refused = df[(df["observer"] == "PRad-C-I") & (df["scenario"] == "edge-dependent-outputs")]
+    assert refused["failed"].iloc[0] == "unsupported 1"
+    assert "outputs are linearly dependent" in refused["reasons"].iloc[0]
+    report = (out / "soundness.md").read_text()
+    assert "## The edge cases" in report and "## Refusals and failures" in report
+    assert "| PRad-C-I | edge-dependent-outputs | unsupported 1 |" in report

@@ -176,6 +176,11 @@ def test_ci_runs_the_short_audit_after_the_gate():
     make = (ROOT / "Makefile").read_text()
     target = make[make.index("\naudit-short:"):].split("\n\n")[0]
     assert "-m benchmarks audit --short" in target
+    # the edge-case audit after the gate, its status counted
+    edge = next(i for i, ln in enumerate(lines) if ln.startswith("make audit-edge-short"))
+    assert check < edge and "status=1" in lines[edge]
+    target = make[make.index("\naudit-edge-short:"):].split("\n\n")[0]
+    assert "-m benchmarks audit --edge --short" in target
 
 
 # -- BLAS kernels ---------------------------------------------------------------------------------
