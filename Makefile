@@ -55,8 +55,9 @@ docs: $(STAMP)  ## build the documentation site, warnings are errors -> docs/_bu
 lint: $(STAMP)  ## ruff only
 	$(VENV)/bin/ruff check observers systems benchmarks tests
 
-bench: $(STAMP)  ## incremental: run only the stale or missing rows of every published config (JOBS workers), merge them into results/<config>/, render reports/<config>.md and the HTML pages of the configs it ran
+bench: $(STAMP)  ## incremental: run only the stale or missing rows of every published config (JOBS workers), merge them into results/<config>/, render reports/<config>.md and the HTML pages of the configs it ran, then every report drawn from several stores (fidelity.md)
 	$(PY) -m benchmarks bench --jobs $(JOBS) --html
+	$(PY) -m benchmarks reports
 	$(PY) -m benchmarks index reports --committed
 	$(PY) -m benchmarks index reports --results $(RESULTS)
 

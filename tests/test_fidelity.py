@@ -232,3 +232,12 @@ def test_make_help_lists_the_fidelity_target():
                          cwd=ROOT, capture_output=True, text=True, check=True).stdout
     assert re.search(r"make fidelity\s+the committed stores against the published", out)
     assert "every published cell claimed within tolerance is (fidelity)" in out
+
+
+def test_make_bench_renders_the_fidelity_report_after_its_rows():
+    # bug: make bench rendered each configuration's report only, so a bench that re-measured
+    # the times left reports/fidelity.md (drawn from every store) stale for `stale`
+    make = (Path(__file__).resolve().parents[1] / "Makefile").read_text()
+    recipe = make[make.index("\nbench:"):].split("\n\n")[0].splitlines()
+    run = next(i for i, ln in enumerate(recipe) if "-m benchmarks bench " in ln)
+    assert any("-m benchmarks reports" in ln for ln in recipe[run + 1:]), recipe
