@@ -12,29 +12,17 @@ import pytest
 
 import observers
 import systems
-from observers.numerics.ropo import (
-    TOUCH_RTOL,
-    enclose,
-    measurement_update,
-    strip_cut,
-    time_update,
-)
+from observers.numerics.ropo import enclose, measurement_update, strip_cut, time_update
 from observers.sets import EmptySet, Zonotope
 
 from .conftest import paper_table
 
-#: how far a hand-derived value may move: every strip is widened outward by its rounding slack,
-#: TOUCH_RTOL times its magnitudes (a few units here), so that a strip that only touches the
-#: set keeps its face (the edge-case audit's repeated output)
-SLACK = 100 * TOUCH_RTOL
-
 
 def _vertices(c, T):
-    """The 2^n vertices of the parallelotope (c, T) as a set of tuples rounded to 1e-9 (the
-    strips are widened by their rounding slack)."""
+    """The 2^n vertices of the parallelotope (c, T) as a set of rounded tuples."""
     n = T.shape[1]
     pts = [c + T @ np.array(s) for s in itertools.product((-1.0, 1.0), repeat=n)]
-    return {tuple(np.round(p, 9) + 0.0) for p in pts}
+    return {tuple(np.round(p, 12) + 0.0) for p in pts}
 
 
 def _inside(c, T, pts, tol=1e-9):
@@ -52,7 +40,7 @@ def test_strip_cut_keeps_the_least_volume_of_the_three_candidates():
     # The least is {|x1| <= 1, |x1 + x2| <= 0.5}, vertices (1, -0.5), (1, -1.5), (-1, 1.5),
     # (-1, 0.5).
     c, T = strip_cut(np.zeros(2), np.diag([1.0, 2.0]), np.array([1.0, 1.0]), -0.5, 0.5)
-    assert 4 * abs(np.linalg.det(T)) == pytest.approx(2.0, rel=SLACK)  # volume 2^n |det T|
+    assert 4 * abs(np.linalg.det(T)) == pytest.approx(2.0, rel=1e-12)  # volume 2^n |det T|
     assert _vertices(c, T) == {(1.0, -0.5), (1.0, -1.5), (-1.0, 1.5), (-1.0, 0.5)}
 
 
@@ -60,7 +48,7 @@ def test_strip_cut_unit_square_diagonal_strip():
     # [-1,1]^2 cut by |x1 + x2| <= 0.5: no strip of the square tightens (x1 = 1, x2 = -1 is
     # feasible); box 2 * 2 = 4, each other candidate 2 * 1 / 1 = 2.
     c, T = strip_cut(np.zeros(2), np.eye(2), np.array([1.0, 1.0]), -0.5, 0.5)
-    assert 4 * abs(np.linalg.det(T)) == pytest.approx(2.0, rel=SLACK)  # volume 2^n |det T|
+    assert 4 * abs(np.linalg.det(T)) == pytest.approx(2.0, rel=1e-12)  # volume 2^n |det T|
     np.testing.assert_allclose(c, 0.0, atol=1e-15)
     assert _vertices(c, T) in ({(1.0, -0.5), (1.0, -1.5), (-1.0, 1.5), (-1.0, 0.5)},
                                {(-0.5, 1.0), (-1.5, 1.0), (1.5, -1.0), (0.5, -1.0)})
@@ -71,8 +59,8 @@ def test_strip_cut_tightens_the_box_at_a_corner():
     # in [1.5, 2].  Box 0.5 * 0.5 = 0.25 = each other candidate (0.5 * 0.5 / 1): on a tie
     # the measurement strip is dropped, so the result is the box [0.5, 1]^2.
     c, T = strip_cut(np.zeros(2), np.eye(2), np.array([1.0, 1.0]), 1.5, 2.0)
-    np.testing.assert_allclose(c, [0.75, 0.75], rtol=SLACK)
-    np.testing.assert_allclose(T, np.diag([0.25, 0.25]), rtol=SLACK)
+    np.testing.assert_allclose(c, [0.75, 0.75], rtol=1e-14)
+    np.testing.assert_allclose(T, np.diag([0.25, 0.25]), rtol=1e-14)
 
 
 def test_strip_that_contains_the_parallelotope_changes_nothing():
@@ -85,10 +73,10 @@ def test_exact_measurement_gives_the_segment():
     # [-1,1]^2 and x1 + x2 = 0.5 exactly: the segment from (1, -0.5) to (-0.5, 1), a flat
     # parallelotope (one zero generator), centre (0.25, 0.25).
     c, T = strip_cut(np.zeros(2), np.eye(2), np.array([1.0, 1.0]), 0.5, 0.5)
-    np.testing.assert_allclose(c, [0.25, 0.25], rtol=SLACK)
-    cols = [T[:, j] for j in range(2) if np.abs(T[:, j]).max() > SLACK]
-    assert len(cols) == 1  # the other is the strip's rounding slack
-    np.testing.assert_allclose(np.abs(cols[0]), [0.75, 0.75], rtol=SLACK)
+    np.testing.assert_allclose(c, [0.25, 0.25], rtol=1e-14)
+    cols = [T[:, j] for j in range(2) if np.any(T[:, j] != 0)]
+    assert len(cols) == 1
+    np.testing.assert_allclose(np.abs(cols[0]), [0.75, 0.75], rtol=1e-14)
     assert cols[0][0] * cols[0][1] < 0
 
 
@@ -206,7 +194,7 @@ def test_ropo_handles_noise_centre_and_exact_sensor():
     for k, S in enumerate(res.sets):
         assert S.contains(sim.x_true[k], tol=1e-9), f"x_{k} outside"
         # the exact sensor pins 0.5 x1 + x2: the set is flat along it
-        assert np.abs(np.array([0.5, 1.0]) @ S.G).sum() == pytest.approx(0.0, abs=SLACK)
+        assert np.abs(np.array([0.5, 1.0]) @ S.G).sum() == pytest.approx(0.0, abs=1e-12)
 
 
 def test_inconsistent_measurement_ends_the_run_as_empty():
