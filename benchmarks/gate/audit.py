@@ -458,8 +458,8 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                                 if g[s].sum()),
             "lp_tests": int(g["lp_tests"].sum()), "seconds": float(g["seconds"].sum()),
             "reasons": " | ".join(dict.fromkeys(
-                part for text in g.get("reasons", pd.Series(dtype=str)).fillna("")
-                for part in str(text).split(" | ") if part)),
+                part for text in g.get("reasons", pd.Series(dtype=object))
+                if isinstance(text, str) for part in text.split(" | ") if part)),
         })
     return pd.DataFrame(out)
 
