@@ -427,3 +427,71 @@ def test_a_worker_with_no_memory_base_charges_no_memory():
     if os.path.exists(f"/proc/{os.getpid()}/statm"):
         w.base = 0
         assert job_memory(w) > 0  # with a base, this process's resident memory is read
+
+
+def _write_pid_and_sleep(path):
+    """Write this worker's pid to ``path``, then sleep far past any test (a long job)."""
+    with open(path, "w") as f:
+        f.write(str(os.getpid()))
+    time.sleep(900)
+
+
+_STOPPED_RUN = """
+import sys
+from multiprocessing import forkserver
+from benchmarks.run.executors import ProcessExecutor
+from tests.test_executors import _write_pid_and_sleep
+
+ex = ProcessExecutor(1)
+print(getattr(forkserver._forkserver, "_forkserver_pid", None), flush=True)
+for _ in ex.map(_write_pid_and_sleep, [sys.argv[1]]):
+    pass
+"""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc") or "forkserver" not in mp.get_all_start_methods(),
+                    reason="needs Linux's /proc and the forkserver start method")
+def test_a_run_stopped_by_sigterm_ends_its_worker_server_and_its_worker(tmp_path):
+    """Bug: stopping an audit (``SIGTERM`` to the command) left the server its workers are
+    forked from waiting for them, and a worker running its job on (an exact floor held a core
+    for 57 min): the workers hold the server's "alive" pipe, so the server never saw its
+    parent end, and a worker dies only with the server.  The server now ends with its parent."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    pid_file = tmp_path / "worker.pid"
+    proc = subprocess.Popen([sys.executable, "-c", _STOPPED_RUN, str(pid_file)], cwd=root,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        server = int(proc.stdout.readline())
+        while not pid_file.exists() or not pid_file.read_text():  # the job has started
+            assert proc.poll() is None, proc.stderr.read()
+            time.sleep(0.1)
+        worker = int(pid_file.read_text())
+        assert _alive(server) and _alive(worker)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=60)
+        # both end within a look of the guard (0.5 s); the bound only ends a failing test
+        deadline = time.monotonic() + 60
+        while (_alive(server) or _alive(worker)) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _alive(server), "the worker server outlived the stopped run"
+        assert not _alive(worker), "the worker outlived the stopped run"
+    finally:
+        proc.kill()
+        proc.wait()
+        for pid in (locals().get("server"), locals().get("worker")):
+            if pid and _alive(pid):
+                os.kill(pid, signal.SIGKILL)

@@ -91,6 +91,9 @@ LOCAL_HTTP = {"dashboard_address": "127.0.0.1:0"}
 #: spawned worker's first step): named, not imported here, so that the executors do not
 #: depend on the harness they run (:mod:`benchmarks.run.workerinit` imports it)
 PRELOAD = ("benchmarks.run.workerinit",)
+#: the forkserver's preload: :mod:`benchmarks.run.serverguard` first (the server ends with the
+#: process that started it, and its workers with it), then :data:`PRELOAD`
+SERVER_PRELOAD = ("benchmarks.run.serverguard", *PRELOAD)
 #: seconds between two looks at the workers' resident memory
 POLL_S = 0.2
 #: statuses of jobs stopped by their limits
@@ -415,7 +418,7 @@ def _context(method: str | None = None):
         return mp.get_context(method)
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(list(PRELOAD))
+        ctx.set_forkserver_preload(list(SERVER_PRELOAD))
         return ctx
     return mp.get_context("spawn")
 
