@@ -158,3 +158,16 @@ def test_the_edge_audit_lists_runs_and_refusals_with_their_reasons(tmp_path, cap
     report = (out / "soundness.md").read_text()
     assert "## The edge cases" in report and "## Refusals and failures" in report
     assert "| PRad-C-I | edge-dependent-outputs | unsupported 1 |" in report
+
+
+def test_a_long_edge_record_is_held_to_the_true_state_and_its_short_one_to_the_floor():
+    # the exact reference of a 2,000-step record did not end (step 568 after 20 min on the
+    # repeated output): the full edge audit holds a long record to the true state only, says
+    # why, and keeps the floor of the short record of the same case
+    from systems import edge
+
+    assert edge.no_floor("edge-repeated-output") == ""
+    assert edge.no_floor("edge-repeated-output-long") == edge.LONG_NO_FLOOR
+    assert "floor is held on the short one" in edge.LONG_NO_FLOOR
+    # a case without a floor keeps its own reason on both records
+    assert edge.no_floor("edge-magnitudes-long") == edge.case("edge-magnitudes").no_floor != ""

@@ -307,7 +307,7 @@ def audit_pair(scenario: str, observer: str, count: int,
         row["lp_tests"] += tester.counts.get("lp", 0)
         row["seconds"] += time.perf_counter() - t0
         if (audited <= floors and res is not None and len(sets)
-                and not (scenario in edge.SCENARIOS and edge.case(scenario).no_floor)):
+                and not (scenario in edge.SCENARIOS and edge.no_floor(scenario))):
             _hold_to_floor(row, _floor(scenario, index), observer, res, sc, run.status, index)
     for kind, row in rows.items():
         row["reasons"] = " | ".join(reasons[kind])

@@ -107,7 +107,8 @@ def edge_sections(df: pd.DataFrame) -> list[str]:
     """The edge-case audit's own sections (:mod:`systems.edge`): the cases, and per observer
     and case every run that refused the system, failed or ended early, with its reasons."""
     agg = aggregate(df)
-    cases = [[c.name, c.property, f"none: {c.no_floor}" if c.no_floor else "held"]
+    cases = [[c.name, c.property,
+              f"none: {c.no_floor}" if c.no_floor else "held on the short record"]
              for c in edge_cases.CASES]
     failed = agg[agg["failed"] != ""]
     rows = [[r.observer, r.scenario, r.failed,
@@ -124,7 +125,9 @@ def edge_sections(df: pd.DataFrame) -> list[str]:
         "",
         "Each case is the 3-state plant of `systems/edge.py` (or its unicycle) with one "
         f"degenerate property; a `-long` case is the same on {edge_cases.LONG_STEPS} steps "
-        f"(the others: {edge_cases.SHORT_STEPS}).",
+        f"(the others: {edge_cases.SHORT_STEPS}); the estimates on a `-long` case are held "
+        "to the true state only, those on the short one to its floor too "
+        f"({edge_cases.LONG_NO_FLOOR.removeprefix('a long record: ')}).",
         "",
         markdown_table(["case", "what is degenerate", "floor"], cases),
         "",
