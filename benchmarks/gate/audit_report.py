@@ -127,7 +127,7 @@ def edge_sections(df: pd.DataFrame) -> list[str]:
         f"degenerate property; a `-long` case is the same on {edge_cases.LONG_STEPS} steps "
         f"(the others: {edge_cases.SHORT_STEPS}); the estimates on a `-long` case are held "
         "to the true state only, those on the short one to its floor too "
-        f"({edge_cases.LONG_NO_FLOOR.removeprefix('a long record: ')}).",
+        f"({edge_cases.LONG_FLOOR_COST}).",
         "",
         markdown_table(["case", "what is degenerate", "floor"], cases),
         "",
